@@ -1,0 +1,1 @@
+"""Benchmarks for `harness bench` (one module each) and their shared helpers."""

@@ -1,0 +1,34 @@
+"""`harness bench NAME`: run one benchmark (modules in :mod:`harness.benchmarks`).
+
+Each benchmark module defines ``NAME``, ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``
+and writes its results (JSON + markdown) under ``results/bench/``. Speed goals live here, never in
+timed tests; ratios are always measured within one run because the machines are noisy.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+
+NAME = "bench"
+HELP = "run a benchmark and write its results under results/bench/"
+
+
+def _modules():
+    import harness.benchmarks as pkg
+
+    for info in sorted(pkgutil.iter_modules(pkg.__path__), key=lambda m: m.name):
+        if not info.name.startswith("_"):
+            yield importlib.import_module(f"harness.benchmarks.{info.name}")
+
+
+def add_arguments(parser) -> None:
+    sub = parser.add_subparsers(dest="benchmark", metavar="BENCHMARK", required=True)
+    for mod in _modules():
+        p = sub.add_parser(mod.NAME, help=mod.HELP, description=mod.HELP)
+        mod.add_arguments(p)
+        p.set_defaults(_bench=mod.run)
+
+
+def run(args) -> int:
+    return int(args._bench(args) or 0)
