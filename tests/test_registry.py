@@ -1,0 +1,107 @@
+"""Pruner registry, shared ratio targeting and the simple baselines."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from harness.cli import main
+from methods import PruneContext, get_pruner, list_pruners, register_pruner, select_by_keep, select_by_ratio
+from methods.targeting import removal_count
+from tests.scene_factory import random_scene
+
+
+def test_simple_baselines_registered_and_documented():
+    names = {s.name for s in list_pruners()}
+    assert {"opacity", "volume", "random"} <= names
+    for s in list_pruners():
+        assert s.summary and s.summary != s.name
+
+
+def test_opacity_and_volume_scores_match_hand_computation():
+    scene = random_scene(50, seed=3)
+    o = 1 / (1 + np.exp(-scene.opacity_logit.astype(np.float64)))
+    np.testing.assert_allclose(get_pruner("opacity").score(scene, PruneContext()), o, rtol=1e-12)
+    vol = np.exp(scene.scales_log.astype(np.float64)).prod(1) * o
+    got = get_pruner("volume").score(scene, PruneContext())
+    assert (np.argsort(got, kind="stable") == np.argsort(vol, kind="stable")).all()
+
+
+def test_volume_score_finite_for_extreme_scales():
+    scene = random_scene(4, seed=1)
+    scene.scales_log[:] = [[-80, -80, -80], [80, 80, 80], [0, 0, 0], [-1, 2, 3]]
+    scene.opacity_logit[:] = [-200, 200, 0, 5]
+    s = get_pruner("volume").score(scene, PruneContext())
+    assert np.isfinite(s).all() and s[1] > s[2] > s[0]
+
+
+def test_random_is_seeded():
+    scene = random_scene(100)
+    a = get_pruner("random").score(scene, PruneContext(seed=1))
+    b = get_pruner("random").score(scene, PruneContext(seed=1))
+    c = get_pruner("random").score(scene, PruneContext(seed=2))
+    assert np.array_equal(a, b) and not np.array_equal(a, c)
+    d = get_pruner("random").score(scene, PruneContext(seed=2, params={"seed": 1}))
+    assert np.array_equal(a, d)
+
+
+def test_unknown_parameter_and_pruner_rejected():
+    with pytest.raises(KeyError, match="no parameter"):
+        get_pruner("opacity").score(random_scene(3), PruneContext(params={"gamma": 1}))
+    with pytest.raises(KeyError, match="unknown pruner"):
+        get_pruner("no-such-pruner")
+
+
+def test_needs_are_enforced():
+    @register_pruner("_test-needs-cams", needs=("cameras",))
+    def _fn(scene, ctx):
+        """Test pruner needing cameras."""
+        return np.zeros(len(scene))
+
+    spec = get_pruner("_test-needs-cams")
+    assert spec.missing_needs(PruneContext()) == ["cameras"]
+    with pytest.raises(RuntimeError, match="needs cameras"):
+        spec.score(random_scene(3), PruneContext())
+    assert spec.missing_needs(PruneContext(cameras=[object()])) == []
+
+
+@pytest.mark.parametrize("ratio", [0.0, 0.1, 0.3, 0.5, 0.7, 1.0])
+@pytest.mark.parametrize("n", [0, 1, 7, 10, 1001])
+def test_exact_prune_counts(ratio, n):
+    scores = np.random.default_rng(n).random(n)
+    sel = select_by_ratio(scores, ratio)
+    assert sel.removed == round(ratio * n) == n - sel.kept
+    if sel.removed and sel.kept:
+        assert scores[~sel.keep].max() <= scores[sel.keep].min()
+        assert sel.tau == scores[~sel.keep].max()
+    keep = select_by_keep(scores, 1 - ratio)
+    assert keep.removed == removal_count(n, 1 - (1 - ratio))
+
+
+def test_ties_broken_by_index():
+    sel = select_by_ratio(np.array([1.0, 0.5, 0.5, 0.5, 2.0]), 0.4)  # remove 2 of the three ties
+    assert sel.keep.tolist() == [True, False, False, True, True]
+    assert sel.tau == 0.5
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.floats(-1e6, 1e6), min_size=1, max_size=200), st.floats(0, 1))
+def test_removal_is_lowest_scores(values, ratio):
+    scores = np.array(values)
+    sel = select_by_ratio(scores, ratio)
+    assert sel.removed == round(ratio * len(scores))
+    # the removed set is exactly the first k of a stable (score, index) sort
+    order = np.lexsort((np.arange(len(scores)), scores))
+    assert set(np.flatnonzero(~sel.keep)) == set(order[: sel.removed].tolist())
+
+
+def test_methods_command_lists_json(capsys):
+    assert main(["methods", "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)
+    by_name = {r["name"]: r for r in rows}
+    assert by_name["random"]["params"] == {"seed": None}
+    assert by_name["opacity"]["needs"] == []
