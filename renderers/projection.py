@@ -1,0 +1,241 @@
+"""Project 3D Gaussians to screen-space splats with the classic 3DGS math (graphdeco / gsplat "classic").
+
+For a splat with centre μ, log-scales ŝ, quaternion q (w, x, y, z) and a camera with world-to-camera
+rotation W, translation t, focal lengths fx, fy, principal point cx, cy and size w × h:
+
+* view point p = W μ + t (OpenCV axes: x right, y down, z forward); **cull z ≤ 0.2** (strict ``z > 0.2``
+  kept, as graphdeco ``in_frustum``).
+* Σ = R S Sᵀ Rᵀ with S = diag(exp ŝ) and R from q normalised on use; a zero-norm quaternion is read as
+  the identity rotation (as :func:`harness.scene.normalized_quats`).
+* EWA: J = [[fx/z, 0, −fx·x'/z²], [0, fy/z, −fy·y'/z²]] at x' = clamp(x/z, −lim_x⁻, lim_x⁺)·z (same
+  for y) with gsplat's limits lim_x⁺ = (w − cx)/fx + 0.3·tan_x, lim_x⁻ = cx/fx + 0.3·tan_x,
+  tan_x = w / (2 fx). For a centred principal point (cx = w/2) this is graphdeco's ±1.3·tan(fov_x/2);
+  graphdeco ignores cx altogether, gsplat's form is the natural generalisation.
+* cov2d = J W Σ Wᵀ Jᵀ + 0.3·I (the low-pass dilation); det = a·c − b²; splats with det ≤ 0 or any
+  non-finite value are dropped (overflowing scales, NaN input).
+* conic = cov2d⁻¹ = (c, −b, a)/det; λ_max = mid + √max(0.1, mid² − det), mid = (a + c)/2;
+  **radius = ceil(3·√λ_max)** pixels (kept as float32 so huge splats cannot overflow an int).
+* **Pixel convention** (graphdeco ``ndc2Pix``): means2d = (fx·x/z + cx − 0.5, fy·y/z + cy − 0.5). The
+  centre of pixel (column i, row j) is the point (i, j) of this frame, i.e. the usual pixel-area
+  convention (pixel i covers [i, i+1) in ``u = fx·x/z + cx``) shifted by half a pixel. Both renderers
+  evaluate the Gaussian at d = (i, j) − means2d.
+* colour = max(SH(dir) + 0.5, 0) with dir = normalise(μ − camera centre) (:mod:`renderers.sh`);
+  opacity = sigmoid(logit) unless activated opacities are given.
+
+Image-overlap cull: a splat is kept when its ±radius box contains a pixel centre, or graphdeco's tile
+rectangle (``getRect``, 16-px tiles) is non-empty — the union, so that either footprint convention of
+:mod:`renderers.reference` (and the GL quads covering ±radius) sees every splat it could draw.
+
+Gradients flow (plain torch autograd) from ``means2d``, ``conics``, ``colors`` and ``opacities`` back to the
+tensors of a :class:`SplatTensors` that require grad; the visibility decisions are not differentiated.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from harness.cameras import Camera
+from harness.scene import GaussianScene
+from renderers.sh import sh_to_color
+
+NEAR_Z = 0.2
+DILATION = 0.3
+TAN_CLAMP = 1.3
+TILE = 16
+
+
+def default_device(device=None) -> torch.device:
+    """``device`` if given, else CUDA when available, else the CPU."""
+    if device is not None:
+        return torch.device(device)
+    return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+
+
+@dataclass
+class SplatTensors:
+    """A scene's stored parameters as torch tensors on one device (any float dtype; may require grad).
+
+    ``sh`` is (N, K+1, 3): dc first, then the higher coefficients coefficient-major.
+    """
+
+    means: torch.Tensor
+    scales_log: torch.Tensor
+    quats: torch.Tensor
+    opacity_logit: torch.Tensor
+    sh: torch.Tensor
+
+    @classmethod
+    def from_scene(cls, scene: GaussianScene, device=None, dtype=torch.float32) -> "SplatTensors":
+        dev = default_device(device)
+        t = lambda a: torch.as_tensor(np.ascontiguousarray(a), dtype=dtype, device=dev)  # noqa: E731
+        sh = np.concatenate([scene.sh_dc[:, None, :], scene.sh_rest], axis=1)
+        return cls(t(scene.means), t(scene.scales_log), t(scene.quats), t(scene.opacity_logit), t(sh))
+
+    def __len__(self) -> int:
+        return int(self.means.shape[0])
+
+    @property
+    def sh_degree(self) -> int:
+        return {1: 0, 4: 1, 9: 2, 16: 3}[int(self.sh.shape[1])]
+
+    @property
+    def device(self) -> torch.device:
+        return self.means.device
+
+    @property
+    def dtype(self) -> torch.dtype:
+        return self.means.dtype
+
+
+@dataclass
+class Projected:
+    """Visible splats only (M of the scene's N), all tensors on one device.
+
+    ids (M,) long index into the scene · means2d (M, 2) pixel coordinates (x right, y down; pixel centres
+    at integers, see the module docstring) · conics (M, 3) (a, b, c) of [[a, b], [b, c]] = cov2d⁻¹ ·
+    depths (M,) view-space z · radii (M,) float, ceil(3√λ_max) · colors (M, 3) SH colour + 0.5 clamped
+    at 0 · opacities (M,) activated. ``width``/``height`` are the image size it was projected for.
+    """
+
+    ids: torch.Tensor
+    means2d: torch.Tensor
+    conics: torch.Tensor
+    depths: torch.Tensor
+    radii: torch.Tensor
+    colors: torch.Tensor
+    opacities: torch.Tensor
+    width: int
+    height: int
+
+    def __len__(self) -> int:
+        return int(self.ids.shape[0])
+
+
+def quats_to_rotmats(quats: torch.Tensor) -> torch.Tensor:
+    """(N, 3, 3) rotation matrices from (w, x, y, z) quaternions normalised on use; zero norm → identity."""
+    norm = torch.linalg.vector_norm(quats, dim=-1, keepdim=True)
+    ident = torch.zeros_like(quats)
+    ident[:, 0] = 1.0
+    q = torch.where(norm > 0, quats / torch.where(norm > 0, norm, torch.ones_like(norm)), ident)
+    w, x, y, z = q.unbind(-1)
+    rows = [
+        torch.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        torch.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        torch.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+    ]
+    return torch.stack(rows, -2)
+
+
+def tile_rects(means2d: torch.Tensor, radii: torch.Tensor, width: int, height: int):
+    """graphdeco ``getRect``: tile ranges [x0, x1) × [y0, y1) touched by the ±radius box (16-px tiles).
+
+    x0 = clamp(⌊(x − r)/16⌋, 0, gx), x1 = clamp(⌊(x + r + 15)/16⌋, 0, gx) (C's int truncation equals the
+    floor wherever the clamp does not apply). Returns four long tensors.
+    """
+    gx, gy = (width + TILE - 1) // TILE, (height + TILE - 1) // TILE
+    x, y = means2d[:, 0].detach(), means2d[:, 1].detach()
+    r = radii.detach()
+
+    def rng(lo, hi, g):
+        a = torch.floor(lo / TILE).clamp(0, g).long()
+        b = torch.floor((hi + TILE - 1) / TILE).clamp(0, g).long()
+        return a, b
+
+    x0, x1 = rng(x - r, x + r, gx)
+    y0, y1 = rng(y - r, y + r, gy)
+    return x0, x1, y0, y1
+
+
+def _camera_tensors(camera: Camera, device, dtype):
+    w2c = torch.as_tensor(camera.world_to_cam, dtype=dtype, device=device)
+    centre = torch.as_tensor(camera.center, dtype=dtype, device=device)
+    return w2c[:3, :3], w2c[:3, 3], centre
+
+
+def project_gaussians(scene_or_tensors, camera: Camera, *, device=None, opacities=None) -> Projected:
+    """Project a :class:`GaussianScene` (uploaded as float32) or :class:`SplatTensors` (used as is, its
+    device and dtype win) for ``camera``; ``opacities`` (N,) overrides sigmoid(opacity_logit) and may
+    require grad. Returns the visible splats in scene order (not depth-sorted)."""
+    if isinstance(scene_or_tensors, SplatTensors):
+        st = scene_or_tensors
+    else:
+        st = SplatTensors.from_scene(scene_or_tensors, device=device)
+    dev, dtype = st.device, st.dtype
+    w, h = int(camera.width), int(camera.height)
+    fx, fy, cx, cy = float(camera.fx), float(camera.fy), float(camera.cx), float(camera.cy)
+    rot, trans, centre = _camera_tensors(camera, dev, dtype)
+
+    # near cull first (cheap), on detached values
+    with torch.no_grad():
+        z_all = st.means.detach() @ rot[2] + trans[2]
+        ids = torch.nonzero(z_all > NEAR_Z).squeeze(1)
+    means = st.means[ids]
+    p = means @ rot.T + trans
+    x, y, z = p.unbind(-1)
+
+    # Σ = R S Sᵀ Rᵀ, then rotate into the camera: V = W Σ Wᵀ
+    m = quats_to_rotmats(st.quats[ids]) * torch.exp(st.scales_log[ids])[:, None, :]
+    cov_world = m @ m.transpose(1, 2)
+    cov_cam = rot @ cov_world @ rot.T
+
+    tan_x, tan_y = 0.5 * w / fx, 0.5 * h / fy
+    lim_xp, lim_xn = (w - cx) / fx + 0.3 * tan_x, cx / fx + 0.3 * tan_x
+    lim_yp, lim_yn = (h - cy) / fy + 0.3 * tan_y, cy / fy + 0.3 * tan_y
+    tx = torch.clamp(x / z, -lim_xn, lim_xp) * z
+    ty = torch.clamp(y / z, -lim_yn, lim_yp) * z
+    zero = torch.zeros_like(z)
+    jac = torch.stack(
+        [
+            torch.stack([fx / z, zero, -fx * tx / (z * z)], -1),
+            torch.stack([zero, fy / z, -fy * ty / (z * z)], -1),
+        ],
+        -2,
+    )  # (M, 2, 3)
+    cov2d = jac @ cov_cam @ jac.transpose(1, 2)
+    a = cov2d[:, 0, 0] + DILATION
+    b = cov2d[:, 0, 1]
+    c = cov2d[:, 1, 1] + DILATION
+    det = a * c - b * b
+    means2d = torch.stack([fx * x / z + cx - 0.5, fy * y / z + cy - 0.5], -1)
+
+    with torch.no_grad():
+        mid = 0.5 * (a + c)
+        lam = mid + torch.sqrt(torch.clamp_min(mid * mid - det, 0.1))
+        radii = torch.ceil(3.0 * torch.sqrt(lam))
+        ok = (det > 0) & torch.isfinite(det) & torch.isfinite(radii) & torch.isfinite(means2d).all(-1)
+        ok &= torch.isfinite(a) & torch.isfinite(b) & torch.isfinite(c)
+        mx, my = means2d[:, 0], means2d[:, 1]
+        # ±r box contains a pixel centre (integers 0..w-1, 0..h-1) ...
+        box_hit = (torch.ceil(mx - radii) <= torch.floor(mx + radii)) & (torch.floor(mx + radii) >= 0)
+        box_hit &= torch.ceil(mx - radii) <= w - 1
+        box_hit &= (torch.ceil(my - radii) <= torch.floor(my + radii)) & (torch.floor(my + radii) >= 0)
+        box_hit &= torch.ceil(my - radii) <= h - 1
+        # ... or graphdeco's tile rectangle is non-empty
+        x0, x1, y0, y1 = tile_rects(means2d, radii, w, h)
+        ok &= box_hit | ((x1 > x0) & (y1 > y0))
+        keep = torch.nonzero(ok).squeeze(1)
+
+    ids = ids[keep]
+    det_k = det[keep]
+    conics = torch.stack([c[keep] / det_k, -b[keep] / det_k, a[keep] / det_k], -1)
+    dirs = means[keep] - centre
+    dirs = dirs / torch.linalg.vector_norm(dirs, dim=-1, keepdim=True)
+    colors = sh_to_color(st.sh[ids], dirs, st.sh_degree)
+    if opacities is None:
+        opac = torch.sigmoid(st.opacity_logit[ids])
+    else:
+        opac = torch.as_tensor(opacities, device=dev, dtype=dtype).reshape(-1)[ids]
+    return Projected(
+        ids=ids,
+        means2d=means2d[keep],
+        conics=conics,
+        depths=z[keep],
+        radii=radii[keep].to(dtype),
+        colors=colors,
+        opacities=opac,
+        width=w,
+        height=h,
+    )
