@@ -1,0 +1,63 @@
+"""`harness info SCENE [--json] [--lod N|all] [--drop-nonfinite]`: what a scene holds."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+NAME = "info"
+HELP = "describe a scene (by path or name): splat count, SH degree, bounding box, opacity/scale stats, memory"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("scene", help="path (.ply, .splat, SOG folder/meta.json/.sog) or a scene name")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--lod", type=lod_arg, default=None, help="SOG LOD level (default 0) or 'all'")
+    parser.add_argument("--drop-nonfinite", action="store_true",
+                        help="drop splats with NaN/inf values (reports how many) instead of failing")
+
+
+def lod_arg(text: str):
+    """argparse type for ``--lod``: a level number or 'all'."""
+    if text == "all":
+        return text
+    try:
+        return int(text)
+    except ValueError:
+        raise __import__("argparse").ArgumentTypeError(f"expected a level number or 'all', got {text!r}") from None
+
+
+def _fmt_stats(s: dict) -> str:
+    if s["min"] is None:
+        return "n/a"
+    return f"min {s['min']:.4g}  median {s['median']:.4g}  mean {s['mean']:.4g}  max {s['max']:.4g}"
+
+
+def run(args) -> int:
+    from harness.scene_io import describe_scene, read_scene
+
+    result = read_scene(args.scene, lod=args.lod, drop_nonfinite=args.drop_nonfinite)
+    if result.dropped_nonfinite:
+        print(f"harness: {result.path}: dropped {result.dropped_nonfinite} splats with NaN/inf values",
+              file=sys.stderr)
+    info = describe_scene(result.scene, result.path, fmt=result.format, lod=result.lod)
+    info["dropped_nonfinite"] = result.dropped_nonfinite
+    if args.json:
+        print(json.dumps(info))
+        return 0
+    lo, hi = info["bbox_min"], info["bbox_max"]
+    lines = [
+        f"scene       {info['path']}",
+        f"format      {info['format']}" + (f" (LOD {info['lod']})" if info["lod"] is not None else ""),
+        f"splats      {info['splats']:,}",
+        f"SH degree   {info['sh_degree']}",
+        f"bbox min    {lo[0]:.4g} {lo[1]:.4g} {lo[2]:.4g}",
+        f"bbox max    {hi[0]:.4g} {hi[1]:.4g} {hi[2]:.4g}",
+        f"diagonal    {info['bbox_diagonal']:.4g}",
+        f"opacity     {_fmt_stats(info['opacity'])}",
+        f"scale       {_fmt_stats(info['scale'])}",
+        f"extra       {', '.join(info['extra_properties']) or '-'}",
+        f"memory      {info['memory_bytes'] / 2**20:.1f} MiB in memory, {info['file_bytes'] / 2**20:.1f} MiB on disk",
+    ]
+    print("\n".join(lines))
+    return 0

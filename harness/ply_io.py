@@ -1,0 +1,321 @@
+"""INRIA 3DGS ``.ply``: reader by property name and binary little-endian writer.
+
+Reading
+    The header is parsed here (``format`` ascii / binary_little_endian / binary_big_endian,
+    ``element``, ``property``, ``comment``, ``obj_info``); the ``vertex`` element's rows are read
+    with one ``np.fromfile`` (binary) or ``np.loadtxt`` (ascii) and then picked apart *by name*, so
+    any property order works. Required: ``x y z f_dc_0..2 opacity scale_0..2 rot_0..3``; the SH
+    degree follows from the ``f_rest_*`` count (0, 9, 24, 45 -> degree 0..3). The file stores
+    ``f_rest`` channel-major, ``f_rest_{c*K + k}``, and the scene coefficient-major,
+    ``sh_rest[:, k, c]``. Every other vertex property (``nx ny nz`` ...) lands in ``scene.extra`` in
+    file order with its own dtype (byte order made native). Core properties stored as another
+    numeric type (e.g. ``double``) are cast to float32. Elements before ``vertex`` are skipped (they
+    must have fixed-size rows in a binary file); elements after it are ignored.
+
+Writing
+    Binary little-endian, the order of the original 3DGS ``save_ply``:
+    ``x y z [nx ny nz] f_dc_0..2 f_rest_0.. opacity scale_0..2 rot_0..3`` then the remaining extras
+    in their ``scene.extra`` order. Normals are written only when the scene carries them (the
+    original writer always emits zero normals; adding them here would change the property set of a
+    file that had none, and a pruned file must be the input minus rows). Every value is written
+    with its own bytes, so writing ``read_ply(p).subset(keep)`` keeps each kept value bit-exact and
+    read -> write -> read is the identity. Output goes to a temporary file that is renamed into
+    place, so a failed write never leaves a partial file.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from harness.errors import InputError
+from harness.scene import SH_REST_COUNT, GaussianScene
+
+PLY_TYPES = {
+    "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
+    "short": "i2", "int16": "i2", "ushort": "u2", "uint16": "u2",
+    "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+    "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
+}
+_WRITE_TYPES = {"i1": "char", "u1": "uchar", "i2": "short", "u2": "ushort",
+                "i4": "int", "u4": "uint", "f4": "float", "f8": "double"}
+_ENDIAN = {"binary_little_endian": "<", "binary_big_endian": ">", "ascii": "<"}
+REQUIRED = ("x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity",
+            "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3")
+NORMALS = ("nx", "ny", "nz")
+_MAX_HEADER_LINES = 100_000
+
+
+@dataclass
+class PlyElement:
+    name: str
+    count: int
+    properties: list[tuple[str, str]]  # (name, numpy type code) ; list properties use "list"
+
+
+@dataclass
+class PlyHeader:
+    format: str
+    elements: list[PlyElement]
+    comments: list[str] = field(default_factory=list)
+    data_offset: int = 0
+
+    def element(self, name: str) -> PlyElement | None:
+        return next((e for e in self.elements if e.name == name), None)
+
+
+def read_ply_header(path: str | Path) -> PlyHeader:
+    """Parse the header; ``data_offset`` is the byte where the element data starts."""
+    path = Path(path)
+    elements: list[PlyElement] = []
+    comments: list[str] = []
+    fmt = None
+    with open(path, "rb") as f:
+        if f.readline().strip() != b"ply":
+            raise InputError(path, "not a PLY file (first line is not 'ply')")
+        for lineno in range(2, _MAX_HEADER_LINES):
+            raw = f.readline()
+            if not raw:
+                raise InputError(path, "PLY header has no 'end_header' line (truncated file?)")
+            try:
+                line = raw.decode("ascii").strip()
+            except UnicodeDecodeError:
+                raise InputError(path, f"PLY header line {lineno} is not ASCII text") from None
+            words = line.split()
+            if not words:
+                continue
+            key = words[0]
+            if key == "end_header":
+                break
+            if key == "format":
+                if len(words) != 3 or words[1] not in _ENDIAN:
+                    raise InputError(path, f"unsupported PLY format line {line!r}")
+                fmt = words[1]
+            elif key in ("comment", "obj_info"):
+                comments.append(line[len(key):].strip() if key == "comment" else line)
+            elif key == "element":
+                if len(words) != 3 or not words[2].isdigit():
+                    raise InputError(path, f"bad PLY element line {line!r}")
+                elements.append(PlyElement(words[1], int(words[2]), []))
+            elif key == "property":
+                if not elements:
+                    raise InputError(path, f"PLY property before any element: {line!r}")
+                props = elements[-1].properties
+                if len(words) == 5 and words[1] == "list":
+                    props.append((words[4], "list"))
+                elif len(words) == 3 and words[1] in PLY_TYPES:
+                    if any(words[2] == n for n, _ in props):
+                        raise InputError(path, f"PLY property {words[2]!r} is declared twice")
+                    props.append((words[2], PLY_TYPES[words[1]]))
+                else:
+                    raise InputError(path, f"bad PLY property line {line!r}")
+            else:
+                raise InputError(path, f"unknown PLY header keyword {key!r}")
+        else:
+            raise InputError(path, "PLY header has no 'end_header' line")
+        offset = f.tell()
+    if fmt is None:
+        raise InputError(path, "PLY header has no 'format' line")
+    return PlyHeader(fmt, elements, comments, offset)
+
+
+def _vertex_dtype(element: PlyElement, endian: str, path: Path) -> np.dtype:
+    if any(t == "list" for _, t in element.properties):
+        raise InputError(path, "the vertex element has a list property; 3DGS files have none")
+    return np.dtype([(name, endian + t) for name, t in element.properties])
+
+
+def _read_binary(path: Path, header: PlyHeader, vertex: PlyElement) -> np.ndarray:
+    endian = _ENDIAN[header.format]
+    offset = header.data_offset
+    for el in header.elements:
+        if el is vertex:
+            break
+        if any(t == "list" for _, t in el.properties):
+            raise InputError(path, f"element {el.name!r} before 'vertex' has list properties (unsupported)")
+        offset += el.count * np.dtype([(n, endian + t) for n, t in el.properties]).itemsize
+    dtype = _vertex_dtype(vertex, endian, path)
+    n = vertex.count
+    available = path.stat().st_size - offset
+    need = n * dtype.itemsize
+    if available < need:
+        whole = max(available, 0) // dtype.itemsize
+        if max(available, 0) % dtype.itemsize:
+            raise InputError(path, f"truncated: the data ends inside vertex {whole + 1} of {n} "
+                                   f"({max(available, 0)} of {need} bytes present)")
+        raise InputError(path, f"header declares {n} vertices but the file holds data for only {whole} "
+                               "(truncated file or wrong count)")
+    return np.fromfile(path, dtype=dtype, count=n, offset=offset)
+
+
+def _read_ascii(path: Path, header: PlyHeader, vertex: PlyElement) -> np.ndarray:
+    dtype = _vertex_dtype(vertex, "<", path)
+    skip = sum(el.count for el in header.elements[: header.elements.index(vertex)])
+    with open(path, "rb") as f:
+        f.seek(header.data_offset)
+        for _ in range(skip):
+            if not f.readline():
+                raise InputError(path, "truncated: the file ends before the vertex element")
+        lines = [f.readline() for _ in range(vertex.count)]
+    rows = [ln for ln in lines if ln.strip()]
+    if len(rows) < vertex.count:
+        raise InputError(path, f"header declares {vertex.count} vertices but the file holds only "
+                               f"{len(rows)} rows (truncated file or wrong count)")
+    ncols = len(vertex.properties)
+    try:
+        values = np.loadtxt(rows, dtype=np.float64, ndmin=2) if rows else np.zeros((0, ncols))
+    except ValueError as err:
+        raise InputError(path, f"bad ascii vertex data: {err}") from None
+    if values.shape[1] != ncols:
+        raise InputError(path, f"ascii vertex rows have {values.shape[1]} values, header declares {ncols}")
+    out = np.empty(vertex.count, dtype=dtype)
+    for j, (name, _) in enumerate(vertex.properties):
+        out[name] = values[:, j]
+    return out
+
+
+def _sh_rest_count(path: Path, names: list[str]) -> int:
+    rest = [n for n in names if n.startswith("f_rest_")]
+    m = len(rest)
+    if m not in {3 * k for k in SH_REST_COUNT.values()}:
+        raise InputError(path, f"found {m} f_rest_* properties; expected 0, 9, 24 or 45 (SH degree 0-3)")
+    missing = sorted(set(f"f_rest_{i}" for i in range(m)) - set(rest))
+    if missing:
+        raise InputError(path, f"f_rest_* properties are not numbered 0..{m - 1} (missing {missing[0]})")
+    return m // 3
+
+
+def _columns(table: np.ndarray, names: list[str]) -> np.ndarray:
+    """float32 (N, len(names)) matrix of the named fields."""
+    dtypes = {table.dtype[n] for n in table.dtype.names}
+    order = list(table.dtype.names)
+    if len(dtypes) == 1 and next(iter(dtypes)).str[1:] == "f4" and table.dtype.itemsize == 4 * len(order):
+        # rows made only of float32: view them as a matrix and gather the columns in one pass
+        mat = table.view(next(iter(dtypes))).reshape(len(table), len(order))
+        return np.ascontiguousarray(mat[:, [order.index(n) for n in names]], dtype=np.float32)
+    out = np.empty((len(table), len(names)), np.float32)
+    for j, n in enumerate(names):
+        out[:, j] = table[n]
+    return out
+
+
+def table_to_scene(table: np.ndarray, path: str | Path) -> GaussianScene:
+    """Build a scene from a structured array of vertex rows, by property name."""
+    path = Path(path)
+    names = list(table.dtype.names)
+    missing = [n for n in REQUIRED if n not in names]
+    if missing:
+        raise InputError(path, f"missing required propert{'y' if len(missing) == 1 else 'ies'} "
+                               f"{', '.join(missing)} (not a 3DGS splat PLY?)")
+    k = _sh_rest_count(path, names)
+    n = len(table)
+    core = _columns(table, list(REQUIRED))
+    rest = _columns(table, [f"f_rest_{i}" for i in range(3 * k)]) if k else np.zeros((n, 0), np.float32)
+    known = set(REQUIRED) | {f"f_rest_{i}" for i in range(3 * k)}
+    extra = {name: np.ascontiguousarray(table[name]).astype(table.dtype[name].newbyteorder("="), copy=False)
+             for name in names if name not in known}
+    return GaussianScene(
+        means=np.ascontiguousarray(core[:, 0:3]),
+        sh_dc=np.ascontiguousarray(core[:, 3:6]),
+        opacity_logit=np.ascontiguousarray(core[:, 6]),
+        scales_log=np.ascontiguousarray(core[:, 7:10]),
+        quats=np.ascontiguousarray(core[:, 10:14]),
+        # channel-major f_rest_{c*K + k} -> coefficient-major [k, c]
+        sh_rest=np.ascontiguousarray(rest.reshape(n, 3, k).transpose(0, 2, 1)),
+        extra=extra,
+    )
+
+
+def read_ply_table(path: str | Path) -> tuple[np.ndarray, PlyHeader]:
+    """The raw ``vertex`` rows as a structured array (file dtypes), and the header."""
+    path = Path(path)
+    header = read_ply_header(path)
+    vertex = header.element("vertex")
+    if vertex is None:
+        raise InputError(path, "PLY file has no 'vertex' element")
+    reader = _read_ascii if header.format == "ascii" else _read_binary
+    return reader(path, header, vertex), header
+
+
+def read_ply(path: str | Path) -> GaussianScene:
+    """Read an INRIA 3DGS ``.ply`` (any property order, ascii or binary) into a scene."""
+    table, _ = read_ply_table(path)
+    return table_to_scene(table, path)
+
+
+# ---------------------------------------------------------------------- writing
+def ply_layout(scene: GaussianScene) -> list[tuple[str, np.dtype]]:
+    """Output properties (name, little-endian dtype) in the INRIA order, extras placed as documented."""
+    f4 = np.dtype("<f4")
+    k = scene.sh_rest.shape[1]
+    normals = [n for n in NORMALS if n in scene.extra]
+    others = [n for n in scene.extra if n not in normals]
+    layout = [(n, f4) for n in ("x", "y", "z")]
+    layout += [(n, scene.extra[n].dtype.newbyteorder("<")) for n in normals]
+    layout += [(f"f_dc_{i}", f4) for i in range(3)]
+    layout += [(f"f_rest_{i}", f4) for i in range(3 * k)]
+    layout += [("opacity", f4)] + [(f"scale_{i}", f4) for i in range(3)] + [(f"rot_{i}", f4) for i in range(4)]
+    layout += [(n, scene.extra[n].dtype.newbyteorder("<")) for n in others]
+    for name, arr in scene.extra.items():
+        if arr.ndim != 1 or arr.dtype.str[1:] not in _WRITE_TYPES:
+            raise ValueError(f"extra property {name!r} ({arr.dtype}, shape {arr.shape}) "
+                             "cannot be stored as a PLY vertex property")
+    return layout
+
+
+def ply_header_bytes(layout: list[tuple[str, np.dtype]], count: int, comments=()) -> bytes:
+    lines = ["ply", "format binary_little_endian 1.0"]
+    lines += [f"comment {c}" for c in comments]
+    lines.append(f"element vertex {count}")
+    lines += [f"property {_WRITE_TYPES[dt.str[1:]]} {name}" for name, dt in layout]
+    lines.append("end_header")
+    return ("\n".join(lines) + "\n").encode("ascii")
+
+
+def scene_to_table(scene: GaussianScene) -> np.ndarray:
+    """The scene as a structured array in the output layout (the inverse of :func:`table_to_scene`)."""
+    layout = ply_layout(scene)
+    table = np.empty(len(scene), dtype=np.dtype(layout))
+    n, k = len(scene), scene.sh_rest.shape[1]
+    rest = scene.sh_rest.transpose(0, 2, 1).reshape(n, 3 * k)  # [k, c] -> f_rest_{c*K + k}
+    sources = {"opacity": scene.opacity_logit}
+    for i, axis in enumerate("xyz"):
+        sources[axis] = scene.means[:, i]
+    for i in range(3):
+        sources[f"f_dc_{i}"] = scene.sh_dc[:, i]
+        sources[f"scale_{i}"] = scene.scales_log[:, i]
+    for i in range(4):
+        sources[f"rot_{i}"] = scene.quats[:, i]
+    for i in range(3 * k):
+        sources[f"f_rest_{i}"] = rest[:, i]
+    sources.update(scene.extra)
+    for name, _ in layout:
+        table[name] = sources[name]
+    return table
+
+
+def atomic_write(path: str | Path, chunks) -> None:
+    """Write byte chunks / numpy arrays to ``path`` via a temporary file renamed into place."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        with open(tmp, "wb") as f:
+            for chunk in chunks:
+                if isinstance(chunk, np.ndarray):
+                    chunk.tofile(f)
+                else:
+                    f.write(chunk)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def write_ply(scene: GaussianScene, path: str | Path, *, comments=()) -> None:
+    """Write ``scene`` as a binary little-endian INRIA ``.ply`` (atomically)."""
+    table = scene_to_table(scene)
+    header = ply_header_bytes(ply_layout(scene), len(scene), comments)
+    atomic_write(path, [header, table])

@@ -1,0 +1,176 @@
+"""One entry point for scenes: load by path or name, validate, write, describe.
+
+Formats by extension / shape: ``.ply`` (INRIA), ``.splat`` (antimatter15), SOG (a folder with
+``lod-meta.json`` or ``meta.json``, either JSON file, or a ``.sog`` bundle). Named scenes
+(``bonsai-7k``, ``playbot``, ...) resolve through :mod:`harness.datasets`.
+
+Validation after reading (every format):
+
+* NaN/inf in any core array (means, scales, quats, opacity, SH): an :class:`InputError` naming the
+  count and the first row, unless ``drop_nonfinite=True``, which removes those rows and reports
+  the count in :class:`LoadResult` (and as a logging warning from :func:`load_scene`). Extra
+  properties (normals ...) are carried, not checked: they do not affect rendering.
+* zero-norm quaternions: always an error (the rotation is undefined; nothing is dropped silently).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from harness.errors import InputError
+from harness.scene import GaussianScene, bounding_box, opacities, scales
+
+log = logging.getLogger(__name__)
+
+_CORE = ("means", "scales_log", "quats", "opacity_logit", "sh_dc", "sh_rest")
+WRITABLE = (".ply", ".splat")
+
+
+@dataclass
+class LoadResult:
+    scene: GaussianScene
+    path: Path
+    format: str           # "ply" | "splat" | "sog"
+    lod: int | str | None  # the SOG level read (None for single-level formats)
+    dropped_nonfinite: int = 0
+
+
+def detect_format(path: Path) -> str:
+    """'ply' | 'splat' | 'sog' from the extension or folder contents; InputError otherwise."""
+    if path.is_dir():
+        if (path / "lod-meta.json").is_file() or (path / "meta.json").is_file():
+            return "sog"
+        raise InputError(path, "is a folder without lod-meta.json or meta.json (not a SOG scene)")
+    name = path.name.lower()
+    if name.endswith(".ply"):
+        return "ply"
+    if name.endswith(".splat"):
+        return "splat"
+    if name.endswith(".sog") or name.endswith("meta.json"):
+        return "sog"
+    raise InputError(path, f"unknown scene format {path.suffix or '(no extension)'!r}; "
+                           "expected .ply, .splat, or a SOG folder / meta.json / lod-meta.json / .sog")
+
+
+def _first_row(mask: np.ndarray) -> int:
+    return int(np.flatnonzero(mask)[0])
+
+
+def check_scene(scene: GaussianScene, source, *, drop_nonfinite: bool = False) -> tuple[GaussianScene, int]:
+    """Validate a freshly read scene; returns (scene, rows dropped for NaN/inf)."""
+    n = len(scene)
+    bad = np.zeros(n, bool)
+    for attr in _CORE:
+        arr = getattr(scene, attr)
+        bad |= ~np.isfinite(arr.reshape(n, -1)).all(axis=1)
+    dropped = int(bad.sum())
+    if dropped:
+        if not drop_nonfinite:
+            row = _first_row(bad)
+            which = next(a for a in _CORE if not np.isfinite(getattr(scene, a)[row]).all())
+            raise InputError(source, f"{dropped} of {n} splats have NaN/inf values (first: row {row}, {which}); "
+                                     "use --drop-nonfinite to drop them")
+        scene = scene.subset(~bad)
+    zero = ~(scene.quats != 0).any(axis=1)
+    if zero.any():
+        raise InputError(source, f"{int(zero.sum())} splats have a zero-norm rotation quaternion "
+                                 f"(first: row {_first_row(zero)})")
+    return scene, dropped
+
+
+def read_scene(path_or_name, *, lod: int | str | None = None, drop_nonfinite: bool = False) -> LoadResult:
+    """Read and validate a scene given by path or name (see module docstring)."""
+    from harness.datasets import resolve_scene
+
+    path = resolve_scene(path_or_name)
+    fmt = detect_format(path)
+    if fmt != "sog" and lod not in (None, 0):
+        raise InputError(path, f"has no LOD levels (asked for level {lod})")
+    try:
+        if fmt == "ply":
+            from harness.ply_io import read_ply
+
+            scene = read_ply(path)
+        elif fmt == "splat":
+            from harness.splat_io import read_splat
+
+            scene = read_splat(path)
+        else:
+            from harness.sog_io import read_sog
+
+            scene = read_sog(path, lod)
+            lod = 0 if lod is None and (path / "lod-meta.json").exists() else lod
+    except IsADirectoryError:
+        raise InputError(path, "is a folder, expected a file") from None
+    except PermissionError:
+        raise InputError(path, "permission denied") from None
+    except OSError as err:
+        raise InputError(path, f"cannot read: {err.strerror or err}") from None
+    scene, dropped = check_scene(scene, path, drop_nonfinite=drop_nonfinite)
+    return LoadResult(scene, path, fmt, lod if fmt == "sog" else None, dropped)
+
+
+def load_scene(path_or_name, *, lod: int | str | None = None, drop_nonfinite: bool = False) -> GaussianScene:
+    """The validated scene; dropped NaN/inf rows (only with ``drop_nonfinite``) are logged."""
+    result = read_scene(path_or_name, lod=lod, drop_nonfinite=drop_nonfinite)
+    if result.dropped_nonfinite:
+        log.warning("%s: dropped %d splats with NaN/inf values", result.path, result.dropped_nonfinite)
+    return result.scene
+
+
+def write_scene(scene: GaussianScene, path, *, comments=()) -> Path:
+    """Write ``.ply`` (lossless) or ``.splat`` (lossy export) atomically; returns the path."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in WRITABLE:
+        raise InputError(path, f"cannot write {suffix or 'files without an extension'}; use .ply or .splat")
+    if not path.parent.is_dir():
+        raise InputError(path, "output folder does not exist")
+    try:
+        if suffix == ".ply":
+            from harness.ply_io import write_ply
+
+            write_ply(scene, path, comments=comments)
+        else:
+            from harness.splat_io import write_splat
+
+            write_splat(scene, path)
+    except PermissionError:
+        raise InputError(path, "permission denied") from None
+    return path
+
+
+def _stats(x: np.ndarray) -> dict:
+    x = np.asarray(x, np.float64).ravel()
+    if x.size == 0:
+        return {"min": None, "max": None, "mean": None, "median": None}
+    return {"min": float(x.min()), "max": float(x.max()), "mean": float(x.mean()), "median": float(np.median(x))}
+
+
+def describe_scene(scene: GaussianScene, path=None, *, fmt: str | None = None, lod=None) -> dict:
+    """The facts ``harness info`` prints: counts, SH degree, bounding box, opacity/scale stats, memory."""
+    lo, hi, diag = bounding_box(scene)
+    info = {
+        "path": None if path is None else str(path),
+        "format": fmt,
+        "lod": lod,
+        "splats": len(scene),
+        "sh_degree": scene.sh_degree,
+        "bbox_min": [float(v) for v in lo],
+        "bbox_max": [float(v) for v in hi],
+        "bbox_diagonal": diag,
+        "opacity": _stats(opacities(scene)),
+        "scale": _stats(scales(scene)),
+        "scale_max_axis": _stats(scales(scene).max(axis=1) if len(scene) else np.zeros(0)),
+        "extra_properties": list(scene.extra),
+        "memory_bytes": scene.nbytes,
+    }
+    if path is not None:
+        p = Path(path)
+        files = [f for f in p.rglob("*") if f.is_file()] if p.is_dir() else [p]
+        info["file_bytes"] = int(sum(f.stat().st_size for f in files))
+    return info

@@ -1,0 +1,281 @@
+"""PlayCanvas SOG v2 reader (``meta.json`` + lossless WebP textures), single files or LOD sets.
+
+Decoding follows PlayCanvas splat-transform's SOG v2 reader/writer (read from their sources);
+texture pixel ``i`` (row-major) holds splat ``i``:
+
+* means: ``q = means_l + 256·means_u`` per RGB channel (16 bit);
+  ``v = min + (max − min)·q/65535`` (``max − min`` taken as 1 when zero) and the writer's
+  ``v = sign(x)·ln(1 + |x|)`` is inverted: ``x = sign(v)·(e^|v| − 1)``.
+* quats (smallest three): alpha ``252 + m`` names the largest component ``m`` of (w, x, y, z);
+  RGB hold the other three in order as ``byte/255·2 − 1``, scaled by √2 (so divide by √2); the
+  largest is ``sqrt(max(0, 1 − Σ others²))``, positive. An alpha outside 252..255 decodes to the
+  identity, as the reference reader does.
+* scales: each RGB byte indexes the 256-entry ``scales.codebook`` of log-scales.
+* sh0: RGB bytes index ``sh0.codebook`` (f_dc); alpha is sigmoid(opacity)·255, decoded as
+  ``logit(clip(a/255, 1e-6, 1 − 1e-6))`` (the reference reader's clamp).
+* shN: ``label = R + 256·G`` of ``shN_labels``; the centroid texture is ``64·K`` pixels wide with
+  palette entry ``p`` at row ``p // 64``, columns ``(p % 64)·K + k`` for coefficient k, RGB = the
+  three colour channels, each byte indexing ``shN.codebook``; K = 3, 8, 15 for ``bands`` 1..3.
+  Labels ≥ ``shN.count`` give zero coefficients (reference behaviour).
+
+``lod-meta.json`` (streamed LOD): level L is the union over the ``tree`` of ``lods[L]`` references
+``{file, offset, count}``: rows ``offset .. offset+count`` of the SOG file ``filenames[file]``,
+taken in file order then offset order. ``lod=None`` means level 0 (the full-detail scene);
+``lod="all"`` concatenates every level 0..L−1, as splat-transform does without a LOD selection.
+The optional ``environment`` SOG is not read.
+
+Inputs accepted: a folder holding ``lod-meta.json`` or ``meta.json``, either JSON file, or a
+``.sog`` zip bundle. Images are decoded with Pillow; lossy WebP is rejected because the codes
+must be exact.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import posixpath
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from harness.errors import InputError
+from harness.scene import SH_REST_COUNT, GaussianScene
+
+_SQRT2 = np.sqrt(2.0)
+_OPACITY_EPS = 1e-6
+
+
+class _Files:
+    """Reads sibling files of a SOG set from a folder or a ``.sog`` zip."""
+
+    def __init__(self, root: Path, zip_path: Path | None = None):
+        self.root, self.zip_path = root, zip_path
+        self._zip = zipfile.ZipFile(zip_path) if zip_path else None
+
+    def label(self, name: str) -> str:
+        return f"{self.zip_path}:{name}" if self._zip else str(self.root / name)
+
+    def read(self, name: str) -> bytes:
+        try:
+            if self._zip:
+                return self._zip.read(name)
+            return (self.root / name).read_bytes()
+        except KeyError:
+            raise InputError(self.label(name), "missing from the .sog bundle") from None
+        except FileNotFoundError:
+            raise InputError(self.label(name), "missing (referenced by the SOG metadata)") from None
+        except OSError as err:
+            raise InputError(self.label(name), f"cannot read: {err.strerror or err}") from None
+
+    def json(self, name: str) -> dict:
+        try:
+            meta = json.loads(self.read(name))
+        except (UnicodeDecodeError, json.JSONDecodeError) as err:
+            raise InputError(self.label(name), f"not valid JSON ({err})") from None
+        if not isinstance(meta, dict):
+            raise InputError(self.label(name), "expected a JSON object")
+        return meta
+
+    def image(self, name: str, count: int | None) -> np.ndarray:
+        """(H, W, 4) uint8 pixels; checks there are at least ``count`` of them."""
+        from PIL import Image, UnidentifiedImageError
+
+        data = self.read(name)
+        if _is_lossy_webp(data):
+            raise InputError(self.label(name), "lossy WebP image; SOG codes need lossless images")
+        try:
+            with Image.open(io.BytesIO(data)) as img:
+                pixels = np.asarray(img.convert("RGBA"))
+        except (UnidentifiedImageError, OSError, ValueError) as err:
+            raise InputError(self.label(name), f"cannot decode image ({err})") from None
+        if count is not None and pixels.shape[0] * pixels.shape[1] < count:
+            raise InputError(self.label(name), f"image has {pixels.shape[1]}x{pixels.shape[0]} pixels, "
+                                               f"fewer than the {count} splats declared")
+        return pixels
+
+
+def _is_lossy_webp(data: bytes) -> bool:
+    """True for a RIFF/WEBP whose image chunk is ``VP8 `` (lossy) rather than ``VP8L``."""
+    if data[:4] != b"RIFF" or data[8:12] != b"WEBP":
+        return False
+    pos = 12
+    while pos + 8 <= len(data):
+        fourcc, size = data[pos:pos + 4], int.from_bytes(data[pos + 4:pos + 8], "little")
+        if fourcc in (b"VP8 ", b"VP8L"):
+            return fourcc == b"VP8 "
+        pos += 8 + size + (size & 1)
+    return False
+
+
+def _get(meta: dict, files: _Files, name: str, *keys):
+    """``meta[k0][k1]...``; string keys index objects, integer keys index lists."""
+    node = meta
+    for key in keys:
+        present = (isinstance(node, dict) and key in node) if isinstance(key, str) \
+            else (isinstance(node, list) and 0 <= key < len(node))
+        if not present:
+            raise InputError(files.label(name), f"SOG metadata lacks '{'.'.join(map(str, keys))}'")
+        node = node[key]
+    return node
+
+
+def _codebook(meta, files, name, key) -> np.ndarray:
+    book = np.asarray(_get(meta, files, name, key, "codebook"), dtype=np.float64)
+    if book.shape != (256,):
+        raise InputError(files.label(name), f"'{key}.codebook' has {book.size} entries, expected 256")
+    return book.astype(np.float32)
+
+
+def _decode_quats(px: np.ndarray) -> np.ndarray:
+    """(N, 4) uint8 smallest-three codes -> (N, 4) float64 unit quaternions (w, x, y, z)."""
+    n = len(px)
+    small = (px[:, :3].astype(np.float64) / 255.0 * 2.0 - 1.0) / _SQRT2
+    tag = px[:, 3].astype(np.int64) - 252
+    valid = (tag >= 0) & (tag <= 3)
+    largest = np.where(valid, tag, 0)
+    # column of (w, x, y, z) receiving each of the three stored values, per largest-component tag
+    slots = np.array([[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]])[largest]
+    q = np.zeros((n, 4))
+    rows = np.arange(n)[:, None]
+    q[rows, slots] = small
+    q[np.arange(n), largest] = np.sqrt(np.maximum(0.0, 1.0 - (small * small).sum(1)))
+    q[~valid] = (1.0, 0.0, 0.0, 0.0)
+    return q
+
+
+def _read_meta_file(files: _Files, name: str) -> GaussianScene:
+    meta = files.json(name)
+    if meta.get("version") != 2:
+        raise InputError(files.label(name), f"unsupported SOG version {meta.get('version')!r} (only version 2)")
+    count = _get(meta, files, name, "count")
+    if not isinstance(count, int) or count < 0:
+        raise InputError(files.label(name), f"bad SOG count {count!r}")
+    folder = posixpath.dirname(name)  # image names are relative to their meta.json
+
+    def img(*keys) -> np.ndarray:
+        return files.image(posixpath.join(folder, _get(meta, files, name, *keys)), count).reshape(-1, 4)[:count]
+
+    # means: 16-bit lerp of the log-transformed positions
+    lo, hi = img("means", "files", 0), img("means", "files", 1)
+    q16 = lo[:, :3].astype(np.float64) + 256.0 * hi[:, :3]
+    mins = np.asarray(_get(meta, files, name, "means", "mins"), np.float64)
+    maxs = np.asarray(_get(meta, files, name, "means", "maxs"), np.float64)
+    span = np.where(maxs - mins == 0, 1.0, maxs - mins)
+    v = mins + span * (q16 / 65535.0)
+    means = np.sign(v) * np.expm1(np.abs(v))
+
+    quats = _decode_quats(img("quats", "files", 0))
+    scales_log = _codebook(meta, files, name, "scales")[img("scales", "files", 0)[:, :3]]
+    sh0 = img("sh0", "files", 0)
+    sh_dc = _codebook(meta, files, name, "sh0")[sh0[:, :3]]
+    alpha = np.clip(sh0[:, 3].astype(np.float64) / 255.0, _OPACITY_EPS, 1.0 - _OPACITY_EPS)
+    opacity_logit = np.log(alpha / (1.0 - alpha))
+    sh_rest = np.zeros((count, 0, 3), np.float32)
+    if meta.get("shN"):
+        sh_rest = _decode_sh_rest(meta, files, name, count, folder)
+    return GaussianScene.from_arrays(means, scales_log, quats, opacity_logit, sh_dc, sh_rest)
+
+
+def _decode_sh_rest(meta: dict, files: _Files, name: str, count: int, folder: str) -> np.ndarray:
+    bands = _get(meta, files, name, "shN", "bands")
+    if bands not in (1, 2, 3):
+        raise InputError(files.label(name), f"'shN.bands' is {bands!r}, expected 1, 2 or 3")
+    k = SH_REST_COUNT[bands]
+    palette = int(_get(meta, files, name, "shN", "count"))
+    book = _codebook(meta, files, name, "shN")
+    cent_name, label_name = (posixpath.join(folder, _get(meta, files, name, "shN", "files", i)) for i in (0, 1))
+    cent = files.image(cent_name, None)
+    if cent.shape[1] != 64 * k or cent.shape[0] * 64 < palette:
+        raise InputError(files.label(cent_name), f"SH centroid image is {cent.shape[1]}x{cent.shape[0]}; "
+                                                 f"expected width {64 * k} and room for {palette} entries")
+    # (rows, 64 entries, K coefficients, RGBA) -> palette entry p = row*64 + column
+    entries = cent.reshape(cent.shape[0], 64, k, 4).reshape(-1, k, 4)[:palette, :, :3]
+    lab = files.image(label_name, count).reshape(-1, 4)[:count]
+    labels = lab[:, 0].astype(np.int64) | (lab[:, 1].astype(np.int64) << 8)
+    out = np.zeros((count, k, 3), np.float32)
+    ok = labels < palette
+    out[ok] = book[entries[labels[ok]]]
+    return out
+
+
+def concat_scenes(scenes: list[GaussianScene]) -> GaussianScene:
+    """Rows of all scenes in order (same SH degree, no extras)."""
+    cat = lambda attr: np.concatenate([getattr(s, attr) for s in scenes])  # noqa: E731
+    return GaussianScene(cat("means"), cat("scales_log"), cat("quats"), cat("opacity_logit"),
+                         cat("sh_dc"), cat("sh_rest"))
+
+
+def lod_levels(path: str | Path) -> int:
+    """Number of LOD levels of a SOG input (1 for a plain ``meta.json``)."""
+    files, meta_name, is_lod = _open(Path(path))
+    return int(files.json(meta_name).get("lodLevels", 1)) if is_lod else 1
+
+
+def _lod_refs(meta: dict, files: _Files, name: str, level: int) -> dict[int, list[tuple[int, int]]]:
+    refs: dict[int, list[tuple[int, int]]] = {}
+    stack = [_get(meta, files, name, "tree")]
+    while stack:
+        node = stack.pop()
+        if not isinstance(node, dict):
+            raise InputError(files.label(name), "bad 'tree' node in lod-meta.json")
+        ref = (node.get("lods") or {}).get(str(level))
+        if ref is not None:
+            try:
+                refs.setdefault(int(ref["file"]), []).append((int(ref["offset"]), int(ref["count"])))
+            except (KeyError, TypeError, ValueError):
+                raise InputError(files.label(name), f"bad LOD reference {ref!r}") from None
+        stack.extend(node.get("children") or [])
+    return refs
+
+
+def _read_lod_level(files: _Files, name: str, meta: dict, level: int) -> GaussianScene:
+    filenames = _get(meta, files, name, "filenames")
+    parts = []
+    for file_index, ranges in sorted(_lod_refs(meta, files, name, level).items()):
+        if not 0 <= file_index < len(filenames):
+            raise InputError(files.label(name), f"LOD reference to file {file_index}, only {len(filenames)} listed")
+        scene = _read_meta_file(files, filenames[file_index])
+        for offset, count in sorted(ranges):
+            if offset < 0 or offset + count > len(scene):
+                raise InputError(files.label(filenames[file_index]),
+                                 f"LOD rows {offset}..{offset + count} exceed its {len(scene)} splats")
+            parts.append(scene.subset(np.arange(offset, offset + count)))
+    if not parts:
+        raise InputError(files.label(name), f"LOD level {level} references no splats")
+    return concat_scenes(parts)
+
+
+def _open(path: Path) -> tuple[_Files, str, bool]:
+    """(file access, metadata file name, whether it is a lod-meta.json)."""
+    if path.is_dir():
+        for meta_name, is_lod in (("lod-meta.json", True), ("meta.json", False)):
+            if (path / meta_name).is_file():
+                return _Files(path), meta_name, is_lod
+        raise InputError(path, "folder holds neither lod-meta.json nor meta.json (not a SOG scene)")
+    if path.suffix.lower() == ".sog":
+        try:
+            return _Files(path.parent, path), "meta.json", False
+        except zipfile.BadZipFile:
+            raise InputError(path, "not a valid .sog zip bundle") from None
+    return _Files(path.parent), path.name, path.name.endswith("lod-meta.json")
+
+
+def read_sog(path: str | Path, lod: int | str | None = None) -> GaussianScene:
+    """Read a SOG scene; ``lod`` selects a level of a LOD set (None: 0, ``"all"``: every level)."""
+    path = Path(path)
+    files, meta_name, is_lod = _open(path)
+    if not is_lod:
+        if lod not in (None, 0):
+            raise InputError(path, f"has no LOD levels (asked for level {lod})")
+        return _read_meta_file(files, meta_name)
+    meta = files.json(meta_name)
+    levels = _get(meta, files, meta_name, "lodLevels")
+    if not isinstance(levels, int) or levels < 1:
+        raise InputError(files.label(meta_name), f"bad lodLevels {levels!r}")
+    if lod == "all":
+        return concat_scenes([_read_lod_level(files, meta_name, meta, level) for level in range(levels)])
+    level = 0 if lod is None else lod
+    if not isinstance(level, int) or not 0 <= level < levels:
+        raise InputError(path, f"LOD level {lod!r} does not exist (levels 0..{levels - 1} or 'all')")
+    return _read_lod_level(files, meta_name, meta, level)
