@@ -47,7 +47,7 @@ def read_splat(path: str | Path) -> GaussianScene:
         raise InputError(path, f"truncated: {size} bytes is not a whole number of 32-byte .splat records "
                                f"({size // 32} complete, {size % 32} bytes left over)")
     rec = np.fromfile(path, dtype=SPLAT_RECORD)
-    rgba = rec["rgba"].astype(np.float32) / np.float32(255.0)
+    rgba = rec["rgba"] / 255.0  # float64 so 0.5 − RGB/255 does not cancel in float32
     alpha = np.clip(rgba[:, 3], _ALPHA_EPS, 1.0 - _ALPHA_EPS)
     with np.errstate(divide="ignore", invalid="ignore"):
         scales_log = np.log(rec["scale"])
@@ -55,8 +55,8 @@ def read_splat(path: str | Path) -> GaussianScene:
         means=rec["pos"],
         scales_log=scales_log,
         quats=(rec["rot"].astype(np.float32) - np.float32(128.0)) / np.float32(128.0),
-        opacity_logit=np.log(alpha / (np.float32(1.0) - alpha)),
-        sh_dc=(rgba[:, :3] - np.float32(0.5)) / np.float32(SH_C0),
+        opacity_logit=np.log(alpha / (1.0 - alpha)),
+        sh_dc=(rgba[:, :3] - 0.5) / SH_C0,
     )
 
 
