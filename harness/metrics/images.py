@@ -1,0 +1,95 @@
+"""Reading and validating the images that metrics compare.
+
+An *image* here is a float32 array ``(H, W, 3)`` of linear colour nominally in [0, 1]; metrics clamp
+to [0, 1] themselves, so readers do not. Bad images raise :class:`~harness.errors.InputError`.
+
+File readings (the decisions):
+* PNG (8-bit grey, grey+alpha, RGB, RGBA, palette; 16-bit grey): integer values divided by 255 or
+  65535. 16-bit *colour* PNGs are refused (Pillow would silently reduce them to 8 bits). Grey is replicated to three channels; **alpha is dropped** (colour compared as stored, not
+  composited) because the renderers write opaque RGB over a known background.
+* ``.npy`` (loaded without pickle): float arrays kept as they are (cast to float32), ``uint8`` /
+  ``uint16`` scaled like PNG, shapes ``(H, W)``, ``(H, W, 1)``, ``(H, W, 3)`` or ``(H, W, 4)`` handled
+  as for PNG. NaN or infinite pixels are an error (a metric of them would be meaningless).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from harness.errors import InputError
+
+_INT_SCALE = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0}
+
+
+def as_image(array, source: str | Path = "image") -> np.ndarray:
+    """Validate and normalise ``array`` to float32 ``(H, W, 3)`` (see module docstring)."""
+    a = np.asarray(array)
+    if a.dtype in _INT_SCALE:
+        a = a.astype(np.float32) / np.float32(_INT_SCALE[a.dtype])
+    elif a.dtype.kind == "f":
+        a = a.astype(np.float32, copy=False)
+    else:
+        raise InputError(source, f"pixel type {a.dtype} is not supported (use float, uint8 or uint16)")
+    if a.ndim == 2:
+        a = a[:, :, None]
+    if a.ndim != 3 or a.shape[2] not in (1, 2, 3, 4):
+        raise InputError(source, f"shape {a.shape} is not an image (H, W), (H, W, 1|3|4)")
+    if a.shape[0] == 0 or a.shape[1] == 0:
+        raise InputError(source, f"image is empty ({a.shape[0]}x{a.shape[1]})")
+    if a.shape[2] in (1, 2):
+        a = np.repeat(a[:, :, :1], 3, axis=2)
+    a = np.ascontiguousarray(a[:, :, :3])
+    bad = ~np.isfinite(a)
+    if bad.any():
+        y, x, _ = np.argwhere(bad)[0]
+        raise InputError(source, f"{int(bad.sum())} NaN or infinite pixel values (first at row {y}, column {x})")
+    return a
+
+
+def read_image(path: str | Path) -> np.ndarray:
+    """Read a PNG or ``.npy`` image file as float32 ``(H, W, 3)``."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, "no such file")
+    if path.suffix.lower() == ".npy":
+        try:
+            array = np.load(path, allow_pickle=False)
+        except (ValueError, OSError, EOFError) as err:
+            raise InputError(path, f"not a readable .npy array: {err}") from None
+        return as_image(array, path)
+    return as_image(_read_png(path), path)
+
+
+def _read_png(path: Path) -> np.ndarray:
+    from PIL import Image, UnidentifiedImageError
+
+    with open(path, "rb") as f:
+        head = f.read(26)
+    # IHDR: signature (8) + length (4) + "IHDR" (4) + width, height (8) + bit depth + colour type
+    if len(head) == 26 and head[12:16] == b"IHDR" and head[24] == 16 and head[25] in (2, 6):
+        raise InputError(path, "16-bit colour PNG is not supported (Pillow reads it as 8-bit); save it as .npy")
+    try:
+        with Image.open(path) as im:
+            if im.format != "PNG":
+                raise InputError(path, f"is a {im.format} image; only PNG and .npy are read")
+            im.load()
+            if im.mode == "P":
+                im = im.convert("RGBA")
+            if im.mode in ("I;16", "I;16B", "I;16L", "I"):
+                return np.asarray(im, dtype=np.int64).clip(0, 65535).astype(np.uint16)
+            if im.mode not in ("L", "LA", "RGB", "RGBA"):
+                im = im.convert("RGB")
+            return np.asarray(im, dtype=np.uint8)
+    except (UnidentifiedImageError, OSError, SyntaxError, ValueError, Image.DecompressionBombError) as err:
+        raise InputError(path, f"not a readable PNG image: {err}") from None
+
+
+def check_same_size(a: np.ndarray, b: np.ndarray, source_a="first image", source_b="second image") -> None:
+    """Raise :class:`InputError` unless the two images have the same height and width."""
+    if a.shape[:2] != b.shape[:2]:
+        raise InputError(
+            f"{source_a} vs {source_b}",
+            f"image sizes differ: {a.shape[1]}x{a.shape[0]} vs {b.shape[1]}x{b.shape[0]} (width x height)",
+        )

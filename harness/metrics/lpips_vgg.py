@@ -1,0 +1,178 @@
+"""LPIPS v0.1 with the VGG16 trunk, with reference features computed once and reused.
+
+LPIPS(x0, x1) = sum_l mean_{h,w} sum_c w_lc (f0_lchw - f1_lchw)^2, where f_l are the relu1_2, relu2_2,
+relu3_3, relu4_3, relu5_3 activations of VGG16 on ``(2x - 1 - shift) / scale``, each unit-normalised
+over channels (``f / (||f||_2 + 1e-10)``), and w_l the package's v0.1 linear weights. This is exactly
+``lpips.LPIPS(net='vgg', version='0.1')`` (the 1x1 "lin" conv commutes with the spatial mean); the
+trunk weights come from :mod:`harness.metrics.lpips_weights`, never from a download.
+
+Inputs are images ``(H, W, 3)`` in [0, 1] (clamped first, like PSNR), at least 16 px on each side
+(relu5_3 is at 1/16 resolution). A pruned image against a cached reference costs one trunk pass, not
+two: :meth:`LpipsVGG.features` once per view, then :meth:`LpipsVGG.distance` per pruned image.
+
+Speed settings: ``torch.inference_mode``, channels-last tensors (oneDNN's preferred layout on CPU),
+all of the process's cores, CUDA when present. ``precision="bfloat16"`` runs the trunk under
+autocast (AMX/tensor cores) for speed at a small accuracy cost; the default and the reference
+metric are float32.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from harness.errors import InputError
+from harness.metrics.images import as_image
+from harness.metrics.lpips_weights import load_backbone, new_lpips_module
+
+MIN_SIDE = 16
+EPS = 1e-10
+
+
+@dataclass
+class LpipsFeatures:
+    """Unit-normalised trunk activations of one image: five ``(1, C_l, h_l, w_l)`` float32 tensors.
+
+    Picklable; :func:`save_features` / :func:`load_features` store it as a torch file.
+    ``size`` is the image's ``(H, W)`` so a mismatched pruned image is caught.
+    """
+
+    layers: tuple
+    size: tuple
+
+    def to(self, device) -> "LpipsFeatures":
+        return LpipsFeatures(tuple(t.to(device) for t in self.layers), self.size)
+
+    @property
+    def nbytes(self) -> int:
+        return sum(t.numel() * t.element_size() for t in self.layers)
+
+
+def save_features(feats: LpipsFeatures, path: str | Path) -> Path:
+    """Write ``feats`` to ``path`` atomically (temp file + rename)."""
+    path = Path(path)
+    part = path.with_name(path.name + f".part{os.getpid()}")
+    torch.save({"size": list(feats.size), "layers": [t.detach().cpu().contiguous() for t in feats.layers]}, part)
+    part.replace(path)
+    return path
+
+
+def load_features(path: str | Path, device="cpu") -> LpipsFeatures:
+    """Read features written by :func:`save_features` (tensors only, no pickled code)."""
+    payload = torch.load(Path(path), map_location=device, weights_only=True)
+    return LpipsFeatures(tuple(payload["layers"]), tuple(payload["size"]))
+
+
+def default_device() -> torch.device:
+    return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+
+
+def use_all_cores() -> int:
+    """Let torch use every core this process may run on; returns the thread count."""
+    n = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    if torch.get_num_threads() < n:
+        torch.set_num_threads(n)
+    return torch.get_num_threads()
+
+
+class LpipsVGG:
+    """LPIPS-VGG v0.1 scorer with reusable reference features.
+
+    ``weights``: path of the converted trunk (default: the fetched one; missing -> InputError
+    telling to run ``harness fetch --weights``). ``batch_size``: images per trunk pass in
+    :meth:`distances` (default 1 on CPU, where batching gains nothing and costs memory; on CUDA as
+    many as fit in a quarter of free memory, at most 16).
+    """
+
+    def __init__(self, device=None, *, weights: str | Path | None = None, precision: str = "float32",
+                 channels_last: bool = True, batch_size: int | None = None):
+        if precision not in ("float32", "bfloat16"):
+            raise ValueError(f"precision must be float32 or bfloat16, not {precision!r}")
+        payload = load_backbone(weights)
+        self.device = torch.device(device) if device is not None else default_device()
+        self.threads = use_all_cores()
+        module = new_lpips_module(pretrained_lin=True)
+        module.net.load_state_dict(payload["net"], strict=True)
+        self.precision = precision
+        self.channels_last = channels_last
+        self.batch_size = batch_size
+        self._scale = module.scaling_layer
+        self._trunk = module.net
+        self._lin = [lin.model[-1].weight.detach().reshape(-1) for lin in module.lins]  # (C_l,) each
+        memory_format = torch.channels_last if channels_last else torch.contiguous_format
+        self._trunk.to(self.device, memory_format=memory_format).eval()
+        self._scale.to(self.device)
+        self._lin = [w.to(self.device) for w in self._lin]
+
+    # -- passes -------------------------------------------------------------------------------
+    def _to_input(self, images: list[np.ndarray]) -> torch.Tensor:
+        x = torch.from_numpy(np.stack(images)).to(self.device).permute(0, 3, 1, 2)
+        x = self._scale(x.clamp(0.0, 1.0) * 2.0 - 1.0)
+        return x.contiguous(memory_format=torch.channels_last if self.channels_last else torch.contiguous_format)
+
+    def _normalised_layers(self, images: list[np.ndarray]) -> list[torch.Tensor]:
+        x = self._to_input(images)
+        if self.precision == "bfloat16":
+            with torch.autocast(device_type=self.device.type, dtype=torch.bfloat16):
+                outs = self._trunk(x)
+        else:
+            outs = self._trunk(x)
+        layers = []
+        for f in outs:
+            f = f.float()
+            layers.append(f / (torch.sqrt((f * f).sum(dim=1, keepdim=True)) + EPS))
+        return layers
+
+    def _check(self, image, source) -> np.ndarray:
+        img = as_image(image, source)
+        if min(img.shape[:2]) < MIN_SIDE:
+            raise InputError(source, f"image {img.shape[1]}x{img.shape[0]} is too small for LPIPS-VGG "
+                                     f"(needs at least {MIN_SIDE} px per side)")
+        return img
+
+    # -- public API ---------------------------------------------------------------------------
+    def features(self, image, source: str = "reference image") -> LpipsFeatures:
+        """Normalised trunk activations of ``image`` (compute once per reference view)."""
+        img = self._check(image, source)
+        with torch.inference_mode():
+            layers = self._normalised_layers([img])
+        return LpipsFeatures(tuple(t.contiguous() for t in layers), tuple(img.shape[:2]))
+
+    def distances(self, ref: LpipsFeatures, images, source: str = "image") -> np.ndarray:
+        """LPIPS between the reference behind ``ref`` and each image of ``images``: float64 ``(n,)``."""
+        imgs = [self._check(im, f"{source} {i}") for i, im in enumerate(images)]
+        for i, img in enumerate(imgs):
+            if tuple(img.shape[:2]) != tuple(ref.size):
+                raise InputError(f"{source} {i}", f"size {img.shape[1]}x{img.shape[0]} differs from the "
+                                                  f"reference's {ref.size[1]}x{ref.size[0]}")
+        ref = ref.to(self.device)
+        out = np.empty(len(imgs), dtype=np.float64)
+        step = self.batch_size or self._auto_batch(imgs[0].shape[:2] if imgs else (1, 1))
+        with torch.inference_mode():
+            for start in range(0, len(imgs), step):
+                layers = self._normalised_layers(imgs[start:start + step])
+                total = 0.0
+                for f1, f0, w in zip(layers, ref.layers, self._lin):
+                    d = (f1 - f0).square_()
+                    total = total + torch.einsum("bchw,c->b", d, w) / (d.shape[2] * d.shape[3])
+                out[start:start + step] = total.double().cpu().numpy()
+        return out
+
+    def distance(self, ref: LpipsFeatures, image, source: str = "image") -> float:
+        """LPIPS between the reference behind ``ref`` and ``image`` (one trunk pass)."""
+        return float(self.distances(ref, [image], source)[0])
+
+    def __call__(self, a, b) -> float:
+        """LPIPS of a pair (two trunk passes); symmetric."""
+        return self.distance(self.features(a, "first image"), b, "second image")
+
+    def _auto_batch(self, size) -> int:
+        if self.device.type != "cuda":
+            return 1
+        free, _ = torch.cuda.mem_get_info(self.device)
+        per_image = size[0] * size[1] * 64 * 4 * 6  # ~six relu1-sized float32 buffers live at once
+        return int(max(1, min(16, free // 4 // per_image)))
