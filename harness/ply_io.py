@@ -78,7 +78,7 @@ def read_ply_header(path: str | Path) -> PlyHeader:
             raise InputError(path, "not a PLY file (first line is not 'ply')")
         for lineno in range(2, _MAX_HEADER_LINES):
             raw = f.readline()
-            if not raw:
+            if not raw.endswith(b"\n"):  # EOF, possibly in the middle of a line
                 raise InputError(path, "PLY header has no 'end_header' line (truncated file?)")
             try:
                 line = raw.decode("ascii").strip()
