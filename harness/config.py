@@ -1,0 +1,391 @@
+"""Run configuration for ``harness run CONFIG.yaml``: schema, validation and sweep expansion.
+
+A config is a YAML mapping::
+
+    name: default                 # run name (default: the file's stem)
+    output: runs/default          # results directory (relative to the working directory)
+    workers: 2                    # local process pool size (--workers overrides)
+    protocol:                     # how every scene is evaluated
+      longest_side: 512           # render resolution (px, longest image side)
+      aspect: 1.3333              # width / height of rig views
+      background: [0, 0, 0]
+      renderer: gl                # gl | reference
+      device: cpu                 # torch device for metrics / camera-aware pruners
+      metrics: [psnr, ssim, lpips]
+      seed: 0
+      n_train: 24                 # rig views handed to camera-aware pruners
+      n_test: 3                   # held-out rig views that are measured
+    ratios: [0.1, 0.2, 0.3]       # default pruning ratios of every method
+    keep: [0.7, 0.5, 0.3]         # default keep fractions (ratio = 1 - keep), merged with ratios
+    scenes:
+      - name: luigi               # row label; also the dataset name or path when `source` is absent
+        source: luigi             # dataset name (harness.datasets) or a path; ${VAR:-default} expanded
+        frames: "dir/*.ply"       # instead of source: a glob of per-frame files (one sequence)
+        kind: object-centric      # or forward-facing (informational; picks the rig when rig: auto)
+        rig: auto                 # rig name, or `auto` (the per-scene default of harness.rigs)
+        cameras: {path: cams.json, test: [v08, v10], test_every: 8}   # instead of a rig
+        lod: 0                    # SOG level of detail
+        n_test: 3                 # per-scene override of protocol.n_test / n_train
+        label: "plant"            # display name in tables (default: name)
+        suites: [paper-table1]    # free tags
+    methods:
+      - name: betadesc            # a registered pruner
+        variant: default          # row label of this entry (default: "default" or the sweep values)
+        params: {gamma: 0.25}
+        sweep: {preset: [baseline, flat]}   # cartesian product -> one variant per combination
+        ratios: [0.3]             # overrides the default ratios (keep: likewise)
+        scenes: [luigi]           # restrict to these scene names
+    tables: [comparison, ablation, keep, sensitivity, runtime, per_scene]
+    plots: [curves, figure1, figure3]
+
+Every problem is an :class:`InputError` naming the key path (``methods[2].sweep.voxel``) and what
+is wrong. Variant names are stable: ``<variant or 'default'>`` for plain entries, and
+``k1=v1,k2=v2`` (keys in the order written) for sweep combinations, prefixed by ``variant`` when given.
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from harness.errors import InputError
+
+KINDS = ("forward-facing", "object-centric")
+RENDERERS = ("gl", "reference")
+METRICS = ("psnr", "ssim", "lpips")
+TABLES = ("comparison", "ablation", "keep", "sensitivity", "runtime", "per_scene")
+PLOTS = ("curves", "figure1", "figure3")
+
+_ENV = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)(?::-([^}]*))?\}")
+
+
+def expand_env(text: str) -> str:
+    """Expand ``${VAR}`` and ``${VAR:-default}`` (shell semantics: default when unset or empty)."""
+    return _ENV.sub(lambda m: os.environ.get(m.group(1)) or (m.group(2) or ""), text)
+
+
+@dataclass(frozen=True)
+class Protocol:
+    longest_side: int = 1024
+    aspect: float = 4.0 / 3.0
+    background: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    renderer: str = "gl"
+    device: str = "cpu"
+    metrics: tuple[str, ...] = METRICS
+    seed: int = 0
+    n_train: int = 24
+    n_test: int = 3
+
+
+@dataclass(frozen=True)
+class CameraSpec:
+    """Cameras from a file; held-out views by name (``test``) or every k-th view (``test_every``)."""
+
+    path: str
+    test: tuple[str, ...] = ()
+    test_every: int = 0
+
+
+@dataclass(frozen=True)
+class SceneSpec:
+    name: str
+    label: str
+    source: str | None = None
+    frames: str | None = None
+    kind: str = "object-centric"
+    rig: str = "auto"
+    cameras: CameraSpec | None = None
+    lod: int | None = None
+    n_train: int = 24
+    n_test: int = 3
+    suites: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class MethodVariant:
+    """One (pruner, parameter set) to evaluate at ``ratios`` on ``scenes`` (None = all)."""
+
+    method: str
+    variant: str
+    params: dict
+    ratios: tuple[float, ...]
+    scenes: tuple[str, ...] | None = None
+
+    @property
+    def key(self) -> str:
+        return f"{self.method}[{self.variant}]"
+
+
+@dataclass
+class RunConfig:
+    name: str
+    output: str
+    workers: int
+    protocol: Protocol
+    scenes: list[SceneSpec]
+    methods: list[MethodVariant]
+    tables: tuple[str, ...] = TABLES
+    plots: tuple[str, ...] = PLOTS
+    source_path: str = ""
+    raw: dict = field(default_factory=dict)
+
+
+# --------------------------------------------------------------------------- small validators
+def _mapping(value, where: str, src: str) -> dict:
+    if value is None:
+        return {}
+    if not isinstance(value, dict):
+        raise InputError(src, f"{where}: expected a mapping, got {type(value).__name__}")
+    return value
+
+
+def _only(d: dict, allowed: set[str], where: str, src: str) -> None:
+    unknown = sorted(set(d) - allowed)
+    if unknown:
+        raise InputError(src, f"{where}: unknown key(s) {', '.join(unknown)}; allowed: {', '.join(sorted(allowed))}")
+
+
+def _num(v, where: str, src: str, *, lo=None, hi=None, integer=False):
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or (integer and not isinstance(v, int)):
+        raise InputError(src, f"{where}: expected {'an integer' if integer else 'a number'}, got {v!r}")
+    if (lo is not None and v < lo) or (hi is not None and v > hi):
+        raise InputError(src, f"{where}: {v!r} is outside [{lo}, {hi}]")
+    return v
+
+
+def _str(v, where: str, src: str) -> str:
+    if not isinstance(v, str) or not v.strip():
+        raise InputError(src, f"{where}: expected a non-empty string, got {v!r}")
+    return v
+
+
+def _choice(v, choices, where: str, src: str) -> str:
+    if v not in choices:
+        raise InputError(src, f"{where}: {v!r} is not one of {', '.join(choices)}")
+    return v
+
+
+def _fractions(v, where: str, src: str) -> tuple[float, ...]:
+    if not isinstance(v, list) or not v:
+        raise InputError(src, f"{where}: expected a non-empty list of fractions in [0, 1]")
+    return tuple(float(_num(x, f"{where}[{i}]", src, lo=0.0, hi=1.0)) for i, x in enumerate(v))
+
+
+def _names(v, choices, where: str, src: str) -> tuple[str, ...]:
+    if not isinstance(v, list):
+        raise InputError(src, f"{where}: expected a list of names from {', '.join(choices)}")
+    return tuple(_choice(x, choices, f"{where}[{i}]", src) for i, x in enumerate(v))
+
+
+def merge_ratios(ratios, keep) -> tuple[float, ...]:
+    """Sorted union of pruning ratios and ``1 - keep`` fractions (rounded to 1e-9 to merge 0.3/0.7)."""
+    out = {round(float(r), 9) for r in ratios} | {round(1.0 - float(k), 9) for k in keep}
+    return tuple(sorted(out))
+
+
+# --------------------------------------------------------------------------- sections
+def _protocol(d, src) -> Protocol:
+    d = _mapping(d, "protocol", src)
+    _only(d, set(Protocol.__dataclass_fields__), "protocol", src)
+    p = Protocol()
+    kw: dict[str, Any] = {}
+    if "longest_side" in d:
+        kw["longest_side"] = _num(d["longest_side"], "protocol.longest_side", src, lo=8, hi=8192, integer=True)
+    if "aspect" in d:
+        kw["aspect"] = float(_num(d["aspect"], "protocol.aspect", src, lo=0.1, hi=10))
+    if "background" in d:
+        bg = d["background"]
+        if not isinstance(bg, list) or len(bg) != 3:
+            raise InputError(src, "protocol.background: expected three numbers in [0, 1]")
+        kw["background"] = tuple(float(_num(x, f"protocol.background[{i}]", src, lo=0, hi=1)) for i, x in enumerate(bg))
+    if "renderer" in d:
+        kw["renderer"] = _choice(d["renderer"], RENDERERS, "protocol.renderer", src)
+    if "device" in d:
+        kw["device"] = _str(d["device"], "protocol.device", src)
+    if "metrics" in d:
+        kw["metrics"] = _names(d["metrics"], METRICS, "protocol.metrics", src)
+    if "seed" in d:
+        kw["seed"] = _num(d["seed"], "protocol.seed", src, lo=0, integer=True)
+    for k in ("n_train", "n_test"):
+        if k in d:
+            kw[k] = _num(d[k], f"protocol.{k}", src, lo=0 if k == "n_train" else 1, hi=10000, integer=True)
+    return Protocol(**{**p.__dict__, **kw})
+
+
+def _cameras(d, where, src) -> CameraSpec:
+    d = _mapping(d, where, src)
+    _only(d, {"path", "test", "test_every"}, where, src)
+    if "path" not in d:
+        raise InputError(src, f"{where}.path: required (the cameras file)")
+    test = d.get("test", [])
+    if not isinstance(test, list) or not all(isinstance(t, str) for t in test):
+        raise InputError(src, f"{where}.test: expected a list of view names")
+    every = _num(d.get("test_every", 0), f"{where}.test_every", src, lo=0, integer=True)
+    if not test and not every:
+        raise InputError(src, f"{where}: give the held-out views as `test: [names]` or `test_every: k`")
+    return CameraSpec(path=expand_env(_str(d["path"], f"{where}.path", src)), test=tuple(test), test_every=every)
+
+
+_SCENE_KEYS = {"name", "label", "source", "frames", "kind", "rig", "cameras", "lod", "n_train", "n_test", "suites"}
+
+
+def _scene(d, i, protocol: Protocol, src) -> SceneSpec:
+    where = f"scenes[{i}]"
+    if isinstance(d, str):
+        d = {"name": d}
+    d = _mapping(d, where, src)
+    _only(d, _SCENE_KEYS, where, src)
+    if "name" not in d:
+        raise InputError(src, f"{where}.name: required")
+    name = _str(d["name"], f"{where}.name", src)
+    if "source" in d and "frames" in d:
+        raise InputError(src, f"{where}: give either `source` or `frames`, not both")
+    if "rig" in d and "cameras" in d:
+        raise InputError(src, f"{where}: give either `rig` or `cameras`, not both")
+    suites = d.get("suites", [])
+    if not isinstance(suites, list) or not all(isinstance(s, str) for s in suites):
+        raise InputError(src, f"{where}.suites: expected a list of tags")
+    lod = d.get("lod")
+    return SceneSpec(
+        name=name,
+        label=str(d.get("label", name)),
+        source=None if "frames" in d else expand_env(str(d.get("source", name))),
+        frames=expand_env(_str(d["frames"], f"{where}.frames", src)) if "frames" in d else None,
+        kind=_choice(d.get("kind", "object-centric"), KINDS, f"{where}.kind", src),
+        rig=_str(d.get("rig", "auto"), f"{where}.rig", src),
+        cameras=_cameras(d["cameras"], f"{where}.cameras", src) if "cameras" in d else None,
+        lod=None if lod is None else _num(lod, f"{where}.lod", src, lo=0, integer=True),
+        n_train=_num(d.get("n_train", protocol.n_train), f"{where}.n_train", src, lo=0, integer=True),
+        n_test=_num(d.get("n_test", protocol.n_test), f"{where}.n_test", src, lo=1, integer=True),
+        suites=tuple(suites),
+    )
+
+
+def _fmt(v) -> str:
+    return format(v, "g") if isinstance(v, float) else str(v)
+
+
+def _method(d, i, default_ratios, scene_names, src) -> list[MethodVariant]:
+    """Expand one methods[] entry into its variants, validating params against the pruner."""
+    from methods.registry import get_pruner
+
+    where = f"methods[{i}]"
+    if isinstance(d, str):
+        d = {"name": d}
+    d = _mapping(d, where, src)
+    _only(d, {"name", "variant", "params", "sweep", "ratios", "keep", "scenes"}, where, src)
+    name = _str(d.get("name"), f"{where}.name", src)
+    try:
+        spec = get_pruner(name)
+    except KeyError as err:
+        raise InputError(src, f"{where}.name: {err.args[0]}") from None
+    params = _mapping(d.get("params"), f"{where}.params", src)
+    sweep = _mapping(d.get("sweep"), f"{where}.sweep", src)
+    for k, vals in sweep.items():
+        if not isinstance(vals, list) or not vals:
+            raise InputError(src, f"{where}.sweep.{k}: expected a non-empty list of values")
+        if k in params:
+            raise InputError(src, f"{where}.sweep.{k}: also set in params; give it in one place")
+    for k in list(params) + list(sweep):
+        if k not in spec.params:
+            known = ", ".join(sorted(spec.params)) or "none"
+            section = "params" if k in params else "sweep"
+            raise InputError(src, f"{where}.{section}.{k}: pruner {name!r} has no parameter {k!r}; known: {known}")
+    if "ratios" in d or "keep" in d:
+        ratios = merge_ratios(_fractions(d["ratios"], f"{where}.ratios", src) if "ratios" in d else (),
+                              _fractions(d["keep"], f"{where}.keep", src) if "keep" in d else ())
+    else:
+        ratios = default_ratios
+    if not ratios:
+        raise InputError(src, f"{where}: no pruning ratios (set `ratios`/`keep` here or at the top level)")
+    scenes = None
+    if "scenes" in d:
+        scenes = d["scenes"]
+        if not isinstance(scenes, list) or not scenes:
+            raise InputError(src, f"{where}.scenes: expected a non-empty list of scene names")
+        for j, s in enumerate(scenes):
+            if s not in scene_names:
+                raise InputError(src, f"{where}.scenes[{j}]: {s!r} is not a scene of this config")
+        scenes = tuple(scenes)
+    base = d.get("variant")
+    if base is not None:
+        base = _str(base, f"{where}.variant", src)
+    out = []
+    keys = list(sweep)
+    for combo in itertools.product(*(sweep[k] for k in keys)) if keys else [()]:
+        p = {**params, **dict(zip(keys, combo))}
+        label = ",".join(f"{k}={_fmt(v)}" for k, v in zip(keys, combo))
+        variant = ":".join(x for x in (base, label) if x) or "default"
+        try:
+            spec.resolve_params(p)
+        except KeyError as err:
+            raise InputError(src, f"{where}: {err.args[0]}") from None
+        out.append(MethodVariant(method=name, variant=variant, params=p, ratios=ratios, scenes=scenes))
+    return out
+
+
+def parse_config(data: Any, source: str = "<config>") -> RunConfig:
+    """Validate a parsed YAML document and expand method sweeps."""
+    src = source
+    d = _mapping(data, "top level", src)
+    _only(d, {"name", "output", "workers", "protocol", "ratios", "keep", "scenes", "methods", "tables", "plots"},
+          "top level", src)
+    protocol = _protocol(d.get("protocol"), src)
+    scenes_raw = d.get("scenes")
+    if not isinstance(scenes_raw, list) or not scenes_raw:
+        raise InputError(src, "scenes: expected a non-empty list of scenes")
+    scenes = [_scene(s, i, protocol, src) for i, s in enumerate(scenes_raw)]
+    seen: set[str] = set()
+    for i, s in enumerate(scenes):
+        if s.name in seen:
+            raise InputError(src, f"scenes[{i}].name: duplicate scene name {s.name!r}")
+        seen.add(s.name)
+    ratios = merge_ratios(_fractions(d["ratios"], "ratios", src) if "ratios" in d else (),
+                          _fractions(d["keep"], "keep", src) if "keep" in d else ())
+    methods_raw = d.get("methods")
+    if not isinstance(methods_raw, list) or not methods_raw:
+        raise InputError(src, "methods: expected a non-empty list of methods")
+    methods: list[MethodVariant] = []
+    keys: dict[str, int] = {}
+    for i, m in enumerate(methods_raw):
+        for v in _method(m, i, ratios, seen, src):
+            if v.key in keys:
+                raise InputError(src, f"methods[{i}]: variant {v.key} already defined by methods[{keys[v.key]}]; "
+                                      "give one of them a distinct `variant`")
+            keys[v.key] = i
+            methods.append(v)
+    name = _str(d.get("name", Path(source).stem), "name", src)
+    return RunConfig(
+        name=name,
+        output=expand_env(_str(d.get("output", f"runs/{name}"), "output", src)),
+        workers=_num(d.get("workers", 1), "workers", src, lo=1, hi=256, integer=True),
+        protocol=protocol,
+        scenes=scenes,
+        methods=methods,
+        tables=_names(d.get("tables", list(TABLES)), TABLES, "tables", src),
+        plots=_names(d.get("plots", list(PLOTS)), PLOTS, "plots", src),
+        source_path=str(source),
+        raw=d,
+    )
+
+
+def load_config(path: str | Path) -> RunConfig:
+    """Read and validate a YAML run config; any problem is an InputError naming the file and key."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as err:
+        raise InputError(path, f"cannot read config: {err.strerror or err}") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        mark = getattr(err, "problem_mark", None)
+        at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        raise InputError(path, f"invalid YAML{at}: {getattr(err, 'problem', None) or err}") from None
+    return parse_config(data, str(path))

@@ -1,0 +1,193 @@
+"""The plan of a run: which (scene, frame), cameras, method variants, ratios and views to evaluate.
+
+Stages and their cache keys (every key also holds the code digest of what computes it):
+
+* **load**  — per (scene, frame): file digest (+ LOD) -> splat count, SH degree.
+* **views** — per scene: rig (or camera file digest) + counts, resolution, aspect, seed -> train/test
+  cameras. Multi-frame sequences use the rig of their first frame for every frame, so all frames
+  are seen from the same held-out views.
+* **score** — per (scene, frame, method, resolved params): scores (N,), computed once for all ratios.
+  Camera-aware pruners also key on the train cameras and the renderer.
+* **prune** — per (score key, ratio): keep mask (stored by its own digest), τ, counts.
+* **render_ref** — per (scene, frame, test view): the unpruned render.
+* **metrics** — per (reference render, keep-mask digest): PSNR/SSIM/LPIPS of the pruned render.
+  Two methods that keep the same splats share the entry, so the set is rendered once.
+
+Scenes whose files are absent are recorded as skipped with the reason, never an error.
+"""
+
+from __future__ import annotations
+
+import glob
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from harness.cache import StageCache, digest_json
+from harness.cameras import Camera
+from harness.config import MethodVariant, RunConfig, SceneSpec
+from harness.toolkit import Toolkit, module_versions
+
+
+@dataclass
+class SceneItem:
+    """One (scene, frame) that exists on disk, with its cameras."""
+
+    spec: SceneSpec
+    frame: str  # "" for single-file scenes, else the frame file's stem
+    path: str
+    digest: str  # content digest of the scene file(s) + LOD
+    n_splats: int
+    sh_degree: int
+    rig: str
+    train: list[Camera]
+    test: list[Camera]
+    load_s: float = 0.0
+
+    @property
+    def train_digest(self) -> str:
+        return digest_json([c.to_dict() for c in self.train])
+
+
+@dataclass
+class Skip:
+    scene: str
+    frame: str
+    method: str
+    variant: str
+    reason: str
+
+
+@dataclass
+class Versions:
+    """Code digests that version each stage's results."""
+
+    reader: str
+    rigs: str
+    renderer: str
+    metrics: str
+    pruners: dict[str, str] = field(default_factory=dict)
+
+    @classmethod
+    def of(cls, toolkit: Toolkit) -> "Versions":
+        return cls(reader=module_versions(toolkit.reader_modules), rigs=module_versions(toolkit.rig_modules),
+                   renderer=module_versions(toolkit.renderer_modules),
+                   metrics=module_versions(toolkit.metric_modules))
+
+    def pruner(self, name: str) -> str:
+        """Digest of the code defining pruner ``name`` (+ registry and targeting).
+
+        A pruner in ``pkg.sub.module`` is versioned by the whole ``pkg.sub`` package (e.g. every file
+        of ``methods.betadesc``); one in a top-level module (``methods.simple``) by that module.
+        """
+        if name not in self.pruners:
+            from methods.registry import get_pruner
+
+            parts = get_pruner(name).fn.__module__.split(".")
+            target = ".".join(parts[:2]) if len(parts) > 2 else ".".join(parts)
+            self.pruners[name] = module_versions((target, "methods.registry", "methods.targeting"))
+        return self.pruners[name]
+
+
+# --------------------------------------------------------------------------- resolving sources
+def resolve_paths(spec: SceneSpec, toolkit: Toolkit, base: Path) -> tuple[list[tuple[str, Path]], str | None]:
+    """[(frame, path)] for a scene, or ([], reason) when its files are absent."""
+    if spec.frames is not None:
+        pattern = spec.frames if Path(spec.frames).is_absolute() else str(base / spec.frames)
+        files = sorted(Path(p) for p in glob.glob(pattern))
+        if not files:
+            return [], f"no frame files match {spec.frames}"
+        return [(p.stem, p) for p in files], None
+    src = spec.source
+    named = toolkit.resolve_dataset(src)
+    if named is not None:
+        if not Path(named).exists():
+            return [], f"dataset scene {src!r} is not fetched (expected {named}); run `harness fetch`"
+        return [("", Path(named))], None
+    path = Path(src) if Path(src).is_absolute() else base / src
+    if not path.exists():
+        return [], f"file not found: {src}"
+    return [("", path)], None
+
+
+def _select_test(cams: list[Camera], spec) -> tuple[list[Camera], list[Camera]]:
+    """Split cameras from a file: named test views, else every ``test_every``-th (LLFF convention)."""
+    if spec.test:
+        test = [c for c in cams if c.name in spec.test or Path(c.name).stem in spec.test]
+    else:
+        test = [c for i, c in enumerate(cams) if i % spec.test_every == 0]
+    ids = {id(c) for c in test}
+    return [c for c in cams if id(c) not in ids], test
+
+
+def scene_views(item_spec: SceneSpec, scene, path: Path, protocol, cache: StageCache, toolkit: Toolkit,
+                versions: Versions, scene_digest: str, base: Path):
+    """(rig name, train, test) for a scene, cached by its inputs."""
+    p = protocol
+    if item_spec.cameras is not None:
+        cpath = Path(item_spec.cameras.path)
+        cpath = cpath if cpath.is_absolute() else base / cpath
+        source = {"cameras": cache.files.digest(cpath), "test": list(item_spec.cameras.test),
+                  "test_every": item_spec.cameras.test_every}
+    else:
+        source = {"rig": item_spec.rig, "scene": scene_digest, "name": item_spec.name, "kind": item_spec.kind,
+                  "n_train": item_spec.n_train, "n_test": item_spec.n_test, "aspect": p.aspect, "seed": p.seed}
+    key = cache.key("views", source=source, longest_side=p.longest_side, code=versions.rigs)
+    hit = cache.get_json("views", key)
+    if hit is not None:
+        return hit["rig"], [Camera.from_dict(c) for c in hit["train"]], [Camera.from_dict(c) for c in hit["test"]]
+    if item_spec.cameras is not None:
+        cams = [c.resized(p.longest_side) for c in toolkit.load_cameras(str(cpath))]
+        train, test = _select_test(cams, item_spec.cameras)
+        rig = "file"
+    else:
+        rig, train, test = toolkit.make_rig(item_spec.rig, scene(), kind=item_spec.kind, name=item_spec.name,
+                                            n_train=item_spec.n_train, n_test=item_spec.n_test,
+                                            longest_side=p.longest_side, aspect=p.aspect, seed=p.seed)
+    cache.put_json("views", key, {"rig": rig, "train": [c.to_dict() for c in train],
+                                  "test": [c.to_dict() for c in test]})
+    return rig, train, test
+
+
+def load_items(config: RunConfig, cache: StageCache, toolkit: Toolkit, versions: Versions,
+               base: Path, on_skip=None) -> tuple[list[SceneItem], list[Skip]]:
+    """Resolve every scene's files, splat counts and cameras; absent scenes become skips.
+
+    Scenes are loaded only when a stage needs them (a miss of ``load`` or ``views``), so a rerun
+    with everything cached never reads a scene file.
+    """
+    items, skips = [], []
+    for spec in config.scenes:
+        frames, reason = resolve_paths(spec, toolkit, base)
+        if reason:
+            skips.append(Skip(spec.name, "", "*", "*", reason))
+            if on_skip:
+                on_skip(spec, reason)
+            continue
+        views = None
+        for frame, path in frames:
+            t0 = time.perf_counter()
+            digest = digest_json({"file": cache.files.digest(path), "lod": spec.lod})
+            loaded = {}
+
+            def scene(path=path):
+                if "s" not in loaded:
+                    loaded["s"] = toolkit.load_scene(str(path), spec.lod)
+                return loaded["s"]
+
+            key = cache.key("load", scene=digest, code=versions.reader)
+            info = cache.get_json("load", key)
+            if info is None:
+                s = scene()
+                info = {"n_splats": len(s), "sh_degree": int(s.sh_degree)}
+                cache.put_json("load", key, info)
+            if views is None:  # the first frame's views serve the whole sequence
+                views = scene_views(spec, scene, path, config.protocol, cache, toolkit, versions, digest, base)
+            rig, train, test = views
+            items.append(SceneItem(spec, frame, str(path), digest, info["n_splats"], info["sh_degree"], rig,
+                                   train, test, time.perf_counter() - t0))
+    return items, skips
+
+
+def variants_for(item: SceneItem, methods: list[MethodVariant]) -> list[MethodVariant]:
+    return [m for m in methods if m.scenes is None or item.spec.name in m.scenes]

@@ -1,0 +1,141 @@
+"""What a run leaves behind, and the summary printed at its end.
+
+Run folder layout::
+
+    <out>/results.parquet, results.csv   tidy rows (harness.results)
+    <out>/tables/*.md|csv|tex            the paper's tables (harness.tables)
+    <out>/plots/*.png                    curves and image grids (harness.plots)
+    <out>/images/<scene>/...png          reference and figure renders (inputs of the image grids)
+    <out>/contact_sheets/<scene>.png     held-out views of each scene
+    <out>/run.json                       config, commit, machine, stage times, cache hits/misses,
+                                         skips and errors
+
+Everything is derived from the content-addressed stage cache (default ``<harness cache>/stages``),
+so ``harness tables RUN_DIR`` can rebuild tables and plots from ``results.parquet`` and ``images/``.
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+import shutil
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+
+from harness.cache import atomic_write_text
+from harness.paths import REPO_ROOT
+
+
+def _slug(text: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_." else "_" for c in str(text)) or "_"
+
+
+def image_name(method: str, variant: str, ratio: float) -> str:
+    return "input.png" if method == "input" else f"{_slug(method)}__{_slug(variant)}__r{ratio:.2f}.png"
+
+
+def copy_images(images: dict, out_dir: Path) -> Path:
+    """Copy figure renders from the cache into ``<out>/images/<scene>[/<frame>]/``."""
+    root = Path(out_dir) / "images"
+    for (scene, frame, method, variant, ratio), src in images.items():
+        src = Path(src)
+        if not src.exists():
+            continue
+        dst = root / _slug(scene) / (_slug(frame) if frame else "") / image_name(method, variant, ratio)
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(src, dst)
+    return root
+
+
+def contact_sheets(items, cache, ref_key, out_dir: Path) -> list[Path]:
+    """One PNG grid of the held-out reference renders per scene (first frame)."""
+    from PIL import Image
+
+    out, done = [], set()
+    for item in items:
+        if item.spec.name in done:
+            continue
+        done.add(item.spec.name)
+        tiles = [cache.path("images", ref_key(item, cam), "png") for cam in item.test]
+        imgs = [Image.open(p).convert("RGB") for p in tiles if p.exists()]
+        if not imgs:
+            continue
+        w, h = max(i.width for i in imgs), max(i.height for i in imgs)
+        cols = min(4, len(imgs))
+        rows = -(-len(imgs) // cols)
+        sheet = Image.new("RGB", (cols * w, rows * h), (32, 32, 32))
+        for k, im in enumerate(imgs):
+            sheet.paste(im, ((k % cols) * w, (k // cols) * h))
+        path = Path(out_dir) / "contact_sheets" / f"{_slug(item.spec.name)}.png"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        sheet.save(path)
+        out.append(path)
+    return out
+
+
+def git_commit() -> str:
+    try:
+        return subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO_ROOT, capture_output=True, text=True,
+                              timeout=10).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return ""
+
+
+def machine() -> dict:
+    import os
+
+    import torch
+
+    return {"platform": platform.platform(), "python": platform.python_version(), "cpus": os.cpu_count(),
+            "torch": torch.__version__,
+            "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None}
+
+
+def write_run_json(out_dir: Path, config, result, *, workers: int, cache_root: Path, argv=None) -> Path:
+    payload = {
+        "name": config.name,
+        "config_path": config.source_path,
+        "config": config.raw,
+        "when": time.strftime("%Y-%m-%dT%H:%M:%S"),
+        "commit": git_commit(),
+        "machine": machine(),
+        "workers": workers,
+        "cache": str(cache_root),
+        "stage_seconds": result.stage_s,
+        "cache_counts": result.counts,
+        "skipped": [s.__dict__ for s in result.skips],
+        "errors": result.errors,
+        "tables": list(config.tables),
+        "plots": list(config.plots),
+        "argv": argv or [],
+    }
+    path = Path(out_dir) / "run.json"
+    atomic_write_text(path, json.dumps(payload, indent=2, default=str) + "\n")
+    return path
+
+
+def summary_lines(result, df, paths: dict) -> list[str]:
+    """The closing summary: rows, skips, errors, cache hits/misses, stage times, where things are."""
+    ok = int((df["status"] == "ok").sum()) if len(df) else 0
+    lines = [f"rows: {len(df)} ({ok} measured, {int((df['status'] == 'skipped').sum()) if len(df) else 0} skipped,"
+             f" {int((df['status'] == 'error').sum()) if len(df) else 0} errors)"]
+    hits = sum(c["hits"] for c in result.counts.values())
+    misses = sum(c["misses"] for c in result.counts.values())
+    per = ", ".join(f"{s} {c['hits']}/{c['misses']}" for s, c in result.counts.items())
+    lines.append(f"cache: {hits} hits, {misses} misses (hits/misses per stage: {per or 'none'})")
+    lines.append("stage seconds: " + ", ".join(f"{k} {v:.1f}" for k, v in result.stage_s.items()))
+    if ok:
+        finite = df.loc[(df["status"] == "ok") & np.isfinite(df["psnr"].astype(float)), "psnr"]
+        lines.append(f"PSNR over measured pairs: mean {finite.mean():.2f} dB "
+                     f"({int((df['status'] == 'ok').sum() - len(finite))} identical pairs with PSNR = inf excluded)")
+    for s in result.skips:
+        what = s.scene if s.method == "*" else f"{s.scene} / {s.method}[{s.variant}]"
+        lines.append(f"skipped {what}: {s.reason}")
+    for e in result.errors[:20]:
+        lines.append(f"error: {e}")
+    for name, p in paths.items():
+        lines.append(f"{name:<15} {p}")
+    return lines

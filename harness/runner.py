@@ -1,0 +1,288 @@
+"""Execute a run: load -> score -> prune -> render reference -> render pruned + metrics -> aggregate.
+
+Every stage first asks the content-addressed cache (:mod:`harness.cache`) and computes only what is
+missing, so a rerun with nothing changed recomputes nothing and a killed run resumes where it
+stopped. Independent work (scores per (scene, method variant); views per (scene, frame, view)) runs
+on a local process pool of ``workers`` spawned processes, each with ``cores // workers`` threads.
+
+Deduplication: scores are computed once per (scene, method, resolved params) for all ratios; a
+view's reference render and reference metric features once for all methods; a pruned set identical
+to another (same keep-mask digest) is rendered and measured once per view.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from multiprocessing import get_context
+from pathlib import Path
+
+import numpy as np
+
+from harness.cache import StageCache, digest_mask
+from harness.config import RunConfig
+from harness.plan import SceneItem, Skip, Versions, load_items, variants_for
+from harness.stage_tasks import MaskJob, ScoreTask, ViewTask, init_worker, run_score, run_view
+from harness.toolkit import Toolkit, module_versions
+
+
+
+@dataclass
+class RunResult:
+    out_dir: Path
+    rows: list[dict]
+    skips: list[Skip]
+    errors: list[str]
+    stage_s: dict[str, float]
+    counts: dict[str, dict[str, int]]
+    images: dict = field(default_factory=dict)  # (scene, method, variant, ratio) -> cache png path
+
+
+def _wants_png(method: str, variant: str, ratio: float) -> bool:
+    """Is this pruned render an input of the paper-style image grids (first held-out view only)?"""
+    from harness.plots import FIG1, FIG3
+
+    m, v, rs = FIG1
+    if method == m and variant == v and any(abs(ratio - r) < 1e-9 for r in rs):
+        return True
+    return any(method == m and variant == v and abs(ratio - r) < 1e-9 for _, m, v, r in FIG3)
+
+
+class Runner:
+    def __init__(self, config: RunConfig, *, out_dir: Path, cache_root: Path, workers: int = 1,
+                 force: bool = False, toolkit: Toolkit | None = None, progress=None, log=print,
+                 base_dir: Path | None = None):
+        self.config = config
+        self.out_dir = Path(out_dir)
+        self.cache = StageCache(cache_root, force=force)
+        self.workers = max(1, int(workers))
+        self.toolkit = toolkit or Toolkit()
+        self.progress = progress  # a harness.progress.StageProgress or None
+        self.log = log
+        self.base = Path(base_dir) if base_dir else Path.cwd()
+        self.threads = max(1, (os.cpu_count() or 1) // self.workers)
+        self.stage_s: dict[str, float] = {}
+        self.errors: list[str] = []
+
+    # ------------------------------------------------------------------ execution helpers
+    def _map(self, stage: str, fn, tasks: list, weight=lambda t: 1):
+        """Run ``fn`` over ``tasks`` on the pool (or in-process), advancing the stage's bar."""
+        results = []
+        bar = self.progress.stage(stage, sum(weight(t) for t in tasks)) if self.progress else None
+        if self.workers == 1 or len(tasks) <= 1:
+            init_worker(self.threads, self.toolkit.imports)
+            for t in tasks:
+                if fn is run_view:
+                    results.append(fn(t, progress=bar.advance if bar else None))
+                else:
+                    results.append(fn(t))
+                    if bar:
+                        bar.advance(weight(t))
+        else:
+            ctx = get_context("spawn")
+            with ProcessPoolExecutor(self.workers, mp_context=ctx, initializer=init_worker,
+                                     initargs=(self.threads, self.toolkit.imports)) as pool:
+                futures = {pool.submit(fn, t): t for t in tasks}
+                for fut in as_completed(futures):
+                    results.append(fut.result())
+                    if bar:
+                        bar.advance(weight(futures[fut]))
+        if bar:
+            bar.finish()
+        return results
+
+    def _timed(self, stage: str, fn, *args):
+        t0 = time.perf_counter()
+        try:
+            return fn(*args)
+        finally:
+            self.stage_s[stage] = self.stage_s.get(stage, 0.0) + time.perf_counter() - t0
+
+    # ------------------------------------------------------------------ stages
+    def run(self) -> RunResult:
+        from methods.registry import get_pruner
+
+        t_all = time.perf_counter()
+        versions = Versions.of(self.toolkit)
+        self.versions = versions
+
+        def skipped(spec, reason):
+            self.log(f"skip {spec.name}: {reason}")
+
+        items, skips = self._timed("load", load_items, self.config, self.cache, self.toolkit, versions,
+                                   self.base, skipped)
+        self.items = items
+        scores, skips2 = self._timed("score", self._score_stage, items, get_pruner)
+        skips += skips2
+        prunes = self._timed("prune", self._prune_stage, items, scores)
+        self._timed("render_metrics", self._view_stage, items, prunes)
+        rows, images = self._timed("aggregate", self._rows, items, scores, prunes, skips)
+        self.stage_s["total"] = time.perf_counter() - t_all
+        return RunResult(self.out_dir, rows, skips, self.errors, self.stage_s, self.cache.counts(), images)
+
+    def _score_key(self, item: SceneItem, mv, spec) -> str:
+        params = spec.resolve_params(mv.params)
+        aware = bool(spec.needs)
+        return self.cache.key(
+            "score", scene=item.digest, method=mv.method, params=params, seed=self.config.protocol.seed,
+            code=self.versions.pruner(mv.method),
+            cameras=item.train_digest if aware else None,
+            renderer=self.versions.renderer if "renderer" in spec.needs else None,
+            device=self.config.protocol.device if aware else None,
+        )
+
+    def _score_stage(self, items, get_pruner):
+        """{(item index, method key): (score key, record)}; camera-aware without cameras -> skip."""
+        p = self.config.protocol
+        out, skips, tasks, pending = {}, [], [], {}
+        for i, item in enumerate(items):
+            for mv in variants_for(item, self.config.methods):
+                spec = get_pruner(mv.method)
+                if spec.needs and not item.train:
+                    skips.append(Skip(item.spec.name, item.frame, mv.method, mv.variant,
+                                      f"{mv.method} needs {', '.join(sorted(spec.needs))}: the scene has no "
+                                      "training cameras (give a rig or a cameras file with training views)"))
+                    continue
+                key = self._score_key(item, mv, spec)
+                rec = self.cache.get_json("score", key)
+                if rec is not None:
+                    out[(i, mv.key)] = (key, rec)
+                    continue
+                if key not in pending:
+                    pending[key] = []
+                    tasks.append(ScoreTask(
+                        str(self.cache.root), key, item.path, item.spec.lod, item.digest, mv.method,
+                        spec.resolve_params(mv.params), p.seed,
+                        [c.to_dict() for c in item.train] if spec.needs else None, p.renderer, p.device,
+                        self.toolkit))
+                pending[key].append((i, mv.key))
+        for res in self._map("score", run_score, tasks):
+            if res["error"]:
+                self.errors.append(f"score {res['key'][:12]}: {res['error']}")
+                for ik in pending[res["key"]]:
+                    out[ik] = (res["key"], {"error": res["error"]})
+                continue
+            rec = self.cache.load_json("score", res["key"])
+            for ik in pending[res["key"]]:
+                out[ik] = (res["key"], rec)
+        return out, skips
+
+    def _prune_stage(self, items, scores):
+        """{(item index, method key, ratio): prune record with mask digest}."""
+        from methods.targeting import select_by_ratio
+
+        code = module_versions(("methods.targeting",))
+        out = {}
+        for i, item in enumerate(items):
+            for mv in variants_for(item, self.config.methods):
+                if (i, mv.key) not in scores:
+                    continue
+                skey, srec = scores[(i, mv.key)]
+                if "error" in srec:
+                    continue
+                arr = None
+                for r in mv.ratios:
+                    key = self.cache.key("prune", score=skey, ratio=r, code=code)
+                    rec = self.cache.get_json("prune", key)
+                    if rec is None:
+                        if arr is None:
+                            arr = self.cache.load_array("score", skey)
+                        t0 = time.perf_counter()
+                        sel = select_by_ratio(arr, r)
+                        mask = digest_mask(sel.keep)
+                        if not self.cache.has("masks", mask, "npy"):
+                            self.cache.put_array("masks", mask, np.packbits(sel.keep))
+                        rec = {"mask": mask, "tau": sel.tau, "tau_quantile": sel.tau_quantile,
+                               "splats_out": sel.kept, "seconds": time.perf_counter() - t0}
+                        self.cache.put_json("prune", key, rec)
+                    out[(i, mv.key, r)] = rec
+        return out
+
+    def _ref_key(self, item: SceneItem, cam) -> str:
+        p = self.config.protocol
+        return self.cache.key("render_ref", scene=item.digest, camera=cam.to_dict(), renderer=p.renderer,
+                              code=self.versions.renderer, background=list(p.background))
+
+    def _metrics_key(self, ref_key: str, mask: str) -> str:
+        return self.cache.key("metrics", ref=ref_key, mask=mask, metrics=list(self.config.protocol.metrics),
+                              code=self.versions.metrics)
+
+    def _view_stage(self, items, prunes):
+        p = self.config.protocol
+        tasks = []
+        for i, item in enumerate(items):
+            masks: dict[str, bool] = {}
+            for mv in variants_for(item, self.config.methods):
+                for r in mv.ratios:
+                    rec = prunes.get((i, mv.key, r))
+                    if rec is not None:
+                        masks[rec["mask"]] = masks.get(rec["mask"], False) or _wants_png(mv.method, mv.variant, r)
+            for v, cam in enumerate(item.test):
+                ref_key = self._ref_key(item, cam)
+                jobs = []
+                for mask, png in masks.items():
+                    mkey = self._metrics_key(ref_key, mask)
+                    if self.cache.get_json("metrics", mkey) is None:
+                        jobs.append(MaskJob(mkey, mask, png and v == 0))
+                have_ref = self.cache.get_json("render_ref", ref_key) is not None
+                ref_png = not self.cache.has("images", ref_key, "png")  # contact sheets and figures
+                if jobs or not have_ref or ref_png:
+                    tasks.append(ViewTask(str(self.cache.root), ref_key, item.path, item.spec.lod, item.digest,
+                                          item.n_splats, cam.to_dict(), p.renderer, p.device, p.background,
+                                          p.metrics, jobs, render_ref=not have_ref, ref_png=ref_png,
+                                          toolkit=self.toolkit))
+        for res in self._map("render+metrics", run_view, tasks, weight=lambda t: max(1, len(t.masks))):
+            for key, err in res["errors"]:
+                self.errors.append(f"view {res['ref_key'][:12]}{'' if key is None else ' mask ' + key[:12]}: {err}")
+
+    # ------------------------------------------------------------------ aggregate
+    def _rows(self, items, scores, prunes, skips):
+        from harness.cache import canonical_json
+        from methods.registry import get_pruner
+
+        p = self.config.protocol
+        rows, images = [], {}
+        base = {"run": self.config.name, "renderer": p.renderer}
+        for sk in skips:
+            spec = next((s for s in self.config.scenes if s.name == sk.scene), None)
+            rows.append({**base, "scene": sk.scene, "label": spec.label if spec else sk.scene,
+                         "kind": spec.kind if spec else "", "frame": sk.frame, "method": sk.method,
+                         "variant": sk.variant, "status": "skipped", "reason": sk.reason})
+        for i, item in enumerate(items):
+            ref_keys = [self._ref_key(item, cam) for cam in item.test]
+            ref_recs = [self.cache.load_json("render_ref", k) or {} for k in ref_keys]
+            if ref_keys:
+                images[(item.spec.name, item.frame, "input", "", 0.0)] = self.cache.path("images", ref_keys[0], "png")
+            for mv in variants_for(item, self.config.methods):
+                if (i, mv.key) not in scores:
+                    continue  # recorded as a skip
+                skey, srec = scores[(i, mv.key)]
+                ident = {**base, "scene": item.spec.name, "label": item.spec.label, "kind": item.spec.kind,
+                         "frame": item.frame, "method": mv.method, "variant": mv.variant,
+                         "params": canonical_json(get_pruner(mv.method).resolve_params(mv.params)),
+                         "splats_in": item.n_splats}
+                for r in mv.ratios:
+                    row0 = {**ident, "ratio": r, "keep": round(1.0 - r, 9)}
+                    if "error" in srec:
+                        rows.append({**row0, "status": "error", "reason": srec["error"]})
+                        continue
+                    prec = prunes[(i, mv.key, r)]
+                    row0.update(splats_out=prec["splats_out"], tau=prec["tau"], tau_quantile=prec["tau_quantile"],
+                                score_s=srec["seconds"], prune_s=prec["seconds"])
+                    for v, (cam, rk, rrec) in enumerate(zip(item.test, ref_keys, ref_recs)):
+                        mkey = self._metrics_key(rk, prec["mask"])
+                        m = self.cache.load_json("metrics", mkey)
+                        row = {**row0, "view": cam.name or f"view{v:02d}", "width": cam.width, "height": cam.height,
+                               "render_ref_s": rrec.get("seconds")}
+                        if m is None:
+                            row.update(status="error", reason="render or metrics failed (see run.json errors)")
+                        else:
+                            row.update(status="ok", render_s=m["render_s"], metrics_s=m["metrics_s"],
+                                       **{k: m[k] for k in p.metrics})
+                            if v == 0 and _wants_png(mv.method, mv.variant, r):
+                                images[(item.spec.name, item.frame, mv.method, mv.variant, r)] = \
+                                    self.cache.path("images", mkey, "png")
+                        rows.append(row)
+        return rows, images

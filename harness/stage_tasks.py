@@ -1,0 +1,214 @@
+"""Work units of a run, executed in pool workers (or in-process with one worker).
+
+Each function takes a plain, picklable task description, computes what the cache lacks, stores it
+atomically, and returns a small summary (timings, errors). The planner decided what is missing. Per-process state — the last
+loaded scene, the renderer (one GL context per process), the metric suite with its cached
+reference features — lives in :data:`_STATE`, so consecutive tasks on the same scene or view reuse it.
+
+Thread budget: :func:`init_worker` sets torch/numba/BLAS threads to ``threads`` so that
+``workers × threads ≤ cores``.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import time
+import traceback
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from harness.cache import StageCache
+from harness.cameras import Camera
+from harness.toolkit import Toolkit
+
+_STATE: dict = {}
+
+
+def init_worker(threads: int, imports: tuple[str, ...] = ()) -> None:
+    """Pool initializer: cap threads, import plugin modules (they register pruners)."""
+    import importlib
+
+    for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS"):
+        os.environ[var] = str(threads)
+    try:
+        import torch
+
+        torch.set_num_threads(threads)
+    except ImportError:
+        pass
+    for name in imports:
+        importlib.import_module(name)
+
+
+def _cache(root: str) -> StageCache:
+    c = _STATE.get("cache")
+    if c is None or str(c.root) != root:
+        c = _STATE["cache"] = StageCache(root)
+    return c
+
+
+def _scene(toolkit: Toolkit, path: str, lod, digest: str):
+    if _STATE.get("scene_digest") != digest:
+        _STATE["scene"] = None  # free the previous scene before loading the next
+        _STATE["scene"] = toolkit.load_scene(path, lod)
+        _STATE["scene_digest"] = digest
+    return _STATE["scene"]
+
+
+def _renderer(toolkit: Toolkit, name: str, device: str):
+    key = (name, device)
+    if _STATE.get("renderer_key") != key:
+        old = _STATE.get("renderer")
+        if old is not None and hasattr(old, "close"):
+            old.close()
+        _STATE["renderer"] = toolkit.make_renderer(name, device)
+        _STATE["renderer_key"] = key
+    return _STATE["renderer"]
+
+
+def _metrics(toolkit: Toolkit, names: tuple[str, ...], device: str):
+    key = (tuple(names), device)
+    if _STATE.get("metrics_key") != key:
+        _STATE["metrics"] = toolkit.make_metrics(tuple(names), device)
+        _STATE["metrics_key"] = key
+    return _STATE["metrics"]
+
+
+def png_bytes(img: np.ndarray) -> bytes:
+    """8-bit PNG of a linear float image clamped to [0, 1] (for figures and contact sheets)."""
+    from PIL import Image
+
+    arr = (np.clip(np.nan_to_num(img), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+    buf = io.BytesIO()
+    Image.fromarray(arr).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def put_png(cache: StageCache, key: str, img: np.ndarray) -> None:
+    from harness.cache import atomic_write_bytes
+
+    atomic_write_bytes(cache.path("images", key, "png"), png_bytes(img))
+
+
+# --------------------------------------------------------------------------- score
+@dataclass
+class ScoreTask:
+    cache_root: str
+    key: str
+    path: str
+    lod: int | None
+    scene_digest: str
+    method: str
+    params: dict
+    seed: int
+    train: list[dict] | None  # camera dicts, only for camera-aware pruners
+    renderer: str
+    device: str
+    toolkit: Toolkit = field(default_factory=Toolkit)
+
+
+def run_score(task: ScoreTask) -> dict:
+    """Score every splat with one method variant; store scores (npy) then their record (json)."""
+    from methods.registry import PruneContext, get_pruner
+
+    cache = _cache(task.cache_root)
+    out = {"key": task.key, "error": None, "seconds": 0.0}
+    try:
+        scene = _scene(task.toolkit, task.path, task.lod, task.scene_digest)
+        spec = get_pruner(task.method)
+        cams = [Camera.from_dict(c) for c in task.train] if task.train else None
+        renderer = _renderer(task.toolkit, "reference", task.device) if "renderer" in spec.needs else None
+        ctx = PruneContext(params=dict(task.params), seed=task.seed, cameras=cams, renderer=renderer,
+                           device=task.device)
+        t0 = time.perf_counter()
+        scores = spec.score(scene, ctx)
+        seconds = time.perf_counter() - t0
+        cache.put_array("score", task.key, scores)
+        cache.put_json("score", task.key, {"seconds": seconds, "n": int(len(scores))})
+        out["seconds"] = seconds
+    except Exception as err:  # a pruner failing on one scene is recorded, the run goes on
+        out["error"] = f"{type(err).__name__}: {err}"
+        out["trace"] = traceback.format_exc(limit=6)
+    return out
+
+
+# --------------------------------------------------------------------------- render + metrics
+@dataclass
+class MaskJob:
+    metrics_key: str
+    mask_key: str
+    png: bool = False  # keep an image of this pruned render for the figures
+
+
+@dataclass
+class ViewTask:
+    cache_root: str
+    ref_key: str
+    path: str
+    lod: int | None
+    scene_digest: str
+    n_splats: int
+    camera: dict
+    renderer: str
+    device: str
+    background: tuple[float, float, float]
+    metrics: tuple[str, ...]
+    masks: list[MaskJob]  # pruned sets not measured yet (the planner checked the cache)
+    render_ref: bool = True  # False: the reference render is cached, load it
+    ref_png: bool = False
+    toolkit: Toolkit = field(default_factory=Toolkit)
+
+
+def run_view(task: ViewTask, progress=None) -> dict:
+    """Reference render of one view (cached), then each not-yet-measured pruned set of it.
+
+    The reference's metric features are computed once here and reused for every pruned render.
+    ``progress(n)`` is called after each stored metrics entry (in-process runs only).
+    """
+    cache = _cache(task.cache_root)
+    out = {"ref_key": task.ref_key, "errors": [], "done": 0}
+    cam = Camera.from_dict(task.camera)
+    todo = task.masks
+    try:
+        scene = _scene(task.toolkit, task.path, task.lod, task.scene_digest)
+        renderer = _renderer(task.toolkit, task.renderer, task.device)
+        ref = None if task.render_ref else cache.get_array("render_ref", task.ref_key, count=False)
+        if ref is None:
+            t0 = time.perf_counter()
+            ref = np.asarray(renderer.render(scene, cam, background=task.background), dtype=np.float32)
+            ref_rec = {"seconds": time.perf_counter() - t0, "height": int(ref.shape[0]), "width": int(ref.shape[1])}
+            cache.put_array("render_ref", task.ref_key, ref)
+            cache.put_json("render_ref", task.ref_key, ref_rec)
+        if task.ref_png:
+            put_png(cache, task.ref_key, ref)
+        if todo:
+            suite = _metrics(task.toolkit, task.metrics, task.device)
+            t0 = time.perf_counter()
+            suite.reference(task.ref_key, ref)
+            feat_s = time.perf_counter() - t0
+            for job in todo:
+                try:
+                    packed = cache.get_array("masks", job.mask_key, count=False)
+                    keep = np.unpackbits(packed, count=task.n_splats).astype(bool)
+                    t0 = time.perf_counter()
+                    img = np.asarray(renderer.render(scene.subset(keep), cam, background=task.background),
+                                     dtype=np.float32)
+                    t1 = time.perf_counter()
+                    values = suite.score(task.ref_key, img)
+                    t2 = time.perf_counter()
+                    if job.png:
+                        put_png(cache, job.metrics_key, img)
+                    rec = {k: float(values[k]) for k in task.metrics}
+                    rec.update(render_s=t1 - t0, metrics_s=t2 - t1, ref_features_s=feat_s)
+                    cache.put_json("metrics", job.metrics_key, rec)
+                    out["done"] += 1
+                    if progress:
+                        progress(1)
+                except Exception as err:
+                    out["errors"].append((job.metrics_key, f"{type(err).__name__}: {err}"))
+    except Exception as err:
+        out["errors"].append((None, f"{type(err).__name__}: {err}"))
+        out["trace"] = traceback.format_exc(limit=6)
+    return out

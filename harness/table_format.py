@@ -1,0 +1,85 @@
+"""DataFrame (display strings, MultiIndex rows/columns) -> markdown and LaTeX in the paper's style.
+
+LaTeX: one header line per column level with ``\\multicolumn`` spans over equal neighbours, the
+first row level as ``\\multirow`` (needs ``\\usepackage{multirow}``), ``**x**`` markdown bold
+becomes ``\\textbf{x}``; ↑/↓ become ``$\\uparrow$``/``$\\downarrow$``; % and Δ are escaped.
+"""
+
+from __future__ import annotations
+
+import re
+
+import pandas as pd
+
+
+def _levels(index) -> list[tuple]:
+    return [t if isinstance(t, tuple) else (t,) for t in index]
+
+
+def _names(index) -> list[str]:
+    return [str(n) if n is not None else "" for n in index.names]
+
+
+def to_markdown(disp: pd.DataFrame, title: str, notes=()) -> str:
+    rows = _levels(disp.index)
+    head = _names(disp.index) + [" ".join(str(x) for x in c if str(x)) for c in _levels(disp.columns)]
+    lines = [f"### {title}", "", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    prev = None
+    for r, vals in zip(rows, disp.itertuples(index=False)):
+        shown = [("" if prev is not None and i == 0 and r[0] == prev[0] else str(x)) for i, x in enumerate(r)]
+        lines.append("| " + " | ".join(shown + [str(v) for v in vals]) + " |")
+        prev = r
+    lines += [""] + [f"_{n}_" for n in notes]
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def _tex(text) -> str:
+    t = str(text)
+    t = re.sub(r"\*\*(.+?)\*\*", r"\\textbf{\1}", t)
+    t = t.replace("%", r"\%").replace("_", r"\_").replace("&", r"\&")
+    return (t.replace("↑", r"$\uparrow$").replace("↓", r"$\downarrow$").replace("Δ", r"$\Delta$")
+            .replace("–", "--").replace("−", "$-$").replace("×", r"$\times$"))
+
+
+def _spans(values: list) -> list[tuple[str, int]]:
+    out: list[list] = []
+    for v in values:
+        if out and out[-1][0] == v:
+            out[-1][1] += 1
+        else:
+            out.append([v, 1])
+    return [(v, n) for v, n in out]
+
+
+def to_latex(disp: pd.DataFrame, title: str, notes=(), label: str = "") -> str:
+    rows = _levels(disp.index)
+    cols = _levels(disp.columns)
+    n_idx, n_col = len(rows[0]) if rows else 1, len(cols)
+    spec = "|" + "c" * n_idx + "|" + "|".join("c" * n for _, n in _spans([c[0] for c in cols])) + "|"
+    out = [r"\begin{table}[t]", r"\centering", r"\resizebox{\linewidth}{!}{%", rf"\begin{{tabular}}{{{spec}}}",
+           r"\hline"]
+    depth = len(cols[0]) if cols else 1
+    for lvl in range(depth):
+        lead = [_tex(n) for n in _names(disp.index)] if lvl == 0 else [""] * n_idx
+        parts = []
+        # spans break where any higher level changes, so groups never straddle a parent boundary
+        keys = [c[: lvl + 1] for c in cols]
+        for key, n in _spans(keys):
+            parts.append(rf"\multicolumn{{{n}}}{{c|}}{{{_tex(key[-1])}}}" if n > 1 else _tex(key[-1]))
+        out.append(" & ".join(lead + parts) + r" \\")
+        out.append(rf"\cline{{{n_idx + 1}-{n_idx + n_col}}}" if lvl < depth - 1 else r"\hline")
+    groups = _spans([r[0] for r in rows])
+    i = 0
+    for first, n in groups:
+        for j in range(n):
+            r = rows[i + j]
+            lead = [(rf"\multirow{{{n}}}{{*}}{{{_tex(first)}}}" if n > 1 else _tex(first)) if j == 0 else ""]
+            lead += [_tex(x) for x in r[1:]]
+            out.append(" & ".join(lead + [_tex(v) for v in disp.iloc[i + j]]) + r" \\")
+        out.append(r"\hline")
+        i += n
+    out += [r"\end{tabular}}", rf"\caption{{{_tex(title)}" + "".join(f" {_tex(n)}" for n in notes) + "}"]
+    if label:
+        out.append(rf"\label{{{label}}}")
+    out.append(r"\end{table}")
+    return "\n".join(out) + "\n"

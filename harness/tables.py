@@ -1,0 +1,256 @@
+"""The paper's tables from tidy results (pandas), as markdown, csv and LaTeX.
+
+Means are over all measured image pairs of a cell (every view of every frame of a sequence). PSNR
+= +inf (pruned render identical to the reference) is excluded from PSNR means and counted in
+``n_inf`` (``summary.csv``; a note under each table); a cell whose pairs are all identical shows
+``inf``. Only ``status == ok`` rows enter.
+
+* ``comparison`` (Table 1): per scene × metric, each method's default variant at Low/Mid/High =
+  10/20/30 % pruning; camera-aware methods, simple baselines, then BetaDescPrune.
+* ``ablation`` (Table 2): at 20 %, No/With Descriptors × No Beta/Beta =
+  betadesc-nodesc-nobeta, betadesc-nodesc, betadesc-nobeta, betadesc. Bold: best per row.
+* ``keep`` (Table 3): keep 0.7/0.5/0.3 (prune 30/50/70 %), pooled over scenes, betadesc-nodesc
+  vs betadesc, and ΔPSNR = PSNR(no descriptors) − PSNR(with descriptors) — the paper's sign
+  (negative when descriptors help).
+* ``sensitivity``: betadesc variants at keep 0.7 — coefficient presets and voxel sizes (variants
+  named ``preset=…`` / ``voxel=…``; the default variant is the baseline row).
+* ``runtime``: scoring seconds per scene of every method's default variant, with the descriptor
+  overhead betadesc − betadesc-nodesc (absolute and %).
+* ``per_scene``: per-scene descriptor gain PSNR(betadesc) − PSNR(betadesc-nodesc) at each keep
+  fraction (positive = descriptors help; the paper's "+4.04 dB" sense).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from harness.cache import atomic_write_text
+
+NAMES = {"confsplat": "ConfSplatPrune", "lightgs": "LightGSPrune", "betadesc": "BetaDescPrune",
+         "opacity": "Opacity", "volume": "Volume", "random": "Random"}
+GROUPS = (("Camera-Aware Methods", ("confsplat", "lightgs")), ("Simple Baselines", ("opacity", "volume", "random")),
+          ("Our Method", ("betadesc",)))
+LEVELS = (("Low", 0.1), ("Mid", 0.2), ("High", 0.3))
+KEEPS = (0.7, 0.5, 0.3)
+ABLATION = (("No Descriptors", "No Beta", "betadesc-nodesc-nobeta"), ("No Descriptors", "Beta", "betadesc-nodesc"),
+            ("With Descriptors", "No Beta", "betadesc-nobeta"), ("With Descriptors", "Beta", "betadesc"))
+METRICS = (("psnr", "PSNR (↑)", 2), ("ssim", "SSIM (↑)", 3), ("lpips", "LPIPS (↓)", 3))
+_TOL = 1e-6
+
+
+# --------------------------------------------------------------------------- aggregation
+def summarise(df: pd.DataFrame) -> pd.DataFrame:
+    """Per (scene, label, method, variant, ratio): n pairs, n_inf, mean psnr (finite), ssim, lpips, score_s."""
+    ok = df[df["status"] == "ok"].copy()
+    cols = ["scene", "label", "method", "variant", "ratio"]
+    if ok.empty:
+        return pd.DataFrame(columns=cols + ["n", "n_inf", "psnr", "ssim", "lpips", "score_s", "splats_in"])
+    ok["psnr_f"] = ok["psnr"].where(np.isfinite(ok["psnr"]))
+    ok["is_inf"] = np.isinf(ok["psnr"])
+    g = ok.groupby(cols, sort=False, dropna=False)
+    out = pd.DataFrame({
+        "n": g.size(), "n_inf": g["is_inf"].sum().astype(int), "psnr": g["psnr_f"].mean(),
+        "ssim": g["ssim"].mean(), "lpips": g["lpips"].mean(),
+        "score_s": g["score_s"].mean(),  # repeated on every view row of a frame: = mean over frames
+        "splats_in": g["splats_in"].max(),
+    }).reset_index()
+    all_inf = (out["n_inf"] == out["n"]) & (out["n"] > 0)
+    out.loc[all_inf, "psnr"] = np.inf
+    return out
+
+
+def _cell(s: pd.DataFrame, scene, method, ratio, variant="default"):
+    m = s[(s["label"] == scene) & (s["method"] == method) & (s["variant"] == variant)
+          & (np.abs(s["ratio"] - ratio) < _TOL)]
+    return None if m.empty else m.iloc[0]
+
+
+def _fmt(v, digits: int) -> str:
+    if v is None or (isinstance(v, float) and np.isnan(v)):
+        return "–"
+    if np.isinf(v):
+        return "inf"
+    return f"{v:.{digits}f}"
+
+
+def _inf_note(s: pd.DataFrame) -> list[str]:
+    k = int(s["n_inf"].sum()) if len(s) else 0
+    return [f"PSNR means exclude {k} identical-image pair(s) (PSNR = inf); counts per cell in summary.csv."] if k else []
+
+
+# --------------------------------------------------------------------------- tables
+def table_comparison(s: pd.DataFrame):
+    present = set(s["method"])
+    cols = [(grp, NAMES.get(m, m), lvl, m, r) for grp, ms in GROUPS for m in ms if m in present for lvl, r in LEVELS]
+    if not cols:
+        return None
+    idx, num, disp = [], [], []
+    for scene in dict.fromkeys(s["label"]):
+        for key, name, digits in METRICS:
+            cells = [_cell(s, scene, m, r) for *_, m, r in cols]
+            vals = [np.nan if c is None else c[key] for c in cells]
+            idx.append((scene, name))
+            num.append(vals)
+            disp.append([_fmt(v, digits) for v in vals])
+    mi = pd.MultiIndex.from_tuples([c[:3] for c in cols], names=["group", "method", "level"])
+    ri = pd.MultiIndex.from_tuples(idx, names=["Dataset", "Metric"])
+    return pd.DataFrame(num, ri, mi), pd.DataFrame(disp, ri, mi), _inf_note(s)
+
+
+def table_ablation(s: pd.DataFrame, ratio: float = 0.2):
+    present = [a for a in ABLATION if not s[(s["method"] == a[2]) & (np.abs(s["ratio"] - ratio) < _TOL)].empty]
+    if not present:
+        return None
+    idx, num, disp = [], [], []
+    for scene in dict.fromkeys(s["label"]):
+        for key, name, digits in METRICS:
+            vals = [np.nan if (c := _cell(s, scene, m, ratio)) is None else c[key] for *_, m in present]
+            finite = [v for v in vals if np.isfinite(v)]
+            best = (min(finite) if key == "lpips" else max(finite)) if finite else None
+            idx.append((scene, name))
+            num.append(vals)
+            disp.append([f"**{_fmt(v, digits)}**" if best is not None and v == best else _fmt(v, digits)
+                         for v in vals])
+    mi = pd.MultiIndex.from_tuples([a[:2] for a in present], names=["descriptors", "beta"])
+    ri = pd.MultiIndex.from_tuples(idx, names=["Dataset", "Metric"])
+    return pd.DataFrame(num, ri, mi), pd.DataFrame(disp, ri, mi), _inf_note(s[s["ratio"].sub(ratio).abs() < _TOL])
+
+
+def _pooled(df: pd.DataFrame, method: str, ratio: float, variant: str = "default") -> dict:
+    ok = df[(df["status"] == "ok") & (df["method"] == method) & (df["variant"] == variant)
+            & ((df["ratio"] - ratio).abs() < _TOL)]
+    fin = ok["psnr"][np.isfinite(ok["psnr"])]
+    return {"psnr": fin.mean() if len(fin) else (np.inf if len(ok) else np.nan), "ssim": ok["ssim"].mean(),
+            "lpips": ok["lpips"].mean(), "n": len(ok), "n_inf": int(np.isinf(ok["psnr"]).sum())}
+
+
+def table_keep(df: pd.DataFrame):
+    rows, idx = [], []
+    for k in KEEPS:
+        r = round(1 - k, 9)
+        a, b = _pooled(df, "betadesc-nodesc", r), _pooled(df, "betadesc", r)
+        if a["n"] == 0 and b["n"] == 0:
+            continue
+        idx.append(f"{round(100 * r)}%")
+        rows.append([a["psnr"], a["ssim"], a["lpips"], b["psnr"], b["ssim"], b["lpips"], a["psnr"] - b["psnr"],
+                     a["n"], b["n"]])
+    if not rows:
+        return None
+    mi = pd.MultiIndex.from_tuples(
+        [("No Descriptors", m) for _, m, _ in METRICS] + [("With Descriptors", m) for _, m, _ in METRICS]
+        + [("ΔPSNR", "(dB)"), ("pairs", "no desc."), ("pairs", "with desc.")])
+    num = pd.DataFrame(rows, pd.Index(idx, name="Prune %"), mi)
+    digits = [2, 3, 3, 2, 3, 3, 2, 0, 0]
+    disp = num.copy().astype(object)
+    for j, d in enumerate(digits):
+        disp.iloc[:, j] = [(_fmt(v, d) if d else str(int(v))) for v in num.iloc[:, j]]
+    notes = [f"pooled over every measured pair of all scenes; ΔPSNR = no-desc − with-desc (paper's sign)"]
+    sub = df[(df["status"] == "ok") & df["method"].isin(["betadesc", "betadesc-nodesc"])]
+    k_inf = int(np.isinf(sub["psnr"]).sum())
+    return num, disp, notes + ([f"{k_inf} identical pair(s) (PSNR = inf) excluded from PSNR means"] if k_inf else [])
+
+
+def table_sensitivity(df: pd.DataFrame, keep: float = 0.7):
+    r = round(1 - keep, 9)
+    sub = df[(df["method"] == "betadesc") & ((df["ratio"] - r).abs() < _TOL)]
+    variants = [v for v in dict.fromkeys(sub["variant"]) if v == "default" or "preset=" in v or "voxel=" in v]
+    if len(variants) < 2:
+        return None
+    idx, rows = [], []
+    for v in sorted(variants, key=lambda v: (v != "default", "voxel=" in v, v)):
+        p = _pooled(df, "betadesc", r, v)
+        knob = "baseline" if v == "default" else ("voxel size" if "voxel=" in v else "coefficients")
+        idx.append((knob, v))
+        rows.append([p["psnr"], p["ssim"], p["lpips"], p["n"], p["n_inf"]])
+    num = pd.DataFrame(rows, pd.MultiIndex.from_tuples(idx, names=["knob", "variant"]),
+                       ["PSNR (↑)", "SSIM (↑)", "LPIPS (↓)", "pairs", "inf"])
+    disp = num.copy().astype(object)
+    for j, d in enumerate([2, 4, 4, 0, 0]):
+        disp.iloc[:, j] = [(_fmt(v, d) if d else str(int(v))) for v in num.iloc[:, j]]
+    spread = num["PSNR (↑)"].replace(np.inf, np.nan)
+    return num, disp, [f"betadesc at keep {keep}; PSNR spread across variants {spread.max() - spread.min():.2f} dB"]
+
+
+def table_runtime(s: pd.DataFrame):
+    d = s[s["variant"] == "default"].drop_duplicates(["label", "method"])
+    if d.empty:
+        return None
+    wide = d.pivot(index="label", columns="method", values="score_s")
+    order = [m for _, ms in GROUPS for m in ms if m in wide] + sorted(set(wide) - {m for _, ms in GROUPS for m in ms})
+    wide = wide[order]
+    wide.insert(0, "splats", d.drop_duplicates("label").set_index("label")["splats_in"].reindex(wide.index))
+    if "betadesc" in wide and "betadesc-nodesc" in wide:
+        wide["desc. overhead (s)"] = wide["betadesc"] - wide["betadesc-nodesc"]
+        wide["desc. overhead (%)"] = 100 * wide["desc. overhead (s)"] / wide["betadesc-nodesc"]
+    wide.index.name = "scene"
+    wide.columns = [NAMES.get(c, c) + (" (s)" if c in d["method"].values else "") for c in wide.columns]
+    disp = wide.copy().astype(object)
+    for c in wide.columns:
+        disp[c] = [str(int(v)) if c == "splats" and np.isfinite(v) else _fmt(v, 1 if "%" in c else 2) for v in wide[c]]
+    return wide, disp, ["scoring seconds per scene (mean over frames), as measured by the run that computed them"]
+
+
+def table_per_scene(s: pd.DataFrame):
+    rows, idx = [], []
+    for scene in dict.fromkeys(s["label"]):
+        gains = []
+        for k in KEEPS:
+            a, b = _cell(s, scene, "betadesc-nodesc", round(1 - k, 9)), _cell(s, scene, "betadesc", round(1 - k, 9))
+            gains.append(np.nan if a is None or b is None else b["psnr"] - a["psnr"])
+        if not all(np.isnan(g) for g in gains):
+            idx.append(scene)
+            rows.append(gains)
+    if not rows:
+        return None
+    num = pd.DataFrame(rows, pd.Index(idx, name="scene"), [f"prune {round(100 * (1 - k))}%" for k in KEEPS])
+    disp = num.map(lambda v: "–" if np.isnan(v) else f"{v:+.2f}")
+    return num, disp, ["descriptor gain in dB: PSNR(betadesc) − PSNR(betadesc-nodesc); positive = descriptors help"]
+
+
+BUILDERS = {"comparison": table_comparison, "ablation": table_ablation, "keep": table_keep,
+            "sensitivity": table_sensitivity, "runtime": table_runtime, "per_scene": table_per_scene}
+_USES_RAW = {"keep", "sensitivity"}
+TITLES = {"comparison": "Comparison at low (10 %), mid (20 %) and high (30 %) pruning (paper Table 1)",
+          "ablation": "Ablation: descriptors × Beta at 20 % pruning (paper Table 2)",
+          "keep": "Keep fractions 0.7 / 0.5 / 0.3 with and without descriptors (paper Table 3)",
+          "sensitivity": "Sensitivity: coefficient presets and voxel sizes at keep 0.7",
+          "runtime": "Scoring runtime per scene", "per_scene": "Per-scene descriptor gains"}
+
+
+def build_tables(df: pd.DataFrame, names) -> dict:
+    s = summarise(df)
+    out = {}
+    for name in names:
+        t = BUILDERS[name](df if name in _USES_RAW else s)
+        if t is not None:
+            out[name] = t
+    return out
+
+
+def write_tables(df: pd.DataFrame, out_dir: str | Path, names) -> list[Path]:
+    """Write ``tables/<name>.md|csv|tex`` for each table with data, plus ``tables/summary.csv``."""
+    from harness.table_format import to_latex, to_markdown
+
+    out_dir = Path(out_dir) / "tables"
+    out_dir.mkdir(parents=True, exist_ok=True)
+    s = summarise(df)
+    written = [out_dir / "summary.csv"]
+    atomic_write_text(written[0], s.to_csv(index=False))
+    for name, (num, disp, notes) in build_tables(df, names).items():
+        title = TITLES[name]
+        for ext, text in (("md", to_markdown(disp, title, notes)), ("csv", num.to_csv()),
+                          ("tex", to_latex(disp, title, notes, label=f"table:{name}"))):
+            p = out_dir / f"{name}.{ext}"
+            atomic_write_text(p, text)
+            written.append(p)
+    return written
+
+
+def write_outputs(run_dir: str | Path, df: pd.DataFrame, tables, plots) -> list[Path]:
+    """Tables and plots of a run folder from its results (no recomputation)."""
+    from harness.plots import write_plots
+
+    return write_tables(df, run_dir, tables) + write_plots(df, run_dir, plots)

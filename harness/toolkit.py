@@ -1,0 +1,106 @@
+"""The pieces a run orchestrates, behind one small seam so tests can inject fakes.
+
+:class:`Toolkit` bundles the callables the runner uses — scene loading, dataset name resolution,
+rigs, camera files, renderers, metrics. The default toolkit imports the real modules lazily
+(:mod:`harness.scene_io`, :mod:`harness.datasets`, :mod:`harness.rigs`, :mod:`harness.camera_io`,
+:mod:`renderers`, :mod:`harness.metrics`). A toolkit travels to pool workers by pickling, so every
+callable in it must be a module-level function.
+
+Each entry also names the modules whose source is its "version" in cache keys
+(see :func:`harness.cache.code_digest`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+
+def load_scene(path: str, lod: int | None = None):
+    from harness.scene_io import load_scene as _load
+
+    return _load(path, lod=lod)
+
+
+def resolve_dataset(name: str) -> Path | None:
+    """Path of a named dataset scene, or None when ``name`` is not a dataset name.
+
+    A named scene that is not fetched yet resolves to its expected path (which then does not exist);
+    the runner reports it as absent with the hint to run ``harness fetch``.
+    """
+    from harness import datasets
+
+    return datasets.scene_path(name) if name in datasets.SCENES else None
+
+
+def make_rig(rig: str, scene, *, kind: str, name: str, n_train: int, n_test: int, longest_side: int,
+             aspect: float, seed: int):
+    """(rig name, train, test) cameras from a synthetic rig.
+
+    ``rig='auto'``: the scene's entry in :data:`harness.rigs.SCENE_RIGS` when it has one (its own
+    aspect, up axis and elevations win over the config's aspect), else ``forward`` for a
+    forward-facing scene and the rigs module's ``auto`` choice (room or orbit) otherwise.
+    """
+    from harness import rigs
+
+    common = dict(n_train=n_train, n_test=n_test, longest_side=longest_side, seed=seed)
+    if rig == "auto" and rigs.scene_key(name) in rigs.SCENE_RIGS:
+        views = rigs.default_rig(name, scene, **common)
+    else:
+        if rig == "auto" and kind == "forward-facing":
+            rig = "forward"
+        views = rigs.make_rig(rig, scene, aspect=aspect, **common)
+    return views.rig or rig, list(views.train), list(views.test)
+
+
+def load_cameras(path: str):
+    from harness.camera_io import load_cameras as _load
+
+    return _load(path)
+
+
+def make_renderer(name: str, device: str):
+    from renderers import get_renderer
+
+    return get_renderer(name, device)
+
+
+def make_metrics(names: tuple[str, ...], device: str):
+    """A metric suite with ``reference(key, img)`` and ``score(key, img) -> dict``."""
+    from harness.metric_suite import MetricSuite
+
+    return MetricSuite(names, device)
+
+
+@dataclass(frozen=True)
+class Toolkit:
+    load_scene: Callable = load_scene
+    resolve_dataset: Callable = resolve_dataset
+    make_rig: Callable = make_rig
+    load_cameras: Callable = load_cameras
+    make_renderer: Callable = make_renderer
+    make_metrics: Callable = make_metrics
+    #: module names whose source versions each stage (cache-key "code" component)
+    reader_modules: tuple[str, ...] = ("harness.scene_io", "harness.ply_io", "harness.splat_io", "harness.sog_io")
+    rig_modules: tuple[str, ...] = ("harness.rigs", "harness.cameras")
+    renderer_modules: tuple[str, ...] = ("renderers",)
+    metric_modules: tuple[str, ...] = ("harness.metrics", "harness.metric_suite")
+    #: extra modules each worker imports first (e.g. a plugin registering pruners)
+    imports: tuple[str, ...] = field(default_factory=tuple)
+
+
+def module_versions(names) -> str:
+    """code_digest of the named modules that exist (a missing optional reader is skipped)."""
+    import importlib
+
+    from harness.cache import code_digest
+
+    mods = []
+    for n in names:
+        try:
+            mods.append(importlib.import_module(n))
+        except ModuleNotFoundError as err:
+            if err.name != n:
+                raise
+    return code_digest(*mods)
