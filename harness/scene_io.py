@@ -63,12 +63,12 @@ def _first_row(mask: np.ndarray) -> int:
 def check_scene(scene: GaussianScene, source, *, drop_nonfinite: bool = False) -> tuple[GaussianScene, int]:
     """Validate a freshly read scene; returns (scene, rows dropped for NaN/inf)."""
     n = len(scene)
-    bad = np.zeros(n, bool)
-    for attr in _CORE:
-        arr = getattr(scene, attr)
-        bad |= ~np.isfinite(arr.reshape(n, -1)).all(axis=1)
-    dropped = int(bad.sum())
-    if dropped:
+    dropped = 0
+    if not all(np.isfinite(getattr(scene, attr)).all() for attr in _CORE):  # row masks only when needed
+        bad = np.zeros(n, bool)
+        for attr in _CORE:
+            bad |= ~np.isfinite(getattr(scene, attr).reshape(n, -1)).all(axis=1)
+        dropped = int(bad.sum())
         if not drop_nonfinite:
             row = _first_row(bad)
             which = next(a for a in _CORE if not np.isfinite(getattr(scene, a)[row]).all())
