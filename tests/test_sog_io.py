@@ -15,6 +15,7 @@ from PIL import Image
 
 from harness import datasets
 from harness.errors import InputError
+from harness.ply_io import read_ply, write_ply
 from harness.sog_io import lod_levels, read_sog
 
 SQRT2 = math.sqrt(2.0)
@@ -199,7 +200,7 @@ def test_broken_sog_sets_raise_input_errors(tmp_path):
 
 
 @pytest.mark.data
-def test_real_playbot_lod_set():
+def test_real_playbot_lod_set(tmp_path):
     root = datasets.scene_path("playbot")
     if not root.exists():
         pytest.skip(f"shared data folder lacks {root}")
@@ -213,3 +214,7 @@ def test_real_playbot_lod_set():
     np.testing.assert_allclose(scene.means.max(0), inv(np.array(meta["means"]["maxs"])), rtol=1e-6)
     counts = [len(read_sog(root, level)) for level in range(1, 7)]
     assert counts == [250_000, 125_000, 31_000, 8_406, 3_000, 1_873]
+    write_ply(scene, tmp_path / "playbot.ply")  # round trip: SOG -> .ply -> identical arrays
+    back = read_ply(tmp_path / "playbot.ply")
+    for attr in ("means", "quats", "scales_log", "opacity_logit", "sh_dc", "sh_rest"):
+        assert getattr(back, attr).tobytes() == getattr(scene, attr).tobytes(), attr
