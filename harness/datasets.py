@@ -89,7 +89,7 @@ def _pip_download(requirement: str, dest: Path) -> Path:
     """Download the sdist of ``requirement`` into ``dest``; returns the archive path."""
     cmd = [sys.executable, "-m", "pip", "download", "--no-deps", "--no-binary", ":all:",
            "--disable-pip-version-check", "-q", "-d", str(dest), requirement]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
+    proc = subprocess.run(cmd, check=False, capture_output=True, text=True)
     if proc.returncode != 0:
         last = (proc.stderr.strip().splitlines() or ["no output"])[-1]
         raise InputError(requirement, f"pip download failed: {last}")

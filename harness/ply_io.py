@@ -182,7 +182,7 @@ def _sh_rest_count(path: Path, names: list[str]) -> int:
     m = len(rest)
     if m not in {3 * k for k in SH_REST_COUNT.values()}:
         raise InputError(path, f"found {m} f_rest_* properties; expected 0, 9, 24 or 45 (SH degree 0-3)")
-    missing = sorted(set(f"f_rest_{i}" for i in range(m)) - set(rest))
+    missing = sorted({f"f_rest_{i}" for i in range(m)} - set(rest))
     if missing:
         raise InputError(path, f"f_rest_* properties are not numbered 0..{m - 1} (missing {missing[0]})")
     return m // 3

@@ -50,7 +50,7 @@ def detect_format(path: Path) -> str:
         return "ply"
     if name.endswith(".splat"):
         return "splat"
-    if name.endswith(".sog") or name.endswith("meta.json"):
+    if name.endswith((".sog", "meta.json")):
         return "sog"
     raise InputError(path, f"unknown scene format {path.suffix or '(no extension)'!r}; "
                            "expected .ply, .splat, or a SOG folder / meta.json / lod-meta.json / .sog")

@@ -201,7 +201,7 @@ def _decode_sh_rest(meta: dict, files: _Files, name: str, count: int, folder: st
 
 def concat_scenes(scenes: list[GaussianScene]) -> GaussianScene:
     """Rows of all scenes in order (same SH degree, no extras)."""
-    cat = lambda attr: np.concatenate([getattr(s, attr) for s in scenes])  # noqa: E731
+    cat = lambda attr: np.concatenate([getattr(s, attr) for s in scenes])
     return GaussianScene(cat("means"), cat("scales_log"), cat("quats"), cat("opacity_logit"),
                          cat("sh_dc"), cat("sh_rest"))
 

@@ -169,7 +169,7 @@ def test_writer_rejects_unknown_extension_and_writes_nothing(tmp_path):
 def test_console_script_prints_one_line_without_traceback(tmp_path):
     (tmp_path / "bad.ply").write_bytes(b"ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nend_header\n1\n")
     proc = subprocess.run([sys.executable, "-m", "harness", "info", str(tmp_path / "bad.ply")],
-                          capture_output=True, text=True)
+                          check=False, capture_output=True, text=True)
     assert proc.returncode == 2 and proc.stdout == ""
     assert proc.stderr.strip() == (f"harness: {tmp_path / 'bad.ply'}: header declares 2 vertices but the file "
                                    "holds only 1 rows (truncated file or wrong count)")

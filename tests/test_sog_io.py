@@ -68,7 +68,7 @@ class SogSpec:
 
     def write(self, folder, width=8) -> None:
         folder.mkdir(parents=True, exist_ok=True)
-        full = lambda rgb, a: np.concatenate([rgb, np.broadcast_to(a, (self.n, 1))], axis=1)  # noqa: E731
+        full = lambda rgb, a: np.concatenate([rgb, np.broadcast_to(a, (self.n, 1))], axis=1)
         save_webp(folder / "means_l.webp", texture(full(self.q16 & 255, 255), width))
         save_webp(folder / "means_u.webp", texture(full(self.q16 >> 8, 255), width))
         save_webp(folder / "quats.webp", texture(self.quat_codes, width))
@@ -209,7 +209,7 @@ def test_real_playbot_lod_set(tmp_path):
     assert len(scene) == 500_000 and scene.sh_degree == 2
     np.testing.assert_allclose(np.linalg.norm(scene.quats, axis=1), 1.0, atol=1e-5)
     meta = json.loads((root / "0_0" / "meta.json").read_text())
-    inv = lambda v: np.sign(v) * np.expm1(np.abs(v))  # noqa: E731
+    inv = lambda v: np.sign(v) * np.expm1(np.abs(v))
     np.testing.assert_allclose(scene.means.min(0), inv(np.array(meta["means"]["mins"])), rtol=1e-6)
     np.testing.assert_allclose(scene.means.max(0), inv(np.array(meta["means"]["maxs"])), rtol=1e-6)
     counts = [len(read_sog(root, level)) for level in range(1, 7)]

@@ -68,8 +68,9 @@ def run(args) -> int:
         "process_peak_rss_mb": peak_rss_mb(),
         "repeats": args.repeats,
     }
-    md = [f"# read benchmark: {path.name} ({len(scene):,} splats, SH {scene.sh_degree}, "
-          f"{payload['scene_mb']:.1f} MiB in memory)", "",
+    title = (f"# read benchmark: {path.name} ({len(scene):,} splats, SH {scene.sh_degree}, "
+             f"{payload['scene_mb']:.1f} MiB in memory)")
+    md = [title, "",
           "| step | median s | samples s | peak alloc MiB |", "|---|---|---|---|"]
     for step, r in rows.items():
         md.append(f"| {step} | {r['seconds']:.3f} | {', '.join(f'{s:.3f}' for s in r['samples'])} | "

@@ -22,8 +22,10 @@ def run(args) -> int:
 
         fetch_scenes(log=print)
     if args.weights or both:
-        from harness.metrics.lpips_weights import fetch_weights
+        from harness.metrics.lpips_weights import fetch_weights, weights_path
 
+        before = weights_path().stat().st_mtime_ns if weights_path().is_file() else None
         path = fetch_weights()
-        print(f"lpips-vgg weights: present, sha256 verified ({path})")
+        state = "present" if before == path.stat().st_mtime_ns else "fetched and converted"
+        print(f"lpips-vgg weights: {state}, sha256 verified ({path})")
     return 0
