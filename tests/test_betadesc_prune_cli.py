@@ -1,0 +1,108 @@
+"""`harness prune`: exact counts, output = input minus rows, JSON report, scores file, bad input."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from harness.cli import main
+from harness.scene_io import load_scene, write_scene
+from methods import PruneContext, get_pruner
+from tests.scene_factory import random_scene
+
+N = 301  # odd, so round(r·N) exercises rounding
+
+
+@pytest.fixture(scope="module")
+def scene_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("prune") / "in.ply"
+    write_scene(random_scene(N, sh_degree=3, seed=31, extra=True), path)
+    return path
+
+
+def _prune(capsys, *argv) -> tuple[int, str, str]:
+    status = main(["prune", *map(str, argv)])
+    out = capsys.readouterr()
+    return status, out.out, out.err
+
+
+@pytest.mark.parametrize("ratio", [0.0, 0.1, 0.3, 0.7, 1.0])
+def test_exact_counts_and_rows_for_ratios(scene_file, tmp_path, capsys, ratio):
+    out = tmp_path / "out.ply"
+    scores_path = tmp_path / "s.npy"
+    status, text, _ = _prune(capsys, scene_file, out, "--ratio", ratio, "--json", "--scores", scores_path)
+    assert status == 0
+    report = json.loads(text)
+    removed = round(ratio * N)
+    assert report["splats_in"] == N and report["splats_out"] == N - removed
+    assert {"read", "score", "select", "write"} <= set(report["seconds"])
+    scene = load_scene(scene_file)
+    scores = np.load(scores_path)
+    expect = get_pruner("betadesc").score(scene, PruneContext())
+    np.testing.assert_array_equal(scores, expect)
+    order = np.argsort(expect, kind="stable")
+    keep = np.ones(N, bool)
+    keep[order[:removed]] = False
+    assert (report["tau"] is None) if removed == 0 else report["tau"] == expect[order[removed - 1]]
+    pruned = load_scene(out)
+    kept = scene.subset(keep)
+    assert len(pruned) == N - removed
+    for field in ("means", "scales_log", "quats", "opacity_logit", "sh_dc", "sh_rest"):
+        np.testing.assert_array_equal(getattr(pruned, field), getattr(kept, field))
+    assert list(pruned.extra) == ["nx", "ny", "nz"]
+    for k in pruned.extra:
+        np.testing.assert_array_equal(pruned.extra[k], kept.extra[k])
+
+
+@pytest.mark.parametrize("keep", [0.7, 0.5, 0.3])
+@pytest.mark.parametrize("method", ["betadesc-nodesc", "betadesc-nobeta"])
+def test_keep_fractions(scene_file, tmp_path, capsys, keep, method):
+    out = tmp_path / "k.ply"
+    status, text, _ = _prune(capsys, scene_file, out, "--keep", keep, "--method", method, "--json")
+    assert status == 0
+    assert json.loads(text)["splats_out"] == N - round((1 - keep) * N) == len(load_scene(out))
+
+
+def test_options_reach_the_pruner_and_text_report(scene_file, tmp_path, capsys):
+    out = tmp_path / "o.ply"
+    sp = tmp_path / "o.npy"
+    status, text, _ = _prune(capsys, scene_file, out, "--ratio", 0.2, "--preset", "flat", "--voxel", 0.02,
+                             "--score", "lcb", "--gamma", 0.5, "--scores", sp)
+    assert status == 0 and f"{N:,} -> {N - round(0.2 * N):,} splats" in text and "tau" in text
+    params = {"preset": "flat", "voxel": 0.02, "score": "lcb", "gamma": 0.5}
+    expect = get_pruner("betadesc").score(load_scene(scene_file), PruneContext(params=params))
+    np.testing.assert_array_equal(np.load(sp), expect)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--ratio", "1.5"], "--ratio"),
+    (["--keep", "-0.1"], "--keep"),
+    (["--ratio", "nan"], "--ratio"),
+    (["--ratio", "0.3", "--method", "nosuch"], "unknown pruner"),
+    (["--ratio", "0.3", "--method", "random", "--preset", "flat"], "no parameter"),
+    (["--ratio", "0.3", "--score", "mean"], "unknown score"),
+    (["--ratio", "0.3", "--preset", "heavy"], "unknown coefficient preset"),
+])
+def test_bad_arguments_exit_2_without_output(scene_file, tmp_path, capsys, argv, message):
+    out = tmp_path / "bad.ply"
+    status, _, err = _prune(capsys, scene_file, out, *argv)
+    assert status == 2 and message in err and err.startswith("harness: ") and len(err.splitlines()) == 1
+    assert not out.exists()
+
+
+def test_bad_input_files_exit_2_without_output(tmp_path, capsys):
+    truncated = tmp_path / "t.splat"
+    truncated.write_bytes(b"\0" * 45)
+    for src, dst in ((tmp_path / "missing.ply", tmp_path / "a.ply"), (truncated, tmp_path / "b.ply")):
+        status, _, err = _prune(capsys, src, dst, "--ratio", "0.3")
+        assert status == 2 and err.startswith("harness: ")
+        assert not dst.exists()
+    status, _, err = _prune(capsys, truncated, tmp_path / "c.txt", "--ratio", "0.3")
+    assert status == 2 and ".ply" in err
+    good = tmp_path / "good.ply"
+    write_scene(random_scene(10, seed=1), good)
+    status, _, err = _prune(capsys, good, tmp_path / "d.ply", "--ratio", "0.3", "--scores", tmp_path / "no" / "s.npy")
+    assert status == 2 and "output folder does not exist" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["good.ply", "t.splat"]
