@@ -79,7 +79,7 @@ class Camera:
         z = np.asarray(target, np.float64) - eye
         z /= np.linalg.norm(z)
         up = np.asarray(up, np.float64)
-        x = np.cross(z, -up)  # image right = forward × down
+        x = np.cross(-up, z)  # image right = down × forward (OpenCV: x = y × z)
         if np.linalg.norm(x) < 1e-9:  # looking along up: pick any perpendicular
             x = np.cross(z, np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0]))
         x /= np.linalg.norm(x)
