@@ -1,0 +1,79 @@
+"""Contact sheet: one PNG grid of rendered views, each labelled with its name and coverage.
+
+**Coverage** of a view rendered over background colour b is the fraction of its pixels that show
+content: with an alpha image (accumulated opacity 1 − T_final) a pixel counts when its alpha exceeds
+``threshold``; from colour alone (what :meth:`render` returns) it counts when any channel differs
+from b by more than ``threshold`` (default 1/255, one 8-bit step). Colour-only coverage misses
+content whose colour equals the background (pure black splats over a black background), so it is
+a lower bound of the alpha coverage; render over a contrasting background when that matters.
+
+Thumbnails show the image clamped to [0, 1] and quantised to 8 bits as-is (no tone mapping), the same
+as the renderer's PNG output.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+from PIL import Image, ImageDraw, ImageFont
+
+LABEL_HEIGHT = 18
+GAP = 4
+
+
+def coverage(image: np.ndarray, background=(0.0, 0.0, 0.0), *, alpha: np.ndarray | None = None,
+             threshold: float = 1.0 / 255.0) -> float:
+    """Fraction of pixels showing content (module docstring): in [0, 1]."""
+    if alpha is not None:
+        return float(np.mean(np.asarray(alpha) > threshold))
+    img = np.asarray(image, np.float32)
+    diff = np.abs(img - np.asarray(background, np.float32).reshape(1, 1, 3)).max(axis=2)
+    return float(np.mean(diff > threshold))
+
+
+def to_uint8(image: np.ndarray) -> np.ndarray:
+    """Clamp to [0, 1] and quantise (round half up) to uint8, no gamma: the PNG encoding."""
+    return (np.clip(np.nan_to_num(np.asarray(image, np.float32)), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+
+
+def _thumbnail(image: np.ndarray, longest: int) -> Image.Image:
+    im = Image.fromarray(to_uint8(image))
+    s = longest / max(im.size)
+    if s < 1:
+        im = im.resize((max(1, round(im.width * s)), max(1, round(im.height * s))), Image.Resampling.LANCZOS)
+    return im
+
+
+def write_contact_sheet(images: list[np.ndarray], labels: list[str], path: str | Path, *,
+                        background=(0.0, 0.0, 0.0), thumb_longest: int = 320,
+                        columns: int | None = None) -> list[float]:
+    """Write the grid PNG atomically; returns the coverage of every view (labels get `` cov xx.x%``)."""
+    if len(images) != len(labels) or not images:
+        raise ValueError("need one label per image and at least one image")
+    covs = [coverage(im, background) for im in images]
+    thumbs = [_thumbnail(im, thumb_longest) for im in images]
+    cols = columns or math.ceil(math.sqrt(len(thumbs)) * 1.2)
+    cols = max(1, min(cols, len(thumbs)))
+    rows = math.ceil(len(thumbs) / cols)
+    cw = max(t.width for t in thumbs) + GAP
+    ch = max(t.height for t in thumbs) + LABEL_HEIGHT + GAP
+    sheet = Image.new("RGB", (cols * cw + GAP, rows * ch + GAP), (40, 40, 40))
+    draw = ImageDraw.Draw(sheet)
+    font = ImageFont.load_default()
+    for k, (thumb, label, cov) in enumerate(zip(thumbs, labels, covs)):
+        r, c = divmod(k, cols)
+        x, y = GAP + c * cw, GAP + r * ch
+        sheet.paste(thumb, (x, y))
+        draw.text((x + 2, y + thumb.height + 3), f"{label}  cov {100 * cov:.1f}%", fill=(235, 235, 235), font=font)
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        sheet.save(tmp, format="PNG")
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return covs

@@ -1,0 +1,241 @@
+"""Synthetic camera rigs for scenes without cameras: ``orbit``, ``room``, ``forward`` (and ``auto``).
+
+Every rig lays ``n = n_train + n_test`` views out along one path, deterministic in ``seed`` (the
+seed only sets the start azimuth and small per-view jitter), and holds out ``n_test`` of them spread
+evenly along the path (view ``⌊(j + ½)·n / n_test⌋`` for j < n_test, the analogue of 3DGS's
+every-8th ``llffhold``), so ``train`` and ``test`` are disjoint and test views interleave with
+training views. Images are ``longest_side`` px on their long side (1024, the CTC setting) with
+``aspect = width / height``; the principal point is the image centre; ``fov_deg`` is the field of view
+across the long side. Placement uses :mod:`harness.scene_frame` (opacity-weighted, floaters removed).
+
+**Distance fit** (every rig): a camera looking from direction ``u`` at ``target`` has the rotation
+of :meth:`Camera.look_at`, which does not depend on the distance ``d``. A point with camera-frame
+offset (x, y, z_r) from ``target`` lies at depth z_r + d and inside the central ``fill`` part of the
+image iff f·|x| ≤ fill·(w/2)·(z_r + d) (same for y, h), i.e. d ≥ f·|x| / (fill·w/2) − z_r. ``d`` is
+the 98th percentile over the content points of the largest such bound (and of 0.3 − z_r, keeping
+them in front of the near plane), so the content fills most of the frame in every view.
+
+* ``orbit`` (object-centric): target = robust centre; elevation rings (default 5°, 25°, 45°) visited
+  in turn while the azimuth sweeps 360° once; fill 0.9 of the frame.
+* ``room`` (Mip-NeRF 360 style, e.g. bonsai): the capture circles the room's central object from
+  inside the room, looking inward and down at it. Target = the density peak; the distance is fitted
+  so the points within the 25 % nearest to the peak fill 0.6 of the frame (the room shows around
+  it), capped at half the median distance of the content from the peak so cameras stay inside the
+  walls; default elevations 15°, 30°.
+* ``forward`` (LLFF style): an arc of ±20° (and a ±5° wobble across it) around one front direction
+  ``F`` (from the content towards the cameras). ``F`` is given, else the principal axis of least
+  spread of the content (looking along it shows the broadest face: the normal of a sheet-like crop),
+  signed to point up (dot(F, up) ≥ 0), or along +x of the horizontal basis when perpendicular to up.
+  View i looks along normalise(F + tan(aᵢ)·S + tan(bᵢ)·V), S = up × F, V = F × S; fill 0.9.
+* ``auto``: ``room`` when :func:`harness.scene_frame.enclosure` ≥ 0.7 (content all around a point
+  inside), else ``orbit``; never ``forward`` (a forward-facing capture cannot be told from splats).
+
+:data:`SCENE_RIGS` holds the per-scene defaults the runner uses (looked at on contact sheets).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from harness.cameras import Camera
+from harness.scene import GaussianScene
+from harness.scene_frame import SceneFrame, enclosure, scene_frame
+
+RIG_NAMES = ("orbit", "room", "forward", "auto")
+NEAR_MARGIN = 0.3  # keep content beyond the renderer's z > 0.2 cull
+DISTANCE_QUANTILE = 98.0
+ENCLOSURE_ROOM = 0.7
+
+
+@dataclass(frozen=True)
+class RigViews:
+    train: list[Camera]
+    test: list[Camera]
+    rig: str = ""
+
+    @property
+    def all(self) -> list[Camera]:
+        """Every view in path order (train and test interleaved back together)."""
+        return sorted(self.train + self.test, key=lambda c: c.name)
+
+
+@dataclass(frozen=True)
+class RigDefaults:
+    """Per-scene rig settings; ``None`` fields fall back to the rig's own defaults."""
+
+    rig: str
+    up: tuple[float, float, float] | None = None
+    aspect: float | None = None
+    elevations: tuple[float, ...] | None = None
+    note: str = ""
+    extra: dict = field(default_factory=dict)
+
+
+#: Defaults per named scene (keys from :func:`scene_key`), chosen by looking at contact sheets.
+SCENE_RIGS: dict[str, RigDefaults] = {
+    "grape-small": RigDefaults("forward", up=(0.0, 1.0, 0.0),
+                               note="a thin curved sheet cropped from a larger scene: face it; edge-on orbit views are empty"),
+    "luigi": RigDefaults("orbit", up=(0.0, 1.0, 0.0), aspect=1.0, elevations=(-10.0, 10.0, 30.0),
+                         note="a standing figure (y up): orbit, square frames, slightly below to above"),
+    "bonsai-7k-mini": RigDefaults("orbit", up=(0.0, -1.0, 0.0), elevations=(15.0, 30.0, 45.0),
+                                  note="object-centric crop (table, pot, tree): orbit from above the table top"),
+    "bonsai-7k": RigDefaults("room", up=(0.0, -1.0, 0.0), elevations=(25.0, 40.0),
+                             note="Mip-NeRF 360 room: cameras inside, circling and looking down at the bonsai"),
+    "playbot": RigDefaults("orbit", up=(0.0, -1.0, 0.0), elevations=(10.0, 25.0, 40.0),
+                           note="robot standing on a ground plane at y = 0: orbit from above the ground only"),
+}
+
+_RIG_DEFAULT_ELEVATIONS = {"orbit": (5.0, 25.0, 45.0), "room": (15.0, 30.0), "forward": (0.0,)}
+
+
+def scene_key(name_or_path: str | Path) -> str:
+    """Table key of a scene name or file: base name, lower case, ``_``→``-``, format suffix dropped
+    (``/x/grape_small.ply`` → ``grape-small``, ``playbot_sog`` → ``playbot``)."""
+    key = Path(str(name_or_path).rstrip("/")).name.lower()
+    key = re.sub(r"\.(ply|splat|sog|json|compressed\.ply)$", "", key).replace("_", "-")
+    return re.sub(r"-sog$", "", key)
+
+
+def image_size(longest_side: int, aspect: float) -> tuple[int, int]:
+    """(width, height) with the long side ``longest_side`` and width/height ≈ ``aspect``."""
+    if longest_side < 1 or not aspect > 0 or not math.isfinite(aspect):
+        raise ValueError("longest_side must be ≥ 1 and aspect a positive number")
+    if aspect >= 1:
+        return int(longest_side), max(1, int(round(longest_side / aspect)))
+    return max(1, int(round(longest_side * aspect))), int(longest_side)
+
+
+def held_out_indices(n_total: int, n_test: int) -> list[int]:
+    """Indices ⌊(j + ½)·n_total / n_test⌋, j < n_test: evenly spread, distinct when n_test ≤ n_total."""
+    return [int((j + 0.5) * n_total / n_test) for j in range(n_test)]
+
+
+def fit_camera(target, direction, points, *, up, width, height, fov_deg, fill, name,
+               max_distance: float | None = None) -> Camera:
+    """The camera at ``target + d·direction`` looking at ``target`` with ``d`` fitted (module doc)."""
+    target = np.asarray(target, np.float64)
+    fov_long = math.radians(fov_deg)
+    f = max(width, height) / (2.0 * math.tan(fov_long / 2.0))
+    fov_y = math.degrees(2.0 * math.atan(height / (2.0 * f)))
+    probe = Camera.look_at(target + direction, target, up, fov_y_deg=fov_y, width=width, height=height)
+    q = (points - target) @ probe.rotation.T
+    need = np.maximum.reduce([
+        f * np.abs(q[:, 0]) / (fill * width / 2.0) - q[:, 2],
+        f * np.abs(q[:, 1]) / (fill * height / 2.0) - q[:, 2],
+        NEAR_MARGIN - q[:, 2],
+    ])
+    d = max(float(np.percentile(need, DISTANCE_QUANTILE)), NEAR_MARGIN)
+    if max_distance is not None:
+        d = min(d, max_distance)
+    return Camera.look_at(target + d * direction, target, up, fov_y_deg=fov_y,
+                          width=width, height=height, name=name)
+
+
+def _path(n: int, elevations, seed: int, sweep: float, center_az: float, wobble: float):
+    """(azimuth, elevation) in radians for n views: rings visited in turn, azimuth sweeping ``sweep``
+    radians (centred on ``center_az`` when the sweep is partial), seeded start and jitter."""
+    rng = np.random.default_rng(seed)
+    els = np.radians(np.asarray(elevations, np.float64))
+    full = sweep >= 2 * math.pi - 1e-9
+    step = sweep / n if full else sweep / max(n - 1, 1)
+    start = rng.uniform(0.0, 2 * math.pi) if full else center_az - sweep / 2.0
+    out = []
+    for i in range(n):
+        az = start + i * step + rng.uniform(-0.2, 0.2) * step
+        el = els[i % len(els)] + math.radians(wobble) * math.sin(2 * math.pi * i / n)
+        el += math.radians(rng.uniform(-2.0, 2.0))
+        out.append((az, float(np.clip(el, -math.radians(85), math.radians(85)))))
+    return out
+
+
+def _split(cams: list[Camera], n_test: int, rig: str) -> RigViews:
+    test_idx = set(held_out_indices(len(cams), n_test))
+    return RigViews([c for i, c in enumerate(cams) if i not in test_idx],
+                    [c for i, c in enumerate(cams) if i in test_idx], rig)
+
+
+def front_direction(frame: SceneFrame) -> np.ndarray:
+    """Least-spread principal axis of the content, signed as described in the module docstring."""
+    vals, vecs = np.linalg.eigh(np.cov((frame.points - frame.center).T))
+    f = vecs[:, 0]
+    s = float(f @ frame.up)
+    if abs(s) < 1e-6:
+        s = float(f @ frame.horizontal_basis[0])
+    return f if s >= 0 else -f
+
+
+def _forward_directions(frame: SceneFrame, front, path) -> list[np.ndarray]:
+    f = np.asarray(front, np.float64)
+    f = f / np.linalg.norm(f)
+    side = np.cross(frame.up, f)
+    if np.linalg.norm(side) < 1e-6:  # looking straight along up: any perpendicular
+        side = np.cross(f, [1.0, 0.0, 0.0] if abs(f[0]) < 0.9 else [0.0, 1.0, 0.0])
+    side /= np.linalg.norm(side)
+    v = np.cross(f, side)
+    dirs = [f + math.tan(a) * side + math.tan(b) * v for a, b in path]
+    return [d / np.linalg.norm(d) for d in dirs]
+
+
+def choose_rig(frame: SceneFrame) -> str:
+    """``room`` or ``orbit`` for a scene without a table entry (see the module docstring)."""
+    return "room" if enclosure(frame) >= ENCLOSURE_ROOM else "orbit"
+
+
+def make_rig(name: str, scene: GaussianScene, *, n_train: int = 48, n_test: int = 8,
+             longest_side: int = 1024, aspect: float = 4 / 3, seed: int = 0, up=None,
+             elevations=None, fov_deg: float = 60.0, front=None) -> RigViews:
+    """Build rig ``name`` (one of :data:`RIG_NAMES`) around ``scene``; see the module docstring."""
+    if name not in RIG_NAMES:
+        raise ValueError(f"unknown rig {name!r}; known: {', '.join(RIG_NAMES)}")
+    if n_train < 0 or n_test < 1:
+        raise ValueError("need n_train ≥ 0 and n_test ≥ 1")
+    frame = scene_frame(scene, up=up)
+    if name == "auto":
+        name = choose_rig(frame)
+    width, height = image_size(longest_side, aspect)
+    n = n_train + n_test
+    els = tuple(elevations) if elevations else _RIG_DEFAULT_ELEVATIONS[name]
+    common = dict(up=frame.up, width=width, height=height, fov_deg=fov_deg)
+    if name in ("orbit", "room"):
+        dirs = [frame.direction(az, el) for az, el in _path(n, els, seed, 2 * math.pi, 0.0, 0.0)]
+    if name == "orbit":
+        target, points, fill, max_d = frame.center, frame.points, 0.9, None
+    elif name == "room":
+        target = frame.dense_center
+        dist = np.linalg.norm(frame.points - target, axis=1)
+        points = frame.points[dist <= np.percentile(dist, 25)]
+        fill, max_d = 0.6, 0.5 * float(np.median(dist))
+    else:
+        f = front_direction(frame) if front is None else front
+        dirs = _forward_directions(frame, f, _path(n, els, seed, math.radians(40.0), 0.0, 5.0))
+        target, points, fill, max_d = frame.center, frame.points, 0.9, None
+    cams = [fit_camera(target, d, points, fill=fill, max_distance=max_d, name=f"{name}_{i:03d}", **common)
+            for i, d in enumerate(dirs)]
+    return _split(cams, n_test, name)
+
+
+def scene_rig(scene_name: str | Path, scene: GaussianScene, rig: str | None = None, **overrides) -> RigViews:
+    """The rig for a named scene. ``rig=None``: the :data:`SCENE_RIGS` entry (``auto`` for unknown
+    scenes). An explicit ``rig`` still takes the scene's ``up`` from the table (a property of the
+    scene), and its aspect/elevations only when it is the table's rig. Keyword arguments of
+    :func:`make_rig` override everything."""
+    d = SCENE_RIGS.get(scene_key(scene_name))
+    name = rig or (d.rig if d is not None else "auto")
+    kwargs = {}
+    if d is not None:
+        kwargs["up"] = d.up
+        if name == d.rig:
+            kwargs.update({k: v for k, v in (("aspect", d.aspect), ("elevations", d.elevations)) if v is not None})
+            kwargs.update(d.extra)
+    kwargs.update({k: v for k, v in overrides.items() if v is not None})
+    return make_rig(name, scene, **kwargs)
+
+
+def default_rig(scene_name: str | Path, scene: GaussianScene, **overrides) -> RigViews:
+    """:func:`scene_rig` with the table's rig (``auto`` for scenes not in :data:`SCENE_RIGS`)."""
+    return scene_rig(scene_name, scene, None, **overrides)
