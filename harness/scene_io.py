@@ -100,10 +100,10 @@ def read_scene(path_or_name, *, lod: int | str | None = None, drop_nonfinite: bo
 
             scene = read_splat(path)
         else:
-            from harness.sog_io import read_sog
+            from harness.sog_io import lod_levels, read_sog
 
             scene = read_sog(path, lod)
-            lod = 0 if lod is None and (path / "lod-meta.json").exists() else lod
+            lod = (0 if lod is None else lod) if lod_levels(path) is not None else None
     except IsADirectoryError:
         raise InputError(path, "is a folder, expected a file") from None
     except PermissionError:
@@ -139,8 +139,8 @@ def write_scene(scene: GaussianScene, path, *, comments=()) -> Path:
             from harness.splat_io import write_splat
 
             write_splat(scene, path)
-    except PermissionError:
-        raise InputError(path, "permission denied") from None
+    except OSError as err:  # permission, read-only or full disk: the temp file is already gone
+        raise InputError(path, f"cannot write: {err.strerror or err}") from None
     return path
 
 
@@ -152,7 +152,11 @@ def _stats(x: np.ndarray) -> dict:
 
 
 def describe_scene(scene: GaussianScene, path=None, *, fmt: str | None = None, lod=None) -> dict:
-    """The facts ``harness info`` prints: counts, SH degree, bounding box, opacity/scale stats, memory."""
+    """The facts ``harness info`` prints: counts, SH degree, bounding box, opacity/scale stats, memory.
+
+    ``memory_bytes`` is the scene's arrays in memory; ``file_bytes`` is everything under ``path``
+    on disk (for a SOG folder: all its LOD levels).
+    """
     lo, hi, diag = bounding_box(scene)
     info = {
         "path": None if path is None else str(path),

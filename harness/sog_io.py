@@ -36,6 +36,7 @@ import json
 import posixpath
 import zipfile
 from pathlib import Path
+from typing import Self
 
 import numpy as np
 
@@ -52,6 +53,13 @@ class _Files:
     def __init__(self, root: Path, zip_path: Path | None = None):
         self.root, self.zip_path = root, zip_path
         self._zip = zipfile.ZipFile(zip_path) if zip_path else None
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._zip:
+            self._zip.close()
 
     def label(self, name: str) -> str:
         return f"{self.zip_path}:{name}" if self._zip else str(self.root / name)
@@ -206,10 +214,11 @@ def concat_scenes(scenes: list[GaussianScene]) -> GaussianScene:
                          cat("sh_dc"), cat("sh_rest"))
 
 
-def lod_levels(path: str | Path) -> int:
-    """Number of LOD levels of a SOG input (1 for a plain ``meta.json``)."""
+def lod_levels(path: str | Path) -> int | None:
+    """Number of LOD levels of a ``lod-meta.json`` set; None for a single SOG (no levels)."""
     files, meta_name, is_lod = _open(Path(path))
-    return int(files.json(meta_name).get("lodLevels", 1)) if is_lod else 1
+    with files:
+        return _get(files.json(meta_name), files, meta_name, "lodLevels") if is_lod else None
 
 
 def _lod_refs(meta: dict, files: _Files, name: str, level: int) -> dict[int, list[tuple[int, int]]]:
@@ -265,10 +274,15 @@ def read_sog(path: str | Path, lod: int | str | None = None) -> GaussianScene:
     """Read a SOG scene; ``lod`` selects a level of a LOD set (None: 0, ``"all"``: every level)."""
     path = Path(path)
     files, meta_name, is_lod = _open(path)
-    if not is_lod:
-        if lod not in (None, 0):
-            raise InputError(path, f"has no LOD levels (asked for level {lod})")
-        return _read_meta_file(files, meta_name)
+    with files:
+        if not is_lod:
+            if lod not in (None, 0):
+                raise InputError(path, f"has no LOD levels (asked for level {lod})")
+            return _read_meta_file(files, meta_name)
+        return _read_lod_set(path, files, meta_name, lod)
+
+
+def _read_lod_set(path: Path, files: _Files, meta_name: str, lod) -> GaussianScene:
     meta = files.json(meta_name)
     levels = _get(meta, files, meta_name, "lodLevels")
     if not isinstance(levels, int) or levels < 1:

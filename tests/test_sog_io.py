@@ -14,6 +14,7 @@ import pytest
 from PIL import Image
 
 from harness import datasets
+from harness.cli import main
 from harness.errors import InputError
 from harness.ply_io import read_ply, write_ply
 from harness.sog_io import lod_levels, read_sog
@@ -101,6 +102,7 @@ def test_synthetic_sog_decodes_every_field(tmp_path):
     spec.write(tmp_path / "s")
     scene = read_sog(tmp_path / "s")
     assert len(scene) == 37 and scene.sh_degree == 1
+    assert lod_levels(tmp_path / "s") is None
     for i in range(37):
         for axis in range(3):
             assert scene.means[i, axis] == pytest.approx(spec.expected_mean(i, axis), rel=1e-6, abs=1e-7)
@@ -151,7 +153,7 @@ def write_lod_set(root) -> tuple[SogSpec, SogSpec]:
     return a, b
 
 
-def test_lod_levels_select_rows_by_tree_references(tmp_path):
+def test_lod_levels_select_rows_by_tree_references(tmp_path, capsys):
     write_lod_set(tmp_path)
     level0, level1 = read_sog(tmp_path / "0_0" / "meta.json"), read_sog(tmp_path / "1_0" / "meta.json")
     assert lod_levels(tmp_path) == 2
@@ -163,6 +165,11 @@ def test_lod_levels_select_rows_by_tree_references(tmp_path):
     assert both.quats[10:].tobytes() == level1.quats.tobytes()
     with pytest.raises(InputError, match="LOD level 2 does not exist"):
         read_sog(tmp_path, 2)
+    assert main(["info", str(tmp_path / "lod-meta.json"), "--lod", "all", "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert (info["splats"], info["lod"], info["format"]) == (14, "all", "sog")
+    assert main(["info", str(tmp_path), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["lod"] == 0
 
 
 def test_sog_bundle_reads_like_the_folder(tmp_path):
