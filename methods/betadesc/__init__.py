@@ -5,7 +5,7 @@
   Eq. 6 evidence → Beta(A, B) retention posterior → score (default μ + γσ, μ = A/(A+B), the
   erratum reading; ``score="literal"`` gives the paper's literal B/(A+B) + γσ).
 * ``betadesc-nodesc``: the same Beta model, but s, ℓ, u come from each splat's own parameters
-  (log-scale anisotropy, colour/SH dispersion, log-volume; see :mod:`.statistics`), w = 1 — no
+  (log-scale anisotropy for ℓ = 1 − u, colour/SH dispersion for s; see :mod:`.statistics`), w = 1 — no
   neighbourhood, no voxels, no FPFH.
 * ``betadesc-nobeta``: the same descriptor statistics and evidence, ranked deterministically by
   the net evidence A − B (no posterior mean, no σ: evidence magnitude is not turned into

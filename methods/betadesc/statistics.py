@@ -25,13 +25,20 @@ Descriptor statistics, per voxel j (notation of :mod:`methods.betadesc.hsfh`):
 Opacity ``o = sigmoid(opacity_logit)`` per splat (already in [0, 1]; no rescaling, so an all-zero
 opacity scene gives o = 0 everywhere).
 
-No-descriptor variant (per splat, from the splat's own parameters only):
+No-descriptor variant (per splat, from the splat's own parameters only; w = 1):
 
-* ``ℓ = 1 − unit(max log s − min log s)``: isotropic splats have low geometric contrast;
+* ``u = unit(std_k log s_k)``: the "variability across dimensions" of the splat's own geometric
+  parameters, i.e. its shape anisotropy — needles and discs (thin structure, surfaces) are
+  distinctive, round blobs are not;
+* ``ℓ = 1 − u``: without a neighbourhood, the only geometric contrast a splat has is its own shape,
+  so low contrast and uniqueness collapse onto the same quantity (the ablation has one geometric
+  degree of freedom less, which is the point of the ablation);
 * ``s = 1 − unit(var_rgb(base colour) + (1 − f₀))``: grey, view-independent splats are consistent
-  (1 − f₀ is the view-dependent share of SH energy, 0 at degree 0);
-* ``u = 1 − unit(Σ log s)``: small splats carry fine structure (log-volume; scale-invariant because
-  unit() removes the shift a global scaling adds).
+  (1 − f₀ is the view-dependent share of SH energy, 0 at degree 0).
+
+Size is deliberately not used: ranking by volume would make this ablation a volume pruner.
+Every quantity is invariant to translation, and to scaling up to float rounding (a global scale
+shifts every log s by the same constant, which the std removes).
 """
 
 from __future__ import annotations
@@ -98,9 +105,8 @@ def voxel_statistics(desc: HSFH) -> np.ndarray:
 def splat_statistics(scene: GaussianScene) -> np.ndarray:
     """(N, 3) columns ℓ, s, u per splat for the no-descriptor variant (see module doc)."""
     log_s = scene.scales_log.astype(np.float64)
-    ell = 1.0 - robust_unit(log_s.max(axis=1) - log_s.min(axis=1))
+    u = robust_unit(log_s.std(axis=1))
     colour = np.clip(0.5 + SH_C0 * scene.sh_dc.astype(np.float64), 0.0, 1.0)
     view_share = 1.0 - band_fractions(scene)[:, 0] if scene.sh_degree > 0 else 0.0
     s = 1.0 - robust_unit(colour.var(axis=1) + view_share)
-    u = 1.0 - robust_unit(log_s.sum(axis=1))
-    return np.stack([ell, s, u], axis=1)
+    return np.stack([1.0 - u, s, u], axis=1)

@@ -1,0 +1,163 @@
+"""`harness bench prune`: BetaDescPrune end to end on bonsai-7k, per stage, with peak memory.
+
+1. **End to end**: ``harness prune bonsai-7k OUT.ply --ratio 0.3 --json`` in a fresh child
+   process (imports, numba cache load, read .splat → scores → write .ply), ``--repeats`` times;
+   median wall seconds per stage from the command's own report, the child's CPU seconds (wall can
+   exceed CPU on a shared machine) and its peak resident memory. Targets: ≤ 4 s, ≤ 3 GB.
+2. **Descriptor stage vs Open3D**: on the scene's own voxel cloud and normals, the FPFH the
+   pipeline uses vs ``open3d.pipelines.registration.compute_fpfh_feature`` (same radius, max_nn),
+   timed interleaved, with the largest absolute difference of the two outputs.
+3. **Render-free sanity** on bonsai-7k-mini at 30 %: the share of total opacity·volume
+   (Σ σ(α)·s_x s_y s_z) each method removes. Pruning should remove less than ``random`` does;
+   the paper's literal sign removes the most.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+NAME = "prune"
+HELP = "BetaDescPrune end-to-end time per stage and peak memory on bonsai-7k (+ FPFH vs Open3D, sanity)"
+TARGET_SECONDS = 4.0
+TARGET_MB = 3072.0
+SANITY_METHODS = (  # (label, pruner, params)
+    ("betadesc", "betadesc", {}),
+    ("betadesc score=literal (paper's sign)", "betadesc", {"score": "literal"}),
+    ("betadesc score=lcb", "betadesc", {"score": "lcb"}),
+    ("betadesc-nodesc", "betadesc-nodesc", {}),
+    ("betadesc-nobeta", "betadesc-nobeta", {}),
+    ("betadesc-nodesc-nobeta", "betadesc-nodesc-nobeta", {}),
+    ("opacity", "opacity", {}),
+    ("volume", "volume", {}),
+    ("random", "random", {}),
+)
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--scene", default="bonsai-7k", help="scene name or path (default bonsai-7k)")
+    parser.add_argument("--sanity-scene", default="bonsai-7k-mini", help="scene for the opacity·volume check")
+    parser.add_argument("--ratio", type=float, default=0.3)
+    parser.add_argument("--repeats", type=int, default=3)
+
+
+def _end_to_end(scene: str, ratio: float, repeats: int) -> dict:
+    runs = []
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "pruned.ply"
+        cmd = [sys.executable, "-m", "harness", "prune", scene, str(out), "--ratio", str(ratio), "--json"]
+        for _ in range(repeats + 1):  # the first run warms the numba cache and the page cache
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
+            t0 = time.perf_counter()
+            proc = subprocess.run(cmd, capture_output=True, text=True)
+            wall = time.perf_counter() - t0
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            if proc.returncode != 0:
+                raise RuntimeError(f"harness prune failed: {proc.stderr.strip()}")
+            report = json.loads(proc.stdout)
+            report["process_wall"] = wall
+            report["process_cpu"] = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+            runs.append(report)
+        peak_mb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
+    runs = runs[1:]
+    stages = {k: statistics.median(r["seconds"][k] for r in runs) for k in runs[0]["seconds"]}
+    method_seconds = sum(v for k, v in stages.items() if k in ("read", "score", "select", "write"))
+    return {
+        "splats_in": runs[0]["splats_in"], "splats_out": runs[0]["splats_out"],
+        "stages_s": stages,
+        "read_score_write_s": method_seconds,
+        "process_wall_s": statistics.median(r["process_wall"] for r in runs),
+        "process_cpu_s": statistics.median(r["process_cpu"] for r in runs),
+        "peak_rss_mb": peak_mb,
+        "samples_process_wall_s": [r["process_wall"] for r in runs],
+    }
+
+
+def _fpfh_vs_open3d(scene_name: str, repeats: int) -> dict:
+    import open3d as o3d
+
+    from harness.scene_io import load_scene
+    from methods import get_pruner
+    from methods.betadesc import backend
+    from methods.betadesc.grid import build_grid
+
+    params = get_pruner("betadesc").params
+    scene = load_scene(scene_name)
+    grid = build_grid(scene.means, params["voxel"])
+    normals = backend.voxel_normals(grid, backend.shortest_axes(scene.quats, scene.scales_log))
+    radius, max_nn = float(params["radius_voxels"]), int(params["max_nn"])
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(grid.points))
+    cloud.normals = o3d.utility.Vector3dVector(normals)
+    search = o3d.geometry.KDTreeSearchParamHybrid(radius=radius, max_nn=max_nn)
+    ours_t, o3d_t = [], []
+    backend.compute_fpfh(grid.points, normals, radius, max_nn)  # warm-up
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        ours = backend.compute_fpfh(grid.points, normals, radius, max_nn)
+        ours_t.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        ref = np.asarray(o3d.pipelines.registration.compute_fpfh_feature(cloud, search).data).T
+        o3d_t.append(time.perf_counter() - t0)
+    ours_s, o3d_s = statistics.median(ours_t), statistics.median(o3d_t)
+    return {"voxel_points": grid.m, "implementation": backend.compute_fpfh.__module__,
+            "ours_s": ours_s, "open3d_s": o3d_s, "speedup": o3d_s / ours_s,
+            "max_abs_diff": float(np.abs(ours - ref).max()), "threads": os.cpu_count()}
+
+
+def _sanity(scene_name: str, ratio: float) -> dict:
+    from harness.scene import opacities
+    from harness.scene_io import load_scene
+    from methods import PruneContext, get_pruner, select_by_ratio
+
+    scene = load_scene(scene_name)
+    mass = opacities(scene).astype(np.float64) * np.exp(scene.scales_log.astype(np.float64).sum(1))
+    total = mass.sum()
+    removed = {}
+    for label, name, params in SANITY_METHODS:
+        scores = get_pruner(name).score(scene, PruneContext(params=params, seed=0))
+        keep = select_by_ratio(scores, ratio).keep
+        removed[label] = float(mass[~keep].sum() / total)
+    return {"scene": scene_name, "splats": len(scene), "ratio": ratio, "opacity_volume_removed": removed}
+
+
+def _markdown(e2e: dict, fp: dict, sanity: dict, scene: str) -> str:
+    lines = [f"# harness bench prune ({scene}, {e2e['splats_in']:,} splats, ratio 0.3)", "",
+             "| stage | median s |", "|---|---|"]
+    lines += [f"| {k} | {v:.3f} |" for k, v in e2e["stages_s"].items()]
+    lines += ["", f"- read + score + select + write: **{e2e['read_score_write_s']:.2f} s** "
+                  f"(target ≤ {TARGET_SECONDS} s)",
+              f"- whole process (python start, imports): {e2e['process_wall_s']:.2f} s wall, "
+              f"{e2e['process_cpu_s']:.2f} s CPU",
+              f"- peak memory: **{e2e['peak_rss_mb']:.0f} MiB** (target ≤ {TARGET_MB:.0f})",
+              f"- FPFH on {fp['voxel_points']:,} voxel points ({fp['implementation']}): {fp['ours_s']:.3f} s vs "
+              f"Open3D {fp['open3d_s']:.3f} s = {fp['speedup']:.1f}×, max |Δ| {fp['max_abs_diff']:.2e}",
+              "", f"Opacity·volume removed at {sanity['ratio']:.0%} on {sanity['scene']} "
+              f"({sanity['splats']:,} splats):", "", "| method | removed share |", "|---|---|"]
+    lines += [f"| {k} | {v:.4f} |" for k, v in sanity["opacity_volume_removed"].items()]
+    return "\n".join(lines)
+
+
+def run(args) -> int:
+    from harness.benchmarks._common import write_result
+    from harness.scene_io import load_scene
+
+    load_scene(args.scene)  # a clear InputError (run `harness fetch`) before any timing
+    e2e = _end_to_end(args.scene, args.ratio, args.repeats)
+    fp = _fpfh_vs_open3d(args.scene, args.repeats)
+    sanity = _sanity(args.sanity_scene, args.ratio)
+    payload = {"scene": args.scene, "ratio": args.ratio, "end_to_end": e2e, "fpfh": fp, "sanity": sanity,
+               "targets": {"seconds": TARGET_SECONDS, "peak_rss_mb": TARGET_MB},
+               "load_average": os.getloadavg()}
+    md = _markdown(e2e, fp, sanity, args.scene)
+    write_result("prune", payload, md)
+    print(md)
+    return 0
