@@ -188,18 +188,25 @@ def _sh_rest_count(path: Path, names: list[str]) -> int:
     return m // 3
 
 
-def _columns(table: np.ndarray, names: list[str]) -> np.ndarray:
-    """float32 (N, len(names)) matrix of the named fields."""
-    dtypes = {table.dtype[n] for n in table.dtype.names}
-    order = list(table.dtype.names)
-    if len(dtypes) == 1 and next(iter(dtypes)).str[1:] == "f4" and table.dtype.itemsize == 4 * len(order):
-        # rows made only of float32: view them as a matrix and gather the columns in one pass
-        mat = table.view(next(iter(dtypes))).reshape(len(table), len(order))
-        return np.ascontiguousarray(mat[:, [order.index(n) for n in names]], dtype=np.float32)
-    out = np.empty((len(table), len(names)), np.float32)
-    for j, n in enumerate(names):
-        out[:, j] = table[n]
-    return out
+def _float_matrix(table: np.ndarray) -> np.ndarray | None:
+    """(N, P) view of rows made only of float32 properties (either byte order), else None."""
+    fields = [table.dtype[n] for n in table.dtype.names]
+    if fields and len(set(fields)) == 1 and fields[0].str[1:] == "f4" and table.dtype.itemsize == 4 * len(fields):
+        return table.view(fields[0]).reshape(len(table), len(fields))
+    return None
+
+
+def _block(table: np.ndarray, mat: np.ndarray | None, names: list[str]) -> np.ndarray:
+    """(N, len(names)) values of the named properties; a view when they are adjacent float32 columns."""
+    if not names:
+        return np.zeros((len(table), 0), np.float32)
+    if mat is None:
+        return np.stack([table[n] for n in names], axis=1)
+    position = {n: i for i, n in enumerate(table.dtype.names)}
+    idx = [position[n] for n in names]
+    if idx == list(range(idx[0], idx[0] + len(idx))):
+        return mat[:, idx[0]: idx[0] + len(idx)]  # slicing is a view; the caller's copy does the work once
+    return mat[:, idx]
 
 
 def table_to_scene(table: np.ndarray, path: str | Path) -> GaussianScene:
@@ -212,19 +219,21 @@ def table_to_scene(table: np.ndarray, path: str | Path) -> GaussianScene:
                                f"{', '.join(missing)} (not a 3DGS splat PLY?)")
     k = _sh_rest_count(path, names)
     n = len(table)
-    core = _columns(table, list(REQUIRED))
-    rest = _columns(table, [f"f_rest_{i}" for i in range(3 * k)]) if k else np.zeros((n, 0), np.float32)
-    known = set(REQUIRED) | {f"f_rest_{i}" for i in range(3 * k)}
-    extra = {name: np.ascontiguousarray(table[name]).astype(table.dtype[name].newbyteorder("="), copy=False)
+    mat = _float_matrix(table)
+    f32 = lambda names: np.ascontiguousarray(_block(table, mat, names), dtype=np.float32)  # one copy each
+    rest_names = [f"f_rest_{i}" for i in range(3 * k)]
+    # channel-major f_rest_{c*K + k} -> coefficient-major [k, c], transposed during the copy
+    rest = _block(table, mat, rest_names).reshape(n, 3, k).transpose(0, 2, 1)
+    known = set(REQUIRED) | set(rest_names)
+    extra = {name: table[name].astype(table.dtype[name].newbyteorder("="))  # a copy, native byte order
              for name in names if name not in known}
     return GaussianScene(
-        means=np.ascontiguousarray(core[:, 0:3]),
-        sh_dc=np.ascontiguousarray(core[:, 3:6]),
-        opacity_logit=np.ascontiguousarray(core[:, 6]),
-        scales_log=np.ascontiguousarray(core[:, 7:10]),
-        quats=np.ascontiguousarray(core[:, 10:14]),
-        # channel-major f_rest_{c*K + k} -> coefficient-major [k, c]
-        sh_rest=np.ascontiguousarray(rest.reshape(n, 3, k).transpose(0, 2, 1)),
+        means=f32(["x", "y", "z"]),
+        sh_dc=f32([f"f_dc_{i}" for i in range(3)]),
+        opacity_logit=f32(["opacity"]).reshape(n),
+        scales_log=f32([f"scale_{i}" for i in range(3)]),
+        quats=f32([f"rot_{i}" for i in range(4)]),
+        sh_rest=np.ascontiguousarray(rest, dtype=np.float32),
         extra=extra,
     )
 
@@ -278,22 +287,23 @@ def ply_header_bytes(layout: list[tuple[str, np.dtype]], count: int, comments=()
 def scene_to_table(scene: GaussianScene) -> np.ndarray:
     """The scene as a structured array in the output layout (the inverse of :func:`table_to_scene`)."""
     layout = ply_layout(scene)
-    table = np.empty(len(scene), dtype=np.dtype(layout))
     n, k = len(scene), scene.sh_rest.shape[1]
-    rest = scene.sh_rest.transpose(0, 2, 1).reshape(n, 3 * k)  # [k, c] -> f_rest_{c*K + k}
-    sources = {"opacity": scene.opacity_logit}
-    for i, axis in enumerate("xyz"):
-        sources[axis] = scene.means[:, i]
-    for i in range(3):
-        sources[f"f_dc_{i}"] = scene.sh_dc[:, i]
-        sources[f"scale_{i}"] = scene.scales_log[:, i]
-    for i in range(4):
-        sources[f"rot_{i}"] = scene.quats[:, i]
-    for i in range(3 * k):
-        sources[f"f_rest_{i}"] = rest[:, i]
-    sources.update(scene.extra)
-    for name, _ in layout:
-        table[name] = sources[name]
+    table = np.empty(n, dtype=np.dtype(layout))
+    position = {name: i for i, (name, _) in enumerate(layout)}
+    groups = [("x", scene.means), ("f_dc_0", scene.sh_dc), ("opacity", scene.opacity_logit[:, None]),
+              ("scale_0", scene.scales_log), ("rot_0", scene.quats),
+              ("f_rest_0", scene.sh_rest.transpose(0, 2, 1).reshape(n, 3 * k))]  # [k, c] -> f_rest_{c*K + k}
+    groups += [(name, values[:, None]) for name, values in scene.extra.items()]
+    mat = _float_matrix(table)
+    for first, values in groups:
+        if values.shape[1] == 0:
+            continue
+        start = position[first]
+        if mat is not None:  # all-float32 rows: assign whole column blocks
+            mat[:, start: start + values.shape[1]] = values
+        else:
+            for j in range(values.shape[1]):
+                table[layout[start + j][0]] = values[:, j]
     return table
 
 

@@ -60,11 +60,12 @@ def test_write_read_round_trip_is_bit_exact(tmp_path, degree, extra):
 
 
 @pytest.mark.parametrize("fmt", ["binary_little_endian", "binary_big_endian", "ascii"])
-def test_reads_any_property_order_and_encoding_written_by_plyfile(tmp_path, fmt):
+@pytest.mark.parametrize("all_float32", [True, False])  # the reader's matrix path and its per-field path
+def test_reads_any_property_order_and_encoding_written_by_plyfile(tmp_path, fmt, all_float32):
     scene = random_scene(40, 2, seed=7)
     cols = inria_columns(scene)
     cols["nx"] = np.linspace(-1, 1, 40).astype(np.float32)
-    cols["density"] = np.linspace(0, 9, 40)  # float64 extra
+    cols["density"] = np.linspace(0, 9, 40).astype(np.float32 if all_float32 else np.float64)
     order = list(cols)
     np.random.default_rng(1).shuffle(order)
     path = tmp_path / "shuffled.ply"
@@ -74,7 +75,8 @@ def test_reads_any_property_order_and_encoding_written_by_plyfile(tmp_path, fmt)
                                        scene.sh_dc, scene.sh_rest, dict(back.extra)), back)
     extras_in_file_order = [n for n in order if n in ("nx", "density")]
     assert list(back.extra) == extras_in_file_order
-    assert back.extra["density"].dtype == np.float64 and np.array_equal(back.extra["density"], cols["density"])
+    assert back.extra["density"].dtype == cols["density"].dtype
+    assert np.array_equal(back.extra["density"], cols["density"])
     assert back.extra["nx"].dtype.byteorder in ("=", "|") and np.array_equal(back.extra["nx"], cols["nx"])
 
 
