@@ -21,6 +21,11 @@ Writing
     with its own bytes, so writing ``read_ply(p).subset(keep)`` keeps each kept value bit-exact and
     read -> write -> read is the identity. Output goes to a temporary file that is renamed into
     place, so a failed write never leaves a partial file.
+
+    Viewers that read by name (antimatter15, SuperSplat, gsplat.js ...) open any such file. SIBR's
+    ``SIBR_gaussianViewer_app`` (the original 3DGS viewer) instead copies rows into a fixed struct
+    (xyz, normal, 48 SH floats, opacity, scale, rot); ``sibr_layout=True`` writes exactly that: zero
+    normals when absent, SH zero-padded to degree 3, no other extras.
 """
 
 from __future__ import annotations
@@ -324,8 +329,19 @@ def atomic_write(path: str | Path, chunks) -> None:
         raise
 
 
-def write_ply(scene: GaussianScene, path: str | Path, *, comments=()) -> None:
-    """Write ``scene`` as a binary little-endian INRIA ``.ply`` (atomically)."""
+def sibr_compatible(scene: GaussianScene) -> GaussianScene:
+    """The scene in SIBR's fixed layout: normals (zero when absent), SH degree 3, no other extras."""
+    n, k = len(scene), scene.sh_rest.shape[1]
+    rest = np.zeros((n, SH_REST_COUNT[3], 3), np.float32)
+    rest[:, :k] = scene.sh_rest
+    normals = {name: scene.extra.get(name, np.zeros(n, np.float32)).astype(np.float32) for name in NORMALS}
+    return GaussianScene(scene.means, scene.scales_log, scene.quats, scene.opacity_logit, scene.sh_dc, rest, normals)
+
+
+def write_ply(scene: GaussianScene, path: str | Path, *, comments=(), sibr_layout: bool = False) -> None:
+    """Write ``scene`` as a binary little-endian INRIA ``.ply`` (atomically); see the module docstring."""
+    if sibr_layout:
+        scene = sibr_compatible(scene)
     table = scene_to_table(scene)
     header = ply_header_bytes(ply_layout(scene), len(scene), comments)
     atomic_write(path, [header, table])

@@ -122,8 +122,11 @@ def load_scene(path_or_name, *, lod: int | str | None = None, drop_nonfinite: bo
     return result.scene
 
 
-def write_scene(scene: GaussianScene, path, *, comments=()) -> Path:
-    """Write ``.ply`` (lossless) or ``.splat`` (lossy export) atomically; returns the path."""
+def write_scene(scene: GaussianScene, path, *, comments=(), sibr_layout: bool = False) -> Path:
+    """Write ``.ply`` (lossless) or ``.splat`` (lossy export) atomically; returns the path.
+
+    ``comments`` (header comment lines) and ``sibr_layout`` apply to ``.ply``, see :mod:`harness.ply_io`.
+    """
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in WRITABLE:
@@ -134,7 +137,7 @@ def write_scene(scene: GaussianScene, path, *, comments=()) -> Path:
         if suffix == ".ply":
             from harness.ply_io import write_ply
 
-            write_ply(scene, path, comments=comments)
+            write_ply(scene, path, comments=comments, sibr_layout=sibr_layout)
         else:
             from harness.splat_io import write_splat
 

@@ -103,6 +103,24 @@ def test_normals_are_not_invented_and_other_extras_follow_rotation(tmp_path):
     assert names[-5:] == ["rot_0", "rot_1", "rot_2", "rot_3", "filter_3D"]
 
 
+def test_sibr_layout_is_the_fixed_62_float_struct(tmp_path):
+    scene = random_scene(25, 1, seed=12)
+    scene.extra["filter_3D"] = np.ones(25, np.float32)
+    write_ply(scene, tmp_path / "sibr.ply", sibr_layout=True)
+    header = read_ply_header(tmp_path / "sibr.ply")
+    names = [p for p, _ in header.elements[0].properties]
+    assert names == (INRIA_ORDER + [f"f_rest_{i}" for i in range(45)] + ["opacity"]
+                     + [f"scale_{i}" for i in range(3)] + [f"rot_{i}" for i in range(4)])
+    body = (tmp_path / "sibr.ply").read_bytes()[header.data_offset:]
+    rows = np.frombuffer(body, "<f4").reshape(25, 62)  # the struct SIBR copies the rows into
+    np.testing.assert_array_equal(rows[:, 3:6], 0.0)
+    np.testing.assert_array_equal(rows[:, 0:3], scene.means)
+    back = read_ply(tmp_path / "sibr.ply")
+    assert back.sh_degree == 3 and not back.sh_rest[:, 3:].any()
+    assert back.sh_rest[:, :3].tobytes() == scene.sh_rest.tobytes()
+    assert back.quats.tobytes() == scene.quats.tobytes()
+
+
 def test_subset_keeps_every_kept_value_bit_exact(tmp_path):
     scene = random_scene(500, 3, seed=9, extra=True)
     write_ply(scene, tmp_path / "full.ply")
