@@ -36,7 +36,7 @@ def to_frame(rows: list[dict]) -> pd.DataFrame:
     df = pd.DataFrame(rows, columns=COLUMNS)
     for c in COLUMNS:
         if c in _TEXT:
-            df[c] = df[c].fillna("").astype(str)
+            df[c] = df[c].astype(object).where(df[c].notna(), "").astype(str)
         elif c in _INT:
             df[c] = pd.to_numeric(df[c], errors="coerce").astype("Int64")
         else:

@@ -72,7 +72,7 @@ class Runner:
         results = []
         bar = self.progress.stage(stage, sum(weight(t) for t in tasks)) if self.progress else None
         if self.workers == 1 or len(tasks) <= 1:
-            init_worker(self.threads, self.toolkit.imports)
+            init_worker(self.threads, self.toolkit.imports, self.toolkit.preload)
             for t in tasks:
                 if fn is run_view:
                     results.append(fn(t, progress=bar.advance if bar else None))
@@ -83,7 +83,7 @@ class Runner:
         else:
             ctx = get_context("spawn")
             with ProcessPoolExecutor(self.workers, mp_context=ctx, initializer=init_worker,
-                                     initargs=(self.threads, self.toolkit.imports)) as pool:
+                                     initargs=(self.threads, self.toolkit.imports, self.toolkit.preload)) as pool:
                 futures = {pool.submit(fn, t): t for t in tasks}
                 for fut in as_completed(futures):
                     results.append(fut.result())

@@ -26,12 +26,23 @@ from harness.toolkit import Toolkit
 _STATE: dict = {}
 
 
-def init_worker(threads: int, imports: tuple[str, ...] = ()) -> None:
-    """Pool initializer: cap threads, import plugin modules (they register pruners)."""
+def init_worker(threads: int, imports: tuple[str, ...] = (), preload: tuple[str, ...] = ()) -> None:
+    """Pool initializer: cap threads (torch, BLAS, numba, llvmpipe), import ``preload`` modules, then
+    plugin modules (they register pruners).
+
+    ``preload`` exists because importing triton (pulled in by torchvision/lpips) *after* an EGL
+    llvmpipe context was created segfaults (two LLVMs in one process); importing it first is safe.
+    """
     import importlib
 
-    for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS",
+                "LP_NUM_THREADS"):
         os.environ[var] = str(threads)
+    for name in preload:
+        try:
+            importlib.import_module(name)
+        except ImportError:
+            pass
     try:
         import torch
 

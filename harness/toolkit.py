@@ -88,6 +88,9 @@ class Toolkit:
     metric_modules: tuple[str, ...] = ("harness.metrics", "harness.metric_suite")
     #: extra modules each worker imports first (e.g. a plugin registering pruners)
     imports: tuple[str, ...] = field(default_factory=tuple)
+    #: imported before any GL context exists: triton (via torchvision/lpips) segfaults when first
+    #: loaded into a process that already holds an llvmpipe EGL context
+    preload: tuple[str, ...] = ("torchvision", "lpips")
 
 
 def module_versions(names) -> str:

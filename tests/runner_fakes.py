@@ -1,0 +1,84 @@
+"""Small, fast stand-ins for the runner's tests: a point-splat renderer, a circle rig, fake pruners.
+
+Importing this module registers the pruners ``fake-norm`` (camera-agnostic, score = −‖mean‖; its
+``unused`` parameter does not change the scores, so two variants give identical keep masks),
+``fake-aware`` (needs cameras and a renderer) and ``fake-broken`` (always raises). Call counters
+live in :data:`CALLS` (meaningful for in-process runs).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+
+import numpy as np
+
+from harness.cameras import Camera
+from harness.scene import base_colors, opacities
+from harness.toolkit import Toolkit
+from methods.registry import register_pruner
+
+CALLS: Counter = Counter()
+
+
+@register_pruner("fake-norm", params={"unused": 0})
+def fake_norm(scene, ctx):
+    """Keep splats near the origin: score = −‖mean‖."""
+    CALLS["score:fake-norm"] += 1
+    return -np.linalg.norm(scene.means.astype(np.float64), axis=1)
+
+
+@register_pruner("fake-aware", needs=("cameras", "renderer"))
+def fake_aware(scene, ctx):
+    """Camera-aware stand-in: opacity."""
+    CALLS["score:fake-aware"] += 1
+    return opacities(scene).astype(np.float64)
+
+
+@register_pruner("fake-broken")
+def fake_broken(scene, ctx):
+    """Always fails (the run must record it and go on)."""
+    raise RuntimeError("this pruner is broken on purpose")
+
+
+class PointRenderer:
+    """Each splat adds opacity·colour to the pixel its centre projects to; sensitive to every splat."""
+
+    name = "fake-points"
+
+    def render(self, scene, camera: Camera, background=(0.0, 0.0, 0.0)) -> np.ndarray:
+        CALLS["render"] += 1
+        h, w = camera.height, camera.width
+        p = scene.means.astype(np.float64) @ camera.rotation.T + camera.translation
+        ok = p[:, 2] > 0.2
+        u = np.floor(camera.fx * p[ok, 0] / p[ok, 2] + camera.cx).astype(int)
+        v = np.floor(camera.fy * p[ok, 1] / p[ok, 2] + camera.cy).astype(int)
+        inside = (u >= 0) & (u < w) & (v >= 0) & (v < h)
+        img = np.zeros((h, w, 3), np.float64)
+        col = (base_colors(scene) * opacities(scene)[:, None])[ok][inside]
+        np.add.at(img, (v[inside], u[inside]), col)
+        img = 1.0 - np.exp(-img) + np.asarray(background) * np.exp(-img)
+        return img.astype(np.float32)
+
+    def close(self) -> None:
+        pass
+
+
+def make_renderer(name: str, device: str):
+    return PointRenderer()
+
+
+def make_rig(rig, scene, *, kind, name, n_train, n_test, longest_side, aspect, seed):
+    """Cameras on a circle of radius 5 around the origin; every other one held out until n_test."""
+    n = n_train + n_test
+    w, h = longest_side, max(1, round(longest_side / aspect))
+    cams = [Camera.look_at((5 * math.cos(2 * math.pi * i / n + seed), 0.5, 5 * math.sin(2 * math.pi * i / n + seed)),
+                           (0, 0, 0), fov_y_deg=40, width=w, height=h, name=f"cam{i:02d}") for i in range(n)]
+    held = set(list(range(0, n, 2))[:n_test])
+    return "circle", [c for i, c in enumerate(cams) if i not in held], [c for i, c in enumerate(cams) if i in held]
+
+
+def toolkit(**overrides) -> Toolkit:
+    base = dict(make_rig=make_rig, make_renderer=make_renderer, imports=("tests.runner_fakes",), preload=(),
+                renderer_modules=("tests.runner_fakes",), rig_modules=("tests.runner_fakes",))
+    return Toolkit(**{**base, **overrides})

@@ -1,0 +1,113 @@
+"""Run config: schema defaults, sweep expansion into stable variants, and one clear error per mistake."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from harness.config import load_config, merge_ratios, parse_config
+from harness.errors import InputError
+from methods.registry import register_pruner
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+@register_pruner("fake-config", params={"a": 1, "b": "x", "voxel": 0.01})
+def _fake(scene, ctx):
+    """Config test pruner (never run)."""
+    raise AssertionError("not called")
+
+
+def _doc(**over):
+    doc = {"scenes": ["luigi"], "methods": ["fake-config"], "ratios": [0.1, 0.2]}
+    doc.update(over)
+    return doc
+
+
+def _err(doc) -> str:
+    with pytest.raises(InputError) as info:
+        parse_config(doc, "c.yaml")
+    return str(info.value)
+
+
+def test_defaults_and_ratio_merge():
+    cfg = parse_config(_doc(keep=[0.7, 0.5]), "runs/x.yaml")
+    assert cfg.name == "x" and cfg.output == "runs/x" and cfg.workers == 1
+    assert cfg.protocol.longest_side == 1024 and cfg.protocol.metrics == ("psnr", "ssim", "lpips")
+    assert cfg.scenes[0].source == "luigi" and cfg.scenes[0].label == "luigi"
+    (m,) = cfg.methods
+    assert (m.method, m.variant, m.params) == ("fake-config", "default", {})
+    assert m.ratios == (0.1, 0.2, 0.3, 0.5)  # keep 0.7 -> ratio 0.3, merged and sorted
+    assert merge_ratios([0.3], [0.7]) == (0.3,)
+
+
+def test_sweeps_expand_to_stable_variant_names():
+    cfg = parse_config(_doc(methods=[
+        {"name": "fake-config", "sweep": {"b": ["p", "q"], "a": [1, 2]}},
+        {"name": "fake-config", "variant": "v", "params": {"a": 3}, "sweep": {"voxel": [0.02]}, "keep": [0.7]},
+    ]), "c.yaml")
+    names = [m.variant for m in cfg.methods]
+    assert names == ["b=p,a=1", "b=p,a=2", "b=q,a=1", "b=q,a=2", "v:voxel=0.02"]
+    assert cfg.methods[1].params == {"b": "p", "a": 2}
+    assert cfg.methods[4].params == {"a": 3, "voxel": 0.02} and cfg.methods[4].ratios == (0.3,)
+
+
+def test_env_expansion_in_paths(monkeypatch):
+    monkeypatch.delenv("MPEG_CTC_ROOT", raising=False)
+    doc = _doc(scenes=[{"name": "s", "frames": "${MPEG_CTC_ROOT:-data/mpeg}/s/*.ply"}])
+    assert parse_config(doc, "c.yaml").scenes[0].frames == "data/mpeg/s/*.ply"
+    monkeypatch.setenv("MPEG_CTC_ROOT", "/mnt/ctc")
+    assert parse_config(doc, "c.yaml").scenes[0].frames == "/mnt/ctc/s/*.ply"
+
+
+@pytest.mark.parametrize("over, expected", [
+    ({"bogus": 1}, "top level: unknown key(s) bogus"),
+    ({"methods": ["no-such-pruner"]}, "methods[0].name: unknown pruner 'no-such-pruner'"),
+    ({"methods": [{"name": "fake-config", "params": {"c": 1}}]},
+     "methods[0].params.c: pruner 'fake-config' has no parameter 'c'; known: a, b, voxel"),
+    ({"methods": [{"name": "fake-config", "sweep": {"a": 3}}]}, "methods[0].sweep.a: expected a non-empty list"),
+    ({"methods": [{"name": "fake-config", "params": {"a": 1}, "sweep": {"a": [2]}}]},
+     "methods[0].sweep.a: also set in params"),
+    ({"methods": ["fake-config", "fake-config"]}, "variant fake-config[default] already defined by methods[0]"),
+    ({"methods": [{"name": "fake-config", "scenes": ["nope"]}]}, "methods[0].scenes[0]: 'nope' is not a scene"),
+    ({"ratios": [0.1, 1.5]}, "ratios[1]: 1.5 is outside [0.0, 1.0]"),
+    ({"ratios": "0.1"}, "ratios: expected a non-empty list"),
+    ({"ratios": None}, "ratios: expected a non-empty list"),
+    ({"scenes": []}, "scenes: expected a non-empty list"),
+    ({"scenes": ["a", "a"]}, "scenes[1].name: duplicate scene name 'a'"),
+    ({"scenes": [{"name": "a", "source": "x", "frames": "y"}]}, "scenes[0]: give either `source` or `frames`"),
+    ({"scenes": [{"name": "a", "kind": "360"}]}, "scenes[0].kind: '360' is not one of forward-facing, object-centric"),
+    ({"scenes": [{"name": "a", "cameras": {"path": "c.json"}}]}, "scenes[0].cameras: give the held-out views"),
+    ({"protocol": {"longest_side": 12.5}}, "protocol.longest_side: expected an integer"),
+    ({"protocol": {"renderer": "vulkan"}}, "protocol.renderer: 'vulkan' is not one of gl, reference"),
+    ({"protocol": {"metrics": ["psnr", "flip"]}}, "protocol.metrics[1]: 'flip' is not one of"),
+    ({"protocol": {"background": [0, 0]}}, "protocol.background: expected three numbers"),
+    ({"tables": ["comparison", "table9"]}, "tables[1]: 'table9' is not one of"),
+    ({"workers": 0}, "workers: 0 is outside [1, 256]"),
+])
+def test_errors_name_the_key_and_the_problem(over, expected):
+    msg = _err(_doc(**over))
+    assert msg.startswith("c.yaml: ") and expected in msg
+
+
+def test_load_config_file_errors(tmp_path):
+    with pytest.raises(InputError, match="cannot read config"):
+        load_config(tmp_path / "missing.yaml")
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("scenes: [luigi\nmethods: x\n")
+    with pytest.raises(InputError, match=r"invalid YAML at line \d+, column \d+"):
+        load_config(bad)
+    top = tmp_path / "list.yaml"
+    top.write_text("- a\n- b\n")
+    with pytest.raises(InputError, match="top level: expected a mapping"):
+        load_config(top)
+
+
+@pytest.mark.parametrize("name", ["ci", "default", "nightly", "full", "ctc"])
+def test_shipped_configs_are_valid(name):
+    path = REPO / "ctc_configs" / f"{name}.yaml"
+    if not path.exists():
+        pytest.skip(f"{path.name} is not written yet")
+    cfg = load_config(path)
+    assert cfg.scenes and cfg.methods

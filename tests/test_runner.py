@@ -1,0 +1,131 @@
+"""Runner: stages, caching, dedup, skips and failures — in-process with fast fakes (tests/runner_fakes.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from harness.config import parse_config
+from harness.results import to_frame
+from harness.runner import Runner
+from harness.scene_io import write_scene
+from tests import runner_fakes as fakes
+from tests.scene_factory import random_scene
+
+
+@pytest.fixture
+def scenes(tmp_path):
+    paths = {}
+    for i, n in enumerate((300, 500)):
+        p = tmp_path / f"s{i}.ply"
+        write_scene(random_scene(n, sh_degree=1, seed=i), p)
+        paths[f"s{i}"] = str(p)
+    return paths
+
+
+def _config(scenes, methods, **extra):
+    doc = {
+        "name": "t",
+        "protocol": {"longest_side": 32, "metrics": ["psnr", "ssim"], "n_train": 3, "n_test": 2},
+        "ratios": [0.1, 0.3],
+        "scenes": [{"name": k, "source": v} for k, v in scenes.items()],
+        "methods": methods,
+        **extra,
+    }
+    return parse_config(doc, "test.yaml")
+
+
+def _run(cfg, tmp_path, **kw):
+    r = Runner(cfg, out_dir=tmp_path / "out", cache_root=tmp_path / "cache", toolkit=fakes.toolkit(),
+               log=lambda m: None, **kw)
+    res = r.run()
+    return res, to_frame(res.rows)
+
+
+def _metric_cols(df):
+    return df[["scene", "method", "variant", "ratio", "view", "status", "psnr", "ssim", "splats_out", "tau"]]
+
+
+def test_rows_and_rerun_recomputes_nothing(scenes, tmp_path):
+    cfg = _config(scenes, ["fake-norm", "opacity"])
+    fakes.CALLS.clear()
+    res, df = _run(cfg, tmp_path)
+    # 2 scenes x 2 methods x 2 ratios x 2 views
+    assert len(df) == 16 and (df["status"] == "ok").all()
+    assert fakes.CALLS["score:fake-norm"] == 2  # once per scene, reused by both ratios
+    assert sum(c["misses"] for c in res.counts.values()) > 0
+    ok = df.iloc[0]
+    assert ok["splats_in"] == 300 and ok["splats_out"] == 300 - round(ok["ratio"] * 300)
+
+    fakes.CALLS.clear()
+    res2, df2 = _run(cfg, tmp_path)
+    assert sum(c["misses"] for c in res2.counts.values()) == 0
+    assert fakes.CALLS["render"] == 0 and fakes.CALLS["score:fake-norm"] == 0
+    assert _metric_cols(df2).equals(_metric_cols(df))
+
+
+def test_identical_keep_masks_are_rendered_once(scenes, tmp_path):
+    # fake-norm's `unused` parameter changes the cache key but not the scores: same masks
+    cfg = _config({"s0": scenes["s0"]}, [{"name": "fake-norm", "sweep": {"unused": [0, 1, 2]}}])
+    fakes.CALLS.clear()
+    res, df = _run(cfg, tmp_path)
+    assert fakes.CALLS["score:fake-norm"] == 3
+    # per view: 1 reference + 2 distinct masks (ratios 0.1, 0.3), although 3 variants x 2 ratios use them
+    assert fakes.CALLS["render"] == 2 * (1 + 2)
+    assert res.counts["metrics"]["misses"] == 2 * 2
+    assert sorted(set(df["variant"])) == ["unused=0", "unused=1", "unused=2"]
+    per_variant = df.pivot_table(index=["ratio", "view"], columns="variant", values="psnr")
+    assert np.allclose(per_variant.to_numpy(), per_variant.to_numpy()[:, :1])
+
+
+def test_changing_params_recomputes_only_that_method(scenes, tmp_path):
+    _run(_config(scenes, ["fake-norm", {"name": "random", "params": {"seed": 1}}]), tmp_path)
+    fakes.CALLS.clear()
+    res, _ = _run(_config(scenes, ["fake-norm", {"name": "random", "params": {"seed": 2}}]), tmp_path)
+    assert fakes.CALLS["score:fake-norm"] == 0
+    assert res.counts["score"] == {"hits": 2, "misses": 2}
+    assert res.counts["render_ref"]["misses"] == 0  # reference renders are shared by every method
+
+
+def test_camera_aware_without_cameras_is_skipped_with_reason(scenes, tmp_path):
+    cfg = _config({"s0": scenes["s0"]}, ["fake-aware", "opacity"], protocol={
+        "longest_side": 32, "metrics": ["psnr"], "n_train": 0, "n_test": 1})
+    res, df = _run(cfg, tmp_path)
+    skipped = df[df["method"] == "fake-aware"]
+    assert len(skipped) == 1 and skipped.iloc[0]["status"] == "skipped"
+    assert "needs cameras, renderer" in skipped.iloc[0]["reason"]
+    assert (df[df["method"] == "opacity"]["status"] == "ok").all()
+
+
+def test_camera_aware_gets_train_views(scenes, tmp_path):
+    fakes.CALLS.clear()
+    res, df = _run(_config({"s0": scenes["s0"]}, ["fake-aware"]), tmp_path)
+    assert fakes.CALLS["score:fake-aware"] == 1 and (df["status"] == "ok").all()
+
+
+def test_missing_scene_and_broken_pruner_do_not_stop_the_run(scenes, tmp_path):
+    cfg = _config({"s0": scenes["s0"], "gone": str(tmp_path / "nope.ply")}, ["fake-broken", "opacity"])
+    res, df = _run(cfg, tmp_path)
+    gone = df[df["scene"] == "gone"]
+    assert len(gone) == 1 and gone.iloc[0]["status"] == "skipped" and "not found" in gone.iloc[0]["reason"]
+    broken = df[df["method"] == "fake-broken"]
+    assert (broken["status"] == "error").all() and "broken on purpose" in broken.iloc[0]["reason"]
+    assert res.errors and (df[df["method"] == "opacity"]["status"] == "ok").all()
+
+
+def test_force_recomputes(scenes, tmp_path):
+    cfg = _config({"s0": scenes["s0"]}, ["fake-norm"])
+    _, df = _run(cfg, tmp_path)
+    fakes.CALLS.clear()
+    res, df2 = _run(cfg, tmp_path, force=True)
+    assert fakes.CALLS["score:fake-norm"] == 1 and fakes.CALLS["render"] == 2 * 3
+    assert sum(c["hits"] for c in res.counts.values()) == 0
+    assert _metric_cols(df2).equals(_metric_cols(df))
+
+
+@pytest.mark.slow  # spawning two workers (torch imports) takes ~25 s here
+def test_pool_of_two_workers_matches_in_process(scenes, tmp_path):
+    cfg = _config(scenes, ["fake-norm", "opacity"])
+    _, df1 = _run(cfg, tmp_path / "a")
+    _, df2 = _run(cfg, tmp_path / "b", workers=2)
+    assert _metric_cols(df2).equals(_metric_cols(df1))
