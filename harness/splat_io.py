@@ -35,6 +35,12 @@ from harness.scene import SH_C0, GaussianScene, normalized_quats, sigmoid
 SPLAT_RECORD = np.dtype([("pos", "<f4", (3,)), ("scale", "<f4", (3,)), ("rgba", "u1", (4,)), ("rot", "u1", (4,))])
 assert SPLAT_RECORD.itemsize == 32
 _ALPHA_EPS = 0.25 / 255.0
+_BYTES = np.arange(256, dtype=np.float64)
+# byte -> value tables, computed in float64 and rounded once to float32
+_DC_OF_BYTE = ((_BYTES / 255.0 - 0.5) / SH_C0).astype(np.float32)
+_ALPHA_OF_BYTE = np.clip(_BYTES / 255.0, _ALPHA_EPS, 1.0 - _ALPHA_EPS)
+_LOGIT_OF_BYTE = np.log(_ALPHA_OF_BYTE / (1.0 - _ALPHA_OF_BYTE)).astype(np.float32)
+_QUAT_OF_BYTE = ((_BYTES - 128.0) / 128.0).astype(np.float32)
 
 
 def read_splat(path: str | Path) -> GaussianScene:
@@ -47,16 +53,15 @@ def read_splat(path: str | Path) -> GaussianScene:
         raise InputError(path, f"truncated: {size} bytes is not a whole number of 32-byte .splat records "
                                f"({size // 32} complete, {size % 32} bytes left over)")
     rec = np.fromfile(path, dtype=SPLAT_RECORD)
-    rgba = rec["rgba"] / 255.0  # float64 so 0.5 − RGB/255 does not cancel in float32
-    alpha = np.clip(rgba[:, 3], _ALPHA_EPS, 1.0 - _ALPHA_EPS)
+    rgba = np.ascontiguousarray(rec["rgba"])
     with np.errstate(divide="ignore", invalid="ignore"):
         scales_log = np.log(rec["scale"])
     return GaussianScene.from_arrays(
         means=rec["pos"],
         scales_log=scales_log,
-        quats=(rec["rot"].astype(np.float32) - np.float32(128.0)) / np.float32(128.0),
-        opacity_logit=np.log(alpha / (1.0 - alpha)),
-        sh_dc=(rgba[:, :3] - 0.5) / SH_C0,
+        quats=_QUAT_OF_BYTE[rec["rot"]],
+        opacity_logit=_LOGIT_OF_BYTE[rgba[:, 3]],
+        sh_dc=_DC_OF_BYTE[rgba[:, :3]],
     )
 
 

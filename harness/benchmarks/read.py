@@ -36,6 +36,7 @@ def _peak_alloc_mb(fn) -> float:
 def run(args) -> int:
     from harness.benchmarks._common import median_time, peak_rss_mb, write_result
     from harness.datasets import resolve_scene
+    from harness.errors import InputError
     from harness.scene_io import load_scene, write_scene
 
     path = resolve_scene(args.scene)
@@ -52,7 +53,7 @@ def run(args) -> int:
         rows["read_ply"] = {"seconds": t, "samples": samples, "peak_alloc_mb": _peak_alloc_mb(lambda: load_scene(ply))}
     try:
         sog = resolve_scene("playbot")
-    except Exception:  # noqa: BLE001 - the shared folder is optional
+    except InputError:  # the shared data folder is optional
         sog = None
     if sog is not None:
         t, samples = median_time(lambda: load_scene(sog), args.repeats)
