@@ -201,10 +201,9 @@ def _decode_sh_rest(meta: dict, files: _Files, name: str, count: int, folder: st
     entries = cent.reshape(cent.shape[0], 64, k, 4).reshape(-1, k, 4)[:palette, :, :3]
     lab = files.image(label_name, count).reshape(-1, 4)[:count]
     labels = lab[:, 0].astype(np.int64) | (lab[:, 1].astype(np.int64) << 8)
-    out = np.zeros((count, k, 3), np.float32)
-    ok = labels < palette
-    out[ok] = book[entries[labels[ok]]]
-    return out
+    # decoded palette plus one zero entry that every out-of-palette label points at
+    table = np.concatenate([book[entries], np.zeros((1, k, 3), np.float32)])
+    return table[np.minimum(labels, palette)]
 
 
 def concat_scenes(scenes: list[GaussianScene]) -> GaussianScene:
@@ -249,10 +248,12 @@ def _read_lod_level(files: _Files, name: str, meta: dict, level: int) -> Gaussia
             if offset < 0 or offset + count > len(scene):
                 raise InputError(files.label(filenames[file_index]),
                                  f"LOD rows {offset}..{offset + count} exceed its {len(scene)} splats")
-            parts.append(scene.subset(np.arange(offset, offset + count)))
+        rows = np.concatenate([np.arange(o, o + c) for o, c in sorted(ranges)])
+        whole_file = len(rows) == len(scene) and (rows == np.arange(len(scene))).all()
+        parts.append(scene if whole_file else scene.subset(rows))
     if not parts:
         raise InputError(files.label(name), f"LOD level {level} references no splats")
-    return concat_scenes(parts)
+    return parts[0] if len(parts) == 1 else concat_scenes(parts)
 
 
 def _open(path: Path) -> tuple[_Files, str, bool]:

@@ -145,29 +145,34 @@ def write_lod_set(root) -> tuple[SogSpec, SogSpec]:
     a.write(root / "0_0")
     b.write(root / "1_0")
     tree = {"children": [  # children listed out of offset order on purpose
-        {"lods": {"0": {"file": 0, "offset": 6, "count": 4}, "1": {"file": 1, "offset": 2, "count": 2}}},
-        {"lods": {"0": {"file": 0, "offset": 0, "count": 6}, "1": {"file": 1, "offset": 0, "count": 2}}},
+        {"lods": {"0": {"file": 0, "offset": 6, "count": 4}, "1": {"file": 1, "offset": 2, "count": 2},
+                  "2": {"file": 1, "offset": 3, "count": 1}}},
+        {"lods": {"0": {"file": 0, "offset": 0, "count": 6}, "1": {"file": 1, "offset": 0, "count": 2},
+                  "2": {"file": 0, "offset": 2, "count": 3}}},  # level 2: parts of both files
     ]}
     (root / "lod-meta.json").write_text(json.dumps(
-        {"lodLevels": 2, "filenames": ["0_0/meta.json", "1_0/meta.json"], "tree": tree}))
+        {"lodLevels": 3, "filenames": ["0_0/meta.json", "1_0/meta.json"], "tree": tree}))
     return a, b
 
 
 def test_lod_levels_select_rows_by_tree_references(tmp_path, capsys):
     write_lod_set(tmp_path)
     level0, level1 = read_sog(tmp_path / "0_0" / "meta.json"), read_sog(tmp_path / "1_0" / "meta.json")
-    assert lod_levels(tmp_path) == 2
-    for lod, want in ((None, level0), (0, level0), (1, level1)):
+    assert lod_levels(tmp_path) == 3
+    level2 = [level0.subset([2, 3, 4]), level1.subset([3])]
+    level2 = type(level0)(*(np.concatenate([getattr(p, a) for p in level2]) for a in
+                            ("means", "scales_log", "quats", "opacity_logit", "sh_dc", "sh_rest")))
+    for lod, want in ((None, level0), (0, level0), (1, level1), (2, level2)):
         got = read_sog(tmp_path, lod)
         assert got.means.tobytes() == want.means.tobytes() and got.sh_rest.tobytes() == want.sh_rest.tobytes()
-    both = read_sog(tmp_path / "lod-meta.json", "all")
-    assert len(both) == 14 and both.sh_degree == 2
-    assert both.quats[10:].tobytes() == level1.quats.tobytes()
-    with pytest.raises(InputError, match="LOD level 2 does not exist"):
-        read_sog(tmp_path, 2)
+    every = read_sog(tmp_path / "lod-meta.json", "all")
+    assert len(every) == 18 and every.sh_degree == 2
+    assert every.quats[10:14].tobytes() == level1.quats.tobytes()
+    with pytest.raises(InputError, match="LOD level 3 does not exist"):
+        read_sog(tmp_path, 3)
     assert main(["info", str(tmp_path / "lod-meta.json"), "--lod", "all", "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
-    assert (info["splats"], info["lod"], info["format"]) == (14, "all", "sog")
+    assert (info["splats"], info["lod"], info["format"]) == (18, "all", "sog")
     assert main(["info", str(tmp_path), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["lod"] == 0
 
