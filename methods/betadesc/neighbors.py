@@ -1,0 +1,285 @@
+"""Exact hybrid (radius + max_nn) neighbour search, the one open3d's FPFH uses, in numba.
+
+open3d's ``KDTreeFlann::SearchHybrid(q, r, K)`` (nanoflann 1.5) runs a kNN query for the K nearest
+points and keeps those with ``d² < r²`` (``std::lower_bound`` on r², so *strictly* inside), sorted by
+``d²``. The query point itself is one of the points (``d² = 0``), so it takes one of the K slots and
+FPFH skips slot 0. Squared distances are ``((q_x-p_x)² + (q_y-p_y)²) + (q_z-p_z)²`` in float64, the
+order of nanoflann's ``L2_Adaptor``; we compute them the same way so the radius test and the
+1/d² weights match bit for bit.
+
+Our search: a dense uniform grid of cell size h ≈ r/2 (points sorted by cell, row-major, so a run of
+cells along z is one contiguous slice). A query scans, per (x, y) column, only the z-run of cells
+that can hold a point of its ball (bounds from its exact position, with a 1e-7·h slack so rounding
+can only widen them), keeping candidates with ``d² < ρ²``. ρ is first a guess — 1.3× the previous
+query's k-th d² (queries run in cell order, so neighbours' densities are alike) — and if that ball
+holds fewer than K points the full radius r is scanned; when ≥ K lie inside the guess ball the K
+nearest are all inside it, so the guess changes the speed, never the result. Of more than K
+candidates the K smallest under the total order ``(d², self first, index)`` are kept (bucket
+select on d², quickselect inside the boundary bucket). Ties at the K-th distance are thus broken by
+point index (nanoflann breaks them by tree traversal order, so with exact ties at the max_nn
+boundary the two searches can keep different points; that is the only way they differ).
+
+Output is padded ``(M, K)``: column 0 is the query itself, columns ``1..count-1`` its other
+neighbours in an unspecified but deterministic order (not sorted by distance); memory is
+``12·M·K`` bytes. Every query is independent (``prange`` over queries, no cross-thread reduction), so
+the result is bit-identical for any numba thread count.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba as nb
+import numpy as np
+
+_MAX_CELLS = 1 << 22  # dense grid size cap (32 MiB of int64 cell starts)
+_BUCKETS = 128  # buckets of d²/r² for the k-smallest selection
+_GUESS_GROWTH = 1.3  # first-try ball: 1.3 × the previous query's k-th d²
+_CHUNKS = 64  # queries are processed in this many independent chunks (any thread count)
+
+
+@dataclass(frozen=True)
+class Neighborhood:
+    """Padded neighbour lists: ``index[i, :count[i]]`` with ``index[i, 0] == i``."""
+
+    index: np.ndarray  # (M, K) int32, -1 past count
+    d2: np.ndarray  # (M, K) float64 squared distances, nanoflann summation order
+    count: np.ndarray  # (M,) int32, neighbours including the point itself (0 only if radius <= 0)
+    radius: float
+    max_nn: int
+
+    def __len__(self) -> int:
+        return len(self.count)
+
+
+def _grid(points: np.ndarray, radius: float):
+    """Dense grid of cell size h ≈ r/2: origin, h, dims (3,), point order by cell, cell starts.
+
+    h grows if the grid would exceed ``_MAX_CELLS`` cells (a larger cell is still exact, only
+    slower). Cells of the points are ``floor((p − lo)/h)`` clipped to the grid.
+    """
+    lo = points.min(axis=0)
+    extent = points.max(axis=0) - lo
+    h = 0.5 * radius
+    while True:
+        dims = np.floor(extent / h).astype(np.int64) + 1
+        total = int(np.prod(dims.astype(np.float64)))
+        if total <= _MAX_CELLS:
+            break
+        h *= max(1.01, (total / _MAX_CELLS) ** (1.0 / 3.0))
+    c = np.floor((points - lo) / h).astype(np.int64)
+    np.clip(c, 0, dims - 1, out=c)
+    lin = (c[:, 0] * dims[1] + c[:, 1]) * dims[2] + c[:, 2]
+    order = np.argsort(lin, kind="stable")
+    starts = np.searchsorted(lin[order], np.arange(total + 1, dtype=np.int64), side="left")
+    return lo, h, dims, order, starts
+
+
+@nb.njit(cache=True, inline="always")
+def _cell_range(q, r, h, slack, n):
+    """Cells [a, b] of one axis whose slab can hold a point within r of coordinate q (grid units)."""
+    a = int(math.floor((q - r - slack) / h))
+    b = int(math.floor((q + r + slack) / h))
+    return max(a, 0), min(b, n - 1)
+
+
+@nb.njit(cache=True, inline="always")
+def _gap(q, cell, h, slack):
+    """Distance from coordinate q to the slab [cell·h, (cell+1)·h), minus a rounding slack."""
+    g = 0.0
+    if q < cell * h:
+        g = cell * h - q
+    elif q >= (cell + 1) * h:
+        g = q - (cell + 1) * h
+    return max(g - slack, 0.0)
+
+
+@nb.njit(cache=True, inline="always")
+def _less(da, ra, db, rb):
+    return da < db or (da == db and ra < rb)
+
+
+@nb.njit(cache=True)
+def _select_smallest(d2, rk, n, k):
+    """Reorder ``d2[:n], rk[:n]`` in place so the k smallest (by (d2, rk)) come first."""
+    lo = 0
+    hi = n - 1
+    t = k - 1
+    while hi > lo:
+        mid = (lo + hi) >> 1
+        # median of three as pivot
+        a, b, c = lo, mid, hi
+        if _less(d2[b], rk[b], d2[a], rk[a]):
+            a, b = b, a
+        if _less(d2[c], rk[c], d2[b], rk[b]):
+            b, c = c, b
+            if _less(d2[b], rk[b], d2[a], rk[a]):
+                a, b = b, a
+        pd = d2[b]
+        pr = rk[b]
+        i = lo
+        j = hi
+        while i <= j:
+            while _less(d2[i], rk[i], pd, pr):
+                i += 1
+            while _less(pd, pr, d2[j], rk[j]):
+                j -= 1
+            if i <= j:
+                d2[i], d2[j] = d2[j], d2[i]
+                rk[i], rk[j] = rk[j], rk[i]
+                i += 1
+                j -= 1
+        if t <= j:
+            hi = j
+        elif t >= i:
+            lo = i
+        else:
+            break
+
+
+@nb.njit(cache=True)
+def _keep_smallest(buf_d, buf_r, n, k, bscale, hist, tmp_d, tmp_r):
+    """Compact the k smallest of ``buf[:n]`` (by (d², rank)) to ``buf[:k]``; returns k.
+
+    Bucket select: d²·B/r² buckets; every candidate below the bucket holding the k-th smallest is
+    kept in scan order, and quickselect picks the rest inside that one bucket only.
+    """
+    nb_ = hist.shape[0]
+    hist[:] = 0
+    for s in range(n):
+        hist[min(int(buf_d[s] * bscale), nb_ - 1)] += 1
+    below = 0
+    edge = 0
+    while below + hist[edge] < k:
+        below += hist[edge]
+        edge += 1
+    o = 0
+    t = 0
+    for s in range(n):
+        b = min(int(buf_d[s] * bscale), nb_ - 1)
+        if b < edge:
+            buf_d[o] = buf_d[s]
+            buf_r[o] = buf_r[s]
+            o += 1
+        elif b == edge:
+            tmp_d[t] = buf_d[s]
+            tmp_r[t] = buf_r[s]
+            t += 1
+    need = k - below
+    if t > need:
+        _select_smallest(tmp_d, tmp_r, t, need)
+    for s in range(need):
+        buf_d[o + s] = tmp_d[s]
+        buf_r[o + s] = tmp_r[s]
+    return k
+
+
+@nb.njit(cache=True, inline="always")
+def _scan_ball(q, points, sp, order, lo, h, dims, starts, rr2, slack, buf_d, buf_r):
+    """Append every point with d² < rr2 to ``buf`` (d², index); tight z-runs per (x, y) column."""
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    qx = points[q, 0]
+    qy = points[q, 1]
+    qz = points[q, 2]
+    gx0 = qx - lo[0]  # grid-relative coordinates
+    gy0 = qy - lo[1]
+    gz0 = qz - lo[2]
+    n = 0
+    xa, xb = _cell_range(gx0, math.sqrt(rr2), h, slack, nx)
+    for x in range(xa, xb + 1):
+        gx = _gap(gx0, x, h, slack)
+        rx = rr2 - gx * gx
+        if rx <= 0.0:
+            continue
+        ya, yb = _cell_range(gy0, math.sqrt(rx), h, slack, ny)
+        for y in range(ya, yb + 1):
+            gy = _gap(gy0, y, h, slack)
+            rxy = rx - gy * gy
+            if rxy <= 0.0:
+                continue
+            za, zb = _cell_range(gz0, math.sqrt(rxy), h, slack, nz)
+            base = (x * ny + y) * nz
+            for s in range(starts[base + za], starts[base + zb + 1]):
+                ex = qx - sp[s, 0]
+                ey = qy - sp[s, 1]
+                ez = qz - sp[s, 2]
+                d = ex * ex + ey * ey + ez * ez
+                # branch-free append (a good share of the candidates pass)
+                buf_d[n] = d
+                buf_r[n] = order[s]
+                n += d < rr2
+    return n
+
+
+@nb.njit(parallel=True, cache=True, fastmath=False)
+def _hybrid_kernel(points, lo, h, dims, order, starts, r2, max_nn, out_idx, out_d2, out_cnt):
+    m = points.shape[0]
+    sp = points[order]  # points in cell order: a run of cells along z is contiguous in memory
+    slack = 1e-7 * h  # far above float64 rounding of the cell arithmetic: bounds stay conservative
+    chunk = (m + _CHUNKS - 1) // _CHUNKS
+    for ch in nb.prange(_CHUNKS):
+        start = ch * chunk
+        stop = min(m, start + chunk)
+        if start >= stop:
+            continue
+        buf_d = np.empty(m, np.float64)
+        buf_r = np.empty(m, np.int64)
+        tmp_d = np.empty(m, np.float64)
+        tmp_r = np.empty(m, np.int64)
+        hist = np.empty(_BUCKETS, np.int64)
+        guess = r2
+        for pos in range(start, stop):  # queries in cell order, so consecutive ones are close
+            q = order[pos]
+            # first a smaller ball from the previous query's k-th distance: if it already holds
+            # max_nn points, the max_nn nearest are all inside it (exact); else scan the full r.
+            rr2 = min(r2, guess * _GUESS_GROWTH)
+            n = _scan_ball(q, points, sp, order, lo, h, dims, starts, rr2, slack, buf_d, buf_r)
+            if n < max_nn and rr2 < r2:
+                rr2 = r2
+                n = _scan_ball(q, points, sp, order, lo, h, dims, starts, rr2, slack, buf_d, buf_r)
+            for s in range(n):
+                if buf_r[s] == q:
+                    buf_r[s] = -1
+            if n > max_nn:
+                n = _keep_smallest(buf_d, buf_r, n, max_nn, _BUCKETS / rr2, hist, tmp_d, tmp_r)
+            # the query itself (rank -1) first, as open3d's slot 0
+            for s in range(n):
+                if buf_r[s] == -1:
+                    buf_d[s], buf_d[0] = buf_d[0], buf_d[s]
+                    buf_r[s], buf_r[0] = buf_r[0], buf_r[s]
+                    break
+            out_cnt[q] = n
+            guess = r2
+            if n == max_nn:
+                guess = 0.0
+                for s in range(n):
+                    guess = max(guess, buf_d[s])
+            for s in range(n):
+                out_idx[q, s] = q if buf_r[s] == -1 else buf_r[s]
+                out_d2[q, s] = buf_d[s]
+
+
+def hybrid_search(points: np.ndarray, radius: float, max_nn: int) -> Neighborhood:
+    """For every point, its ``max_nn`` nearest points (itself included) with ``d² < radius²``.
+
+    Same neighbour sets as open3d ``KDTreeSearchParamHybrid(radius, max_nn)`` except for exact
+    distance ties at the max_nn boundary (see the module docstring).
+    """
+    pts = np.ascontiguousarray(points, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise ValueError(f"points must be (M, 3), got {pts.shape}")
+    if not np.all(np.isfinite(pts)):
+        raise ValueError("points contain NaN or inf")
+    radius = float(radius)
+    max_nn = int(max_nn)
+    if not np.isfinite(radius) or radius <= 0.0 or max_nn < 1:
+        raise ValueError(f"need radius > 0 and max_nn >= 1, got {radius}, {max_nn}")
+    m = len(pts)
+    idx = np.full((m, max_nn), -1, np.int32)
+    d2 = np.zeros((m, max_nn), np.float64)
+    cnt = np.zeros(m, np.int32)
+    if m:
+        lo, h, dims, order, starts = _grid(pts, radius)
+        _hybrid_kernel(pts, lo, h, dims, order, starts, radius * radius, max_nn, idx, d2, cnt)
+    return Neighborhood(index=idx, d2=d2, count=cnt, radius=radius, max_nn=max_nn)

@@ -1,0 +1,225 @@
+"""Normals of the voxel cloud from the splats' shortest axes, consistently oriented.
+
+Per splat the normal is the column of R (quaternion wxyz, normalised) belonging to the smallest scale
+(``argmin scales_log``; the first axis wins an exact tie): a trained splat on a surface is a flat
+disc whose thin axis is the surface normal. Its sign is meaningless.
+
+Per voxel, the sign-invariant aggregate is the principal eigenvector of the weighted scatter
+``C = Σ wᵢ nᵢ nᵢᵀ`` over the members (the axis best aligned with all member normals, i.e. the
+minimiser of Σ wᵢ (1 − (n·nᵢ)²)); ``weights`` default to 1 and a voxel whose weights sum to 0 uses
+1 for its members. The eigenvector's sign is then made canonical (largest-magnitude component
+positive) before orientation, so the result does not depend on LAPACK's sign choice.
+
+Orientation matters because FPFH is not sign invariant: flipping one normal of a pair changes
+α, φ and θ, and flipping *all* normals mirrors the α and θ histograms. Conventions (``orient``):
+
+* ``"mst"`` (default, Hoppe et al. 1992, as open3d's ``orient_normals_consistent_tangent_plane``):
+  on the graph of each point's ``orient_nn`` nearest neighbours within ``orient_radius``, a minimum
+  spanning tree with edge cost ``2 − |nᵢ·nⱼ|`` (in [1, 2]: the +1 keeps zero costs out of scipy's
+  sparse graph and does not change which tree is minimal), traversed breadth first from one root
+  per connected component; a child is flipped when ``n_child·n_parent < 0``. Each root is the
+  component's point farthest from the cloud centroid, oriented away from the centroid — where the
+  radial direction is most reliable. Neighbouring normals on a smooth surface then agree, which is
+  what the SPFH pair angles need; cost ~ O(M k log M) in scipy + one search.
+* ``"centroid"``: every normal points away from the centroid of the voxel points (``n·(p − c) ≥ 0``).
+  Cheap, but inconsistent wherever the surface is tangent to the radial direction.
+* ``"none"``: the canonical signs only.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import breadth_first_order, connected_components, minimum_spanning_tree
+
+from methods.betadesc.neighbors import hybrid_search
+from methods.betadesc.voxel import VoxelGrid
+
+ORIENTATIONS = ("mst", "centroid", "none")
+#: neighbours (besides the point itself) of the orientation graph
+ORIENT_NN = 10
+
+
+def splat_normals(rotations: np.ndarray, scales_log: np.ndarray) -> np.ndarray:
+    """Unit normals (N, 3) float64: the shortest local axis of each splat, in world space.
+
+    ``rotations`` is either (N, 3, 3) matrices whose columns are the local axes, or (N, 4)
+    quaternions (w, x, y, z), normalised here (a zero quaternion is the identity, as in
+    :func:`harness.scene.normalized_quats`).
+    """
+    s = np.ascontiguousarray(scales_log, dtype=np.float64)
+    rot = np.ascontiguousarray(rotations, dtype=np.float64)
+    n = len(s)
+    if s.shape != (n, 3):
+        raise ValueError(f"scales_log must be (N, 3), got {s.shape}")
+    if rot.shape == (n, 3, 3):
+        out = _matrix_axes(rot, s)
+    elif rot.shape == (n, 4):
+        out = _quat_axes(rot, s)
+    else:
+        raise ValueError(f"rotations must be ({n}, 3, 3) or ({n}, 4), got {rot.shape}")
+    return out
+
+
+@nb.njit(cache=True, inline="always")
+def _shortest(s, i):
+    a = 0
+    if s[i, 1] < s[i, a]:
+        a = 1
+    if s[i, 2] < s[i, a]:
+        a = 2
+    return a
+
+
+@nb.njit(cache=True, inline="always")
+def _unit(out, i):
+    norm = math.sqrt(out[i, 0] ** 2 + out[i, 1] ** 2 + out[i, 2] ** 2)
+    if norm > 0.0:
+        for a in range(3):
+            out[i, a] /= norm
+
+
+@nb.njit(parallel=True, cache=True, fastmath=False)
+def _matrix_axes(rot, s):
+    out = np.empty((rot.shape[0], 3))
+    for i in nb.prange(rot.shape[0]):
+        a = _shortest(s, i)
+        for r in range(3):
+            out[i, r] = rot[i, r, a]
+        _unit(out, i)
+    return out
+
+
+@nb.njit(parallel=True, cache=True, fastmath=False)
+def _quat_axes(quat, s):
+    """Column ``argmin s`` of R(q) for unit (w, x, y, z), without building R (3DGS convention)."""
+    out = np.empty((quat.shape[0], 3))
+    for i in nb.prange(quat.shape[0]):
+        w, x, y, z = quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3]
+        qn = math.sqrt(w * w + x * x + y * y + z * z)
+        if qn > 0.0:
+            w, x, y, z = w / qn, x / qn, y / qn, z / qn
+        else:
+            w, x, y, z = 1.0, 0.0, 0.0, 0.0
+        a = _shortest(s, i)
+        if a == 0:
+            out[i, 0] = 1 - 2 * (y * y + z * z)
+            out[i, 1] = 2 * (x * y + w * z)
+            out[i, 2] = 2 * (x * z - w * y)
+        elif a == 1:
+            out[i, 0] = 2 * (x * y - w * z)
+            out[i, 1] = 1 - 2 * (x * x + z * z)
+            out[i, 2] = 2 * (y * z + w * x)
+        else:
+            out[i, 0] = 2 * (x * z + w * y)
+            out[i, 1] = 2 * (y * z - w * x)
+            out[i, 2] = 1 - 2 * (x * x + y * y)
+        _unit(out, i)
+    return out
+
+
+@nb.njit(cache=True, fastmath=False)
+def _scatter(nrm, s2v, w, m):
+    """C_v = Σ wᵢ nᵢnᵢᵀ per voxel, in splat-index order; voxels with Σw = 0 use wᵢ = 1."""
+    wsum = np.zeros(m)
+    for i in range(len(s2v)):
+        wsum[s2v[i]] += w[i]
+    c = np.zeros((m, 3, 3))
+    for i in range(len(s2v)):
+        v = s2v[i]
+        wi = w[i] if wsum[v] > 0.0 else 1.0
+        for a in range(3):
+            for b in range(3):
+                c[v, a, b] += wi * nrm[i, a] * nrm[i, b]
+    return c
+
+
+def voxel_normals(
+    grid: VoxelGrid,
+    rotations: np.ndarray,
+    scales_log: np.ndarray,
+    weights: np.ndarray | None = None,
+    orient: str = "mst",
+    orient_radius: float | None = None,
+    orient_nn: int = ORIENT_NN,
+) -> np.ndarray:
+    """Unit normals (M, 3) float64 of the voxel points (see the module docstring).
+
+    ``weights`` (N,) non-negative, e.g. opacities; ``orient_radius`` (default 5 voxels) and
+    ``orient_nn`` define the MST graph of ``"mst"``.
+    """
+    if orient not in ORIENTATIONS:
+        raise ValueError(f"orient must be one of {ORIENTATIONS}, got {orient!r}")
+    n_splat = len(grid.splat_to_voxel)
+    nrm = splat_normals(rotations, scales_log)
+    if len(nrm) != n_splat:
+        raise ValueError(f"{len(nrm)} splat normals for a grid of {n_splat} splats")
+    w = np.ones(n_splat) if weights is None else np.ascontiguousarray(weights, dtype=np.float64)
+    if w.shape != (n_splat,) or not np.all(np.isfinite(w)) or np.any(w < 0):
+        raise ValueError("weights must be (N,) finite and non-negative")
+    if len(grid) == 0:
+        return np.zeros((0, 3))
+    _, vecs = np.linalg.eigh(_scatter(nrm, grid.splat_to_voxel, w, len(grid)))
+    out = np.ascontiguousarray(vecs[:, :, 2])
+    big = np.abs(out).argmax(axis=1)
+    out *= np.where(out[np.arange(len(out)), big] < 0, -1.0, 1.0)[:, None]
+    if orient == "centroid":
+        away = np.einsum("ij,ij->i", out, grid.points - grid.points.mean(axis=0))
+        out *= np.where(away < 0, -1.0, 1.0)[:, None]
+    elif orient == "mst":
+        radius = 5.0 * grid.voxel if orient_radius is None else float(orient_radius)
+        out = orient_mst(grid.points, out, radius, orient_nn)
+    return out
+
+
+def orient_mst(points: np.ndarray, normals: np.ndarray, radius: float, k: int = ORIENT_NN) -> np.ndarray:
+    """Consistently oriented copy of ``normals`` by MST propagation (module docstring, ``"mst"``)."""
+    p = np.asarray(points, dtype=np.float64)
+    n = np.array(normals, dtype=np.float64)
+    m = len(p)
+    if m == 0:
+        return n
+    nbh = hybrid_search(p, radius, k + 1)
+    rows = np.repeat(np.arange(m), nbh.count - 1)
+    valid = np.arange(nbh.index.shape[1])[None, :] < nbh.count[:, None]
+    valid[:, 0] = False  # the point itself
+    cols = nbh.index[valid].astype(np.int64)
+    cost = 2.0 - np.abs(np.einsum("ij,ij->i", n[rows], n[cols]))
+    graph = coo_matrix((cost, (rows, cols)), shape=(m, m)).tocsr()
+    tree = minimum_spanning_tree(graph)
+    tree = (tree + tree.T).tocsr()
+    ncomp, labels = connected_components(tree, directed=False)
+    centre = p.mean(axis=0)
+    far = np.einsum("ij,ij->i", p - centre, p - centre)
+    by = np.lexsort((np.arange(m), -far, labels))  # per label: farthest first, then lowest index
+    first = np.ones(m, bool)
+    first[1:] = labels[by][1:] != labels[by][:-1]
+    roots = by[first]
+    # one traversal: a virtual node m linked to every root
+    t = tree.tocoo()
+    full = coo_matrix(
+        (np.append(t.data, np.ones(ncomp)), (np.append(t.row, np.full(ncomp, m)), np.append(t.col, roots))),
+        shape=(m + 1, m + 1),
+    ).tocsr()
+    seq, pred = breadth_first_order(full, m, directed=False, return_predecessors=True)
+    _propagate(seq[1:].astype(np.int64), pred.astype(np.int64), n, p, centre, m)
+    return n
+
+
+@nb.njit(cache=True)
+def _propagate(seq, pred, n, p, centre, root):
+    """Flip normals in BFS order so each agrees with its parent; roots point away from centre."""
+    for node in seq:
+        par = pred[node]
+        if par == root:
+            d = 0.0
+            for a in range(3):
+                d += n[node, a] * (p[node, a] - centre[a])
+        else:
+            d = n[node, 0] * n[par, 0] + n[node, 1] * n[par, 1] + n[node, 2] * n[par, 2]
+        if d < 0.0:
+            for a in range(3):
+                n[node, a] = -n[node, a]
