@@ -150,6 +150,11 @@ def _verified(path: Path) -> bool:
     return sha.read_text().split()[0:1] == [_sha256_file(path)]
 
 
+def weights_available() -> bool:
+    """True when the converted trunk is present and matches its recorded sha256."""
+    return _verified(weights_path())
+
+
 def load_backbone(path: Path | None = None) -> dict:
     """Read the converted file after checking its recorded sha256: ``{"net": ..., "lin": ..., ...}``."""
     import torch

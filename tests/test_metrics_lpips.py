@@ -1,0 +1,89 @@
+"""LPIPS-VGG behaviour with the converted weights: identity, monotonicity, agreement with the package."""
+
+import numpy as np
+import pytest
+import torch
+from skimage import data, filters
+
+from harness.errors import InputError
+from harness.metrics import lpips_weights as lw
+from harness.metrics.lpips_vgg import LpipsVGG, load_features, save_features
+
+pytestmark = pytest.mark.weights
+
+BLUR_SIGMAS = (0.5, 1.0, 2.0, 4.0)
+NOISE_SIGMAS = (0.02, 0.05, 0.1, 0.2)
+
+
+@pytest.fixture(scope="module")
+def model():
+    if not lw.weights_available():
+        pytest.skip("LPIPS-VGG weights not converted here: run harness fetch --weights")
+    return LpipsVGG(device="cpu")
+
+
+@pytest.fixture(scope="module")
+def astronaut():
+    return data.astronaut().astype(np.float32) / 255.0
+
+
+@pytest.fixture(scope="module")
+def astronaut_features(model, astronaut):
+    return model.features(astronaut)
+
+
+def test_identical_is_zero(model, astronaut, astronaut_features):
+    assert model.distance(astronaut_features, astronaut) == 0.0
+
+
+def test_grows_with_blur(model, astronaut, astronaut_features):
+    blurred = [filters.gaussian(astronaut, sigma=s, channel_axis=-1) for s in BLUR_SIGMAS]
+    values = model.distances(astronaut_features, blurred)
+    assert values[0] > 0.005 and np.all(np.diff(values) > 0), values
+
+
+def test_grows_with_noise(model, astronaut, astronaut_features):
+    rng = np.random.default_rng(0)
+    noise = rng.standard_normal(astronaut.shape).astype(np.float32)
+    noisy = [np.clip(astronaut + s * noise, 0, 1) for s in NOISE_SIGMAS]
+    values = model.distances(astronaut_features, noisy)
+    assert values[0] > 0.005 and np.all(np.diff(values) > 0), values
+
+
+def test_cached_distance_equals_the_lpips_package_forward(model):
+    """Independent truth: lpips.LPIPS.forward (two passes, 1x1 lin convs, NCHW) with the same trunk."""
+    ref_module = lw.new_lpips_module(pretrained_lin=True)
+    ref_module.net.load_state_dict(lw.load_backbone()["net"])
+    rng = np.random.default_rng(3)
+    a = data.chelsea()[:96, :128].astype(np.float32) / 255
+    b = np.clip(a + rng.normal(0, 0.05, a.shape), 0, 1).astype(np.float32)
+    with torch.no_grad():
+        expected = ref_module(torch.from_numpy(a).permute(2, 0, 1)[None], torch.from_numpy(b).permute(2, 0, 1)[None],
+                              normalize=True).item()
+    assert model(a, b) == pytest.approx(expected, abs=1e-6)
+    assert model(b, a) == pytest.approx(expected, abs=1e-6)
+    batch = model.distances(model.features(a), [b, a, b])
+    assert batch == pytest.approx([expected, 0.0, expected], abs=1e-6)
+
+
+def test_features_save_load_round_trip(model, tmp_path):
+    a = data.coffee()[:64, :80].astype(np.float32) / 255
+    b = a[::-1].copy()
+    feats = model.features(a)
+    path = save_features(feats, tmp_path / "f.pt")
+    again = load_features(path)
+    assert again.size == feats.size and all(torch.equal(x, y) for x, y in zip(again.layers, feats.layers))
+    assert model.distance(again, b) == model.distance(feats, b)
+
+
+def test_bad_images(model):
+    a = np.zeros((32, 40, 3), np.float32)
+    feats = model.features(a)
+    with pytest.raises(InputError, match="differs from the reference"):
+        model.distance(feats, np.zeros((32, 41, 3), np.float32))
+    with pytest.raises(InputError, match="too small"):
+        model.features(np.zeros((15, 40, 3), np.float32))
+    bad = a.copy()
+    bad[0, 0, 0] = np.nan
+    with pytest.raises(InputError, match="NaN"):
+        model.distance(feats, bad)
