@@ -56,21 +56,6 @@ def qvec_to_rotmat(q) -> np.ndarray:
     ])
 
 
-def rotmat_to_qvec(r: np.ndarray) -> np.ndarray:
-    """Unit quaternion (w, x, y, z), w ≥ 0, of a rotation matrix (eigenvector method, robust)."""
-    r = np.asarray(r, np.float64)
-    k = np.array([
-        [r[0, 0] - r[1, 1] - r[2, 2], 0, 0, 0],
-        [r[1, 0] + r[0, 1], r[1, 1] - r[0, 0] - r[2, 2], 0, 0],
-        [r[2, 0] + r[0, 2], r[2, 1] + r[1, 2], r[2, 2] - r[0, 0] - r[1, 1], 0],
-        [r[1, 2] - r[2, 1], r[2, 0] - r[0, 2], r[0, 1] - r[1, 0], r[0, 0] + r[1, 1] + r[2, 2]],
-    ]) / 3.0
-    vals, vecs = np.linalg.eigh(k)
-    x, y, z, w = vecs[:, np.argmax(vals)]
-    q = np.array([w, x, y, z])
-    return -q if q[0] < 0 else q
-
-
 def _intrinsics(model_id: int, params, source) -> tuple[float, float, float, float]:
     if model_id not in CAMERA_MODELS:
         raise InputError(source, f"unknown COLMAP camera model id {model_id}")

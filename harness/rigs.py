@@ -12,11 +12,13 @@ across the long side. Placement uses :mod:`harness.scene_frame` (opacity-weighte
 of :meth:`Camera.look_at`, which does not depend on the distance ``d``. A point with camera-frame
 offset (x, y, z_r) from ``target`` lies at depth z_r + d and inside the central ``fill`` part of the
 image iff f·|x| ≤ fill·(w/2)·(z_r + d) (same for y, h), i.e. d ≥ f·|x| / (fill·w/2) − z_r. ``d`` is
-the 98th percentile over the content points of the largest such bound (and of 0.3 − z_r, keeping
-them in front of the near plane), so the content fills most of the frame in every view.
+the 99th percentile over the content points of the largest such bound (and of 0.3 − z_r, keeping
+them in front of the near plane), so the content fills most of the frame in every view. Views whose
+fit is closer than the median fit of the rig use the median distance instead, as a real capture
+keeps its distance: a view where the content looks compact is not turned into a close-up.
 
 * ``orbit`` (object-centric): target = robust centre; elevation rings (default 5°, 25°, 45°) visited
-  in turn while the azimuth sweeps 360° once; fill 0.9 of the frame.
+  in turn while the azimuth sweeps 360° once; fill 0.85 of the frame (margin for the splats' own extent).
 * ``room`` (Mip-NeRF 360 style, e.g. bonsai): the capture circles the room's central object from
   inside the room, looking inward and down at it. Target = the density peak; the distance is fitted
   so the points within the 25 % nearest to the peak fill 0.6 of the frame (the room shows around
@@ -26,9 +28,13 @@ them in front of the near plane), so the content fills most of the frame in ever
   ``F`` (from the content towards the cameras). ``F`` is given, else the principal axis of least
   spread of the content (looking along it shows the broadest face: the normal of a sheet-like crop),
   signed to point up (dot(F, up) ≥ 0), or along +x of the horizontal basis when perpendicular to up.
-  View i looks along normalise(F + tan(aᵢ)·S + tan(bᵢ)·V), S = up × F, V = F × S; fill 0.9.
-* ``auto``: ``room`` when :func:`harness.scene_frame.enclosure` ≥ 0.7 (content all around a point
-  inside), else ``orbit``; never ``forward`` (a forward-facing capture cannot be told from splats).
+  View i looks along normalise(F + tan(aᵢ)·S + tan(bᵢ)·V), S = up × F, V = F × S; fill 0.85.
+* ``auto`` (a heuristic, measured on the five named scenes): ``room`` when the content both surrounds
+  a point inside it (:func:`harness.scene_frame.enclosure` ≥ 0.5: bonsai-7k 0.62, the object scenes
+  ≤ 0.42) and spreads far beyond the dense core (90th / 10th percentile of the distance to the
+  density peak ≥ 10: bonsai-7k 14.9, the object scenes 4.6–8.0; a solid cloud, which an eye inside
+  also sees all around, stays near 3); else ``orbit``. Never ``forward``: a forward-facing capture
+  cannot be told from splats.
 
 :data:`SCENE_RIGS` holds the per-scene defaults the runner uses (looked at on contact sheets).
 """
@@ -48,8 +54,10 @@ from harness.scene_frame import SceneFrame, enclosure, scene_frame
 
 RIG_NAMES = ("orbit", "room", "forward", "auto")
 NEAR_MARGIN = 0.3  # keep content beyond the renderer's z > 0.2 cull
-DISTANCE_QUANTILE = 98.0
-ENCLOSURE_ROOM = 0.7
+DISTANCE_QUANTILE = 99.0
+ENCLOSURE_ROOM = 0.5
+ROOM_SPREAD = 10.0
+OBJECT_FILL = 0.85
 
 
 @dataclass(frozen=True)
@@ -86,7 +94,7 @@ SCENE_RIGS: dict[str, RigDefaults] = {
                                   note="object-centric crop (table, pot, tree): orbit from above the table top"),
     "bonsai-7k": RigDefaults("room", up=(0.0, -1.0, 0.0), elevations=(25.0, 40.0),
                              note="Mip-NeRF 360 room: cameras inside, circling and looking down at the bonsai"),
-    "playbot": RigDefaults("orbit", up=(0.0, -1.0, 0.0), elevations=(10.0, 25.0, 40.0),
+    "playbot": RigDefaults("orbit", up=(0.0, -1.0, 0.0), elevations=(20.0, 35.0, 50.0),
                            note="robot standing on a ground plane at y = 0: orbit from above the ground only"),
 }
 
@@ -115,25 +123,25 @@ def held_out_indices(n_total: int, n_test: int) -> list[int]:
     return [int((j + 0.5) * n_total / n_test) for j in range(n_test)]
 
 
-def fit_camera(target, direction, points, *, up, width, height, fov_deg, fill, name,
-               max_distance: float | None = None) -> Camera:
-    """The camera at ``target + d·direction`` looking at ``target`` with ``d`` fitted (module doc)."""
-    target = np.asarray(target, np.float64)
-    fov_long = math.radians(fov_deg)
-    f = max(width, height) / (2.0 * math.tan(fov_long / 2.0))
+def _look(target, direction, d: float, *, up, width, height, fov_deg, name="") -> Camera:
+    """The camera at ``target + d·direction`` looking at ``target``, ``fov_deg`` across the long side."""
+    f = max(width, height) / (2.0 * math.tan(math.radians(fov_deg) / 2.0))
     fov_y = math.degrees(2.0 * math.atan(height / (2.0 * f)))
-    probe = Camera.look_at(target + direction, target, up, fov_y_deg=fov_y, width=width, height=height)
+    return Camera.look_at(target + d * direction, target, up, fov_y_deg=fov_y, width=width, height=height, name=name)
+
+
+def fit_distance(target, direction, points, *, up, width, height, fov_deg, fill) -> float:
+    """Smallest distance putting the content points inside the central ``fill`` of the frame
+    (99th percentile of the per-point bounds, module docstring)."""
+    target = np.asarray(target, np.float64)
+    probe = _look(target, direction, 1.0, up=up, width=width, height=height, fov_deg=fov_deg)
     q = (points - target) @ probe.rotation.T
     need = np.maximum.reduce([
-        f * np.abs(q[:, 0]) / (fill * width / 2.0) - q[:, 2],
-        f * np.abs(q[:, 1]) / (fill * height / 2.0) - q[:, 2],
+        probe.fx * np.abs(q[:, 0]) / (fill * width / 2.0) - q[:, 2],
+        probe.fy * np.abs(q[:, 1]) / (fill * height / 2.0) - q[:, 2],
         NEAR_MARGIN - q[:, 2],
     ])
-    d = max(float(np.percentile(need, DISTANCE_QUANTILE)), NEAR_MARGIN)
-    if max_distance is not None:
-        d = min(d, max_distance)
-    return Camera.look_at(target + d * direction, target, up, fov_y_deg=fov_y,
-                          width=width, height=height, name=name)
+    return max(float(np.percentile(need, DISTANCE_QUANTILE)), NEAR_MARGIN)
 
 
 def _path(n: int, elevations, seed: int, sweep: float, center_az: float, wobble: float):
@@ -183,7 +191,9 @@ def _forward_directions(frame: SceneFrame, front, path) -> list[np.ndarray]:
 
 def choose_rig(frame: SceneFrame) -> str:
     """``room`` or ``orbit`` for a scene without a table entry (see the module docstring)."""
-    return "room" if enclosure(frame) >= ENCLOSURE_ROOM else "orbit"
+    d = np.linalg.norm(frame.points - frame.dense_center, axis=1)
+    spread = np.percentile(d, 90) / max(np.percentile(d, 10), 1e-12)
+    return "room" if spread >= ROOM_SPREAD and enclosure(frame) >= ENCLOSURE_ROOM else "orbit"
 
 
 def make_rig(name: str, scene: GaussianScene, *, n_train: int = 48, n_test: int = 8,
@@ -204,7 +214,7 @@ def make_rig(name: str, scene: GaussianScene, *, n_train: int = 48, n_test: int 
     if name in ("orbit", "room"):
         dirs = [frame.direction(az, el) for az, el in _path(n, els, seed, 2 * math.pi, 0.0, 0.0)]
     if name == "orbit":
-        target, points, fill, max_d = frame.center, frame.points, 0.9, None
+        target, points, fill, max_d = frame.center, frame.points, OBJECT_FILL, None
     elif name == "room":
         target = frame.dense_center
         dist = np.linalg.norm(frame.points - target, axis=1)
@@ -213,9 +223,10 @@ def make_rig(name: str, scene: GaussianScene, *, n_train: int = 48, n_test: int 
     else:
         f = front_direction(frame) if front is None else front
         dirs = _forward_directions(frame, f, _path(n, els, seed, math.radians(40.0), 0.0, 5.0))
-        target, points, fill, max_d = frame.center, frame.points, 0.9, None
-    cams = [fit_camera(target, d, points, fill=fill, max_distance=max_d, name=f"{name}_{i:03d}", **common)
-            for i, d in enumerate(dirs)]
+        target, points, fill, max_d = frame.center, frame.points, OBJECT_FILL, None
+    dist = np.array([fit_distance(target, u, points, fill=fill, **common) for u in dirs])
+    dist = np.minimum(np.maximum(dist, np.median(dist)), np.inf if max_d is None else max_d)
+    cams = [_look(target, u, float(d), name=f"{name}_{i:03d}", **common) for i, (u, d) in enumerate(zip(dirs, dist))]
     return _split(cams, n_test, name)
 
 

@@ -1,0 +1,97 @@
+"""`harness render` end to end with the reference renderer on a tiny scene at low resolution."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from harness.camera_io import load_cameras, write_3dgs_cameras
+from harness.cli import main
+from harness.contact_sheet import coverage, to_uint8
+from tests.scene_factory import random_scene
+
+reference = pytest.importorskip("renderers.reference", reason="the reference renderer (renderers/reference.py) is not importable")
+
+
+@pytest.fixture(scope="module")
+def scene_file(tmp_path_factory):
+    from harness.ply_io import write_ply
+
+    path = tmp_path_factory.mktemp("scene") / "tiny.ply"
+    scene = random_scene(150, sh_degree=1, seed=4)
+    scene.scales_log[:] -= 1.0  # std-devs ~ 0.7 % of the cloud: small splats, some background visible
+    write_ply(scene, path)
+    return path
+
+
+def run(*argv) -> int:
+    return main(["render", *map(str, argv)])
+
+
+def test_rig_npy_matches_a_direct_render(scene_file, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert run(scene_file, "--rig", "orbit", "--out", out, "--backend", "reference", "--format", "npy",
+               "--longest-side", 40, "--n-train", 3, "--n-test", 2, "--background", "0.2,0.3,0.4") == 0
+    files = sorted(p.name for p in out.iterdir())
+    assert files == ["000_orbit_001.npy", "001_orbit_003.npy", "cameras.json", "contact_sheet.png", "coverage.json"]
+    cams = load_cameras(out / "cameras.json")
+    assert [c.name for c in cams] == ["orbit_001", "orbit_003"]  # the held-out views of 5
+    from harness.scene_io import load_scene
+
+    scene = load_scene(scene_file)
+    renderer = reference.ReferenceRenderer(device="cpu")
+    record = json.loads((out / "coverage.json").read_text())
+    for cam, name, rec in zip(cams, files[:2], record):
+        img = np.load(out / name)
+        assert img.dtype == np.float32 and img.shape == (cam.height, cam.width, 3) and max(img.shape) == 40
+        np.testing.assert_allclose(img, renderer.render(scene, cam, background=(0.2, 0.3, 0.4)), atol=1e-6)
+        assert rec["coverage"] == pytest.approx(coverage(img, (0.2, 0.3, 0.4)), abs=1e-4)
+        assert 0.05 < rec["coverage"] < 1.0
+    assert "coverage" in capsys.readouterr().out
+
+
+def test_camera_file_png_split(scene_file, tmp_path):
+    from PIL import Image
+
+    from harness.cameras import Camera
+
+    cams = [Camera.look_at((np.cos(a) * 5, 0.5, np.sin(a) * 5), (0, 0, 0), width=64, height=32, name=f"v{i}")
+            for i, a in enumerate(np.linspace(0, 6, 10))]
+    write_3dgs_cameras(cams, tmp_path / "cams.json")
+    out = tmp_path / "png"
+    assert run(scene_file, "--cameras", tmp_path / "cams.json", "--out", out, "--backend", "reference",
+               "--longest-side", 32) == 0
+    pngs = sorted(out.glob("*.png"))
+    assert [p.name for p in pngs] == ["000_v0.png", "001_v8.png", "contact_sheet.png"]  # every 8th view
+    im = np.asarray(Image.open(pngs[1]))
+    assert im.shape == (16, 32, 3) and im.dtype == np.uint8
+    assert run(scene_file, "--cameras", tmp_path / "cams.json", "--out", tmp_path / "npy", "--backend",
+               "reference", "--longest-side", 32, "--format", "npy") == 0
+    np.testing.assert_array_equal(im, to_uint8(np.load(tmp_path / "npy" / "001_v8.npy")))
+    assert run(scene_file, "--cameras", tmp_path / "cams.json", "--out", tmp_path / "all", "--backend",
+               "reference", "--longest-side", 16, "--split", "all") == 0
+    assert len(list((tmp_path / "all").glob("0*.png"))) == 10
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--rig", "orbit", "--background", "1,2"], "--background"),
+    (["--cameras", "/nonexistent/cams.json"], "no such file"),
+    (["--rig", "orbit", "--longest-side", "0"], "--longest-side"),
+    (["--rig", "orbit", "--n-test", "0"], "--n-test"),
+])
+def test_bad_input_is_one_line_exit_2(scene_file, tmp_path, capsys, extra, message):
+    out = tmp_path / "out"
+    assert run(scene_file, "--out", out, "--backend", "reference", *extra) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("harness: ") and message in err and err.count("\n") == 1
+    assert not out.exists()  # nothing written
+
+
+def test_missing_scene_and_file_as_out(tmp_path, capsys, scene_file):
+    assert run(tmp_path / "nope.ply", "--rig", "orbit", "--out", tmp_path / "o", "--backend", "reference") == 2
+    assert "harness: " in capsys.readouterr().err and not (tmp_path / "o").exists()
+    (tmp_path / "file").write_text("x")
+    assert run(scene_file, "--rig", "orbit", "--out", tmp_path / "file", "--backend", "reference") == 2
+    assert "not a folder" in capsys.readouterr().err
