@@ -5,12 +5,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.scene import GaussianScene, SH_C0, quat_to_rotmat
+from harness.scene import SH_C0, GaussianScene
 from methods.betadesc import backend
 from methods.betadesc.grid import build_grid
 from methods.betadesc.hsfh import band_fractions, compute_hsfh, normalise_fpfh
 from methods.betadesc.interpolate import interpolate_to_splats
-from methods.betadesc.statistics import geometric_spread, robust_unit, splat_statistics, voxel_statistics
+from methods.betadesc.statistics import (
+    geometric_spread,
+    robust_unit,
+    splat_statistics,
+    voxel_statistics,
+)
 from tests.scene_factory import random_scene
 
 
@@ -55,14 +60,6 @@ def test_grid_dense_and_sorted_paths_agree():
     assert np.all(np.diff(dense[0]) > 0)
 
 
-def test_shortest_axis_is_the_rotation_column_of_the_smallest_scale():
-    scene = random_scene(500, seed=2)
-    axes = backend.shortest_axes(scene.quats, scene.scales_log)
-    rot = quat_to_rotmat(scene.quats.astype(np.float64))
-    expect = rot[np.arange(500), :, np.argmin(scene.scales_log, axis=1)]
-    np.testing.assert_allclose(axes, expect, atol=1e-12)
-
-
 def test_plane_normals_are_the_plane_normal_oriented_consistently():
     rng = np.random.default_rng(3)
     n = 3000
@@ -72,7 +69,7 @@ def test_plane_normals_are_the_plane_normal_oriented_consistently():
     quats = np.c_[np.cos(angle / 2), np.zeros(n), np.zeros(n), np.sin(angle / 2)]
     scene = _scene(means, quats, scales_log)
     grid = build_grid(scene.means, 0.05)
-    normals = backend.voxel_normals(grid, backend.shortest_axes(scene.quats, scene.scales_log))
+    normals = backend.voxel_normals(grid, scene.quats, scene.scales_log, 3.0)
     np.testing.assert_allclose(np.abs(normals[:, 2]), 1.0, atol=1e-9)
     assert np.all(normals[:, 2] == normals[0, 2])  # one orientation for a flat plane
 

@@ -83,9 +83,10 @@ def compute_hsfh(scene: GaussianScene, voxel: float, radius_voxels: float, max_n
     """HSFH descriptors of every occupied voxel of ``scene`` (see the module docstring)."""
     grid = build_grid(scene.means, voxel) if grid is None else grid
     m = grid.m
-    normals = backend.voxel_normals(grid, backend.shortest_axes(scene.quats, scene.scales_log))
-    geometric = normalise_fpfh(backend.compute_fpfh(grid.points, normals, radius_voxels, max_nn))
-    indptr, indices = backend.radius_neighbours(grid.points, radius_voxels, max_nn)
+    normals = backend.voxel_normals(grid, scene.quats, scene.scales_log, radius_voxels)
+    nbh = backend.neighbourhood(grid.points, radius_voxels, max_nn)
+    geometric = normalise_fpfh(backend.fpfh(grid.points, normals, nbh))
+    indptr, indices = backend.csr(nbh)
     adj = sparse.csr_matrix((np.ones(len(indices)), indices, indptr), shape=(m, m))
 
     # Spectrum moments over N(j): exact integer sums of f and f² (both in [0, 1]).

@@ -20,7 +20,11 @@ from methods.betadesc.grid import build_grid
 from methods.betadesc.hsfh import compute_hsfh
 from methods.betadesc.interpolate import interpolate_to_splats
 from methods.betadesc.scores import beta_score
-from methods.betadesc.statistics import opacity_statistic, splat_statistics, voxel_statistics
+from methods.betadesc.statistics import (
+    opacity_statistic,
+    splat_statistics,
+    voxel_statistics,
+)
 
 _STAGES: contextvars.ContextVar[dict | None] = contextvars.ContextVar("betadesc_stages", default=None)
 
