@@ -159,7 +159,9 @@ def read_transforms_json(path: str | Path) -> list[Camera]:
     for i, frame in enumerate(data["frames"]):
         if not isinstance(frame, dict) or "transform_matrix" not in frame:
             raise InputError(path, f"frame {i} lacks transform_matrix")
-        get = lambda k, default=None: frame.get(k, data.get(k, default))  # noqa: E731
+        def get(key, default=None, frame=frame):
+            return frame.get(key, data.get(key, default))
+
         name = str(frame.get("file_path", f"frame_{i:04d}"))
         w, h = get("w"), get("h")
         if w is None or h is None:

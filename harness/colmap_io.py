@@ -27,21 +27,28 @@ import numpy as np
 from harness.cameras import Camera
 from harness.errors import InputError
 
+
+def _f_cxcy(p):  # params f, cx, cy, ...
+    return p[0], p[0], p[1], p[2]
+
+
+def _fx_fy_cxcy(p):  # params fx, fy, cx, cy, ...
+    return p[0], p[1], p[2], p[3]
+
+
 #: model id -> (name, number of params, function params -> (fx, fy, cx, cy))
-_F_CXCY = lambda p: (p[0], p[0], p[1], p[2])  # noqa: E731  f, cx, cy, ...
-_FX_FY_CXCY = lambda p: (p[0], p[1], p[2], p[3])  # noqa: E731  fx, fy, cx, cy, ...
 CAMERA_MODELS = {
-    0: ("SIMPLE_PINHOLE", 3, _F_CXCY),
-    1: ("PINHOLE", 4, _FX_FY_CXCY),
-    2: ("SIMPLE_RADIAL", 4, _F_CXCY),
-    3: ("RADIAL", 5, _F_CXCY),
-    4: ("OPENCV", 8, _FX_FY_CXCY),
-    5: ("OPENCV_FISHEYE", 8, _FX_FY_CXCY),
-    6: ("FULL_OPENCV", 12, _FX_FY_CXCY),
-    7: ("FOV", 5, _FX_FY_CXCY),
-    8: ("SIMPLE_RADIAL_FISHEYE", 4, _F_CXCY),
-    9: ("RADIAL_FISHEYE", 5, _F_CXCY),
-    10: ("THIN_PRISM_FISHEYE", 12, _FX_FY_CXCY),
+    0: ("SIMPLE_PINHOLE", 3, _f_cxcy),
+    1: ("PINHOLE", 4, _fx_fy_cxcy),
+    2: ("SIMPLE_RADIAL", 4, _f_cxcy),
+    3: ("RADIAL", 5, _f_cxcy),
+    4: ("OPENCV", 8, _fx_fy_cxcy),
+    5: ("OPENCV_FISHEYE", 8, _fx_fy_cxcy),
+    6: ("FULL_OPENCV", 12, _fx_fy_cxcy),
+    7: ("FOV", 5, _fx_fy_cxcy),
+    8: ("SIMPLE_RADIAL_FISHEYE", 4, _f_cxcy),
+    9: ("RADIAL_FISHEYE", 5, _f_cxcy),
+    10: ("THIN_PRISM_FISHEYE", 12, _fx_fy_cxcy),
 }
 MODEL_IDS = {name: mid for mid, (name, _, _) in CAMERA_MODELS.items()}
 

@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -81,21 +81,25 @@ class RigDefaults:
     aspect: float | None = None
     elevations: tuple[float, ...] | None = None
     note: str = ""
-    extra: dict = field(default_factory=dict)
 
 
 #: Defaults per named scene (keys from :func:`scene_key`), chosen by looking at contact sheets.
 SCENE_RIGS: dict[str, RigDefaults] = {
-    "grape-small": RigDefaults("forward", up=(0.0, 1.0, 0.0),
-                               note="a thin curved sheet cropped from a larger scene: face it; edge-on orbit views are empty"),
-    "luigi": RigDefaults("orbit", up=(0.0, 1.0, 0.0), aspect=1.0, elevations=(-10.0, 10.0, 30.0),
-                         note="a standing figure (y up): orbit, square frames, slightly below to above"),
-    "bonsai-7k-mini": RigDefaults("orbit", up=(0.0, -1.0, 0.0), elevations=(15.0, 30.0, 45.0),
-                                  note="object-centric crop (table, pot, tree): orbit from above the table top"),
-    "bonsai-7k": RigDefaults("room", up=(0.0, -1.0, 0.0), elevations=(25.0, 40.0),
-                             note="Mip-NeRF 360 room: cameras inside, circling and looking down at the bonsai"),
-    "playbot": RigDefaults("orbit", up=(0.0, -1.0, 0.0), elevations=(20.0, 35.0, 50.0),
-                           note="robot standing on a ground plane at y = 0: orbit from above the ground only"),
+    "grape-small": RigDefaults(
+        "forward", up=(0.0, 1.0, 0.0),
+        note="a thin curved sheet cropped from a larger scene: face it (edge-on orbit views are empty)"),
+    "luigi": RigDefaults(
+        "orbit", up=(0.0, 1.0, 0.0), aspect=1.0, elevations=(-10.0, 10.0, 30.0),
+        note="a standing figure (y up): orbit, square frames, from slightly below to above"),
+    "bonsai-7k-mini": RigDefaults(
+        "orbit", up=(0.0, -1.0, 0.0), elevations=(15.0, 30.0, 45.0),
+        note="object-centric crop (table, pot, tree): orbit from above the table top"),
+    "bonsai-7k": RigDefaults(
+        "room", up=(0.0, -1.0, 0.0), elevations=(25.0, 40.0),
+        note="Mip-NeRF 360 room: cameras inside, circling and looking down at the bonsai"),
+    "playbot": RigDefaults(
+        "orbit", up=(0.0, -1.0, 0.0), elevations=(20.0, 35.0, 50.0),
+        note="robot above a 2 × 2 ground patch at y = 0: orbit from above the ground only"),
 }
 
 _RIG_DEFAULT_ELEVATIONS = {"orbit": (5.0, 25.0, 45.0), "room": (15.0, 30.0), "forward": (0.0,)}
@@ -114,12 +118,12 @@ def image_size(longest_side: int, aspect: float) -> tuple[int, int]:
     if longest_side < 1 or not aspect > 0 or not math.isfinite(aspect):
         raise ValueError("longest_side must be ≥ 1 and aspect a positive number")
     if aspect >= 1:
-        return int(longest_side), max(1, int(round(longest_side / aspect)))
-    return max(1, int(round(longest_side * aspect))), int(longest_side)
+        return int(longest_side), max(1, round(longest_side / aspect))
+    return max(1, round(longest_side * aspect)), int(longest_side)
 
 
 def held_out_indices(n_total: int, n_test: int) -> list[int]:
-    """Indices ⌊(j + ½)·n_total / n_test⌋, j < n_test: evenly spread, distinct when n_test ≤ n_total."""
+    """Indices ⌊(j + ½)·n_total / n_test⌋ for j < n_test: evenly spread, distinct if n_test ≤ n_total."""
     return [int((j + 0.5) * n_total / n_test) for j in range(n_test)]
 
 
@@ -127,7 +131,8 @@ def _look(target, direction, d: float, *, up, width, height, fov_deg, name="") -
     """The camera at ``target + d·direction`` looking at ``target``, ``fov_deg`` across the long side."""
     f = max(width, height) / (2.0 * math.tan(math.radians(fov_deg) / 2.0))
     fov_y = math.degrees(2.0 * math.atan(height / (2.0 * f)))
-    return Camera.look_at(target + d * direction, target, up, fov_y_deg=fov_y, width=width, height=height, name=name)
+    return Camera.look_at(target + d * direction, target, up, fov_y_deg=fov_y,
+                          width=width, height=height, name=name)
 
 
 def fit_distance(target, direction, points, *, up, width, height, fov_deg, fill) -> float:
@@ -169,7 +174,7 @@ def _split(cams: list[Camera], n_test: int, rig: str) -> RigViews:
 
 def front_direction(frame: SceneFrame) -> np.ndarray:
     """Least-spread principal axis of the content, signed as described in the module docstring."""
-    vals, vecs = np.linalg.eigh(np.cov((frame.points - frame.center).T))
+    _, vecs = np.linalg.eigh(np.cov((frame.points - frame.center).T))
     f = vecs[:, 0]
     s = float(f @ frame.up)
     if abs(s) < 1e-6:
@@ -199,7 +204,11 @@ def choose_rig(frame: SceneFrame) -> str:
 def make_rig(name: str, scene: GaussianScene, *, n_train: int = 48, n_test: int = 8,
              longest_side: int = 1024, aspect: float = 4 / 3, seed: int = 0, up=None,
              elevations=None, fov_deg: float = 60.0, front=None) -> RigViews:
-    """Build rig ``name`` (one of :data:`RIG_NAMES`) around ``scene``; see the module docstring."""
+    """Build rig ``name`` (one of :data:`RIG_NAMES`) around ``scene``; see the module docstring.
+
+    ``elevations`` (degrees) are the rings of ``orbit``/``room`` and, for ``forward``, the angles across
+    the arc (default 0). ``up`` defaults to −y; ``front`` (forward only) to :func:`front_direction`.
+    """
     if name not in RIG_NAMES:
         raise ValueError(f"unknown rig {name!r}; known: {', '.join(RIG_NAMES)}")
     if n_train < 0 or n_test < 1:
@@ -210,7 +219,7 @@ def make_rig(name: str, scene: GaussianScene, *, n_train: int = 48, n_test: int 
     width, height = image_size(longest_side, aspect)
     n = n_train + n_test
     els = tuple(elevations) if elevations else _RIG_DEFAULT_ELEVATIONS[name]
-    common = dict(up=frame.up, width=width, height=height, fov_deg=fov_deg)
+    common = {"up": frame.up, "width": width, "height": height, "fov_deg": fov_deg}
     if name in ("orbit", "room"):
         dirs = [frame.direction(az, el) for az, el in _path(n, els, seed, 2 * math.pi, 0.0, 0.0)]
     if name == "orbit":
@@ -226,7 +235,9 @@ def make_rig(name: str, scene: GaussianScene, *, n_train: int = 48, n_test: int 
         target, points, fill, max_d = frame.center, frame.points, OBJECT_FILL, None
     dist = np.array([fit_distance(target, u, points, fill=fill, **common) for u in dirs])
     dist = np.minimum(np.maximum(dist, np.median(dist)), np.inf if max_d is None else max_d)
-    cams = [_look(target, u, float(d), name=f"{name}_{i:03d}", **common) for i, (u, d) in enumerate(zip(dirs, dist))]
+    digits = max(3, len(str(n - 1)))  # names sort in path order (RigViews.all)
+    cams = [_look(target, u, float(d), name=f"{name}_{i:0{digits}d}", **common)
+            for i, (u, d) in enumerate(zip(dirs, dist))]
     return _split(cams, n_test, name)
 
 
@@ -241,8 +252,8 @@ def scene_rig(scene_name: str | Path, scene: GaussianScene, rig: str | None = No
     if d is not None:
         kwargs["up"] = d.up
         if name == d.rig:
-            kwargs.update({k: v for k, v in (("aspect", d.aspect), ("elevations", d.elevations)) if v is not None})
-            kwargs.update(d.extra)
+            kwargs.update({k: v for k, v in (("aspect", d.aspect), ("elevations", d.elevations))
+                           if v is not None})
     kwargs.update({k: v for k, v in overrides.items() if v is not None})
     return make_rig(name, scene, **kwargs)
 

@@ -200,14 +200,14 @@ def test_ply_header_cameras_round_trip(tmp_path):
     ("[]", "non-empty JSON list"),
     ('[{"width": 10}]', "lacks"),
     ('{"something": 1}', "neither"),
-    ('[{"width": 10, "height": 10, "position": [0,0,0], "rotation": [[1,0,0],[0,2,0],[0,0,1]], '
-     '"fx": 5, "fy": 5}]', "not a proper orthonormal"),
-    ('[{"width": 10, "height": 10, "position": [0,0,0], "rotation": [[1,0,0],[0,1,0],[0,0,1]], '
-     '"fx": -5, "fy": 5}]', "focal lengths must be positive"),
-    ('[{"width": 10.5, "height": 10, "position": [0,0,0], "rotation": [[1,0,0],[0,1,0],[0,0,1]], '
-     '"fx": 5, "fy": 5}]', "positive integers"),
-    ('{"frames": [{"file_path": "x", "w": 4, "h": 4, "transform_matrix": [[1,0,0,0],[0,1,0,0],'
-     '[0,0,1,0],[0,0,0,1]]}]}', "no focal length"),
+    (('[{"width": 10, "height": 10, "position": [0,0,0], "rotation": [[1,0,0],[0,2,0],[0,0,1]], '
+     '"fx": 5, "fy": 5}]'), "not a proper orthonormal"),
+    (('[{"width": 10, "height": 10, "position": [0,0,0], "rotation": [[1,0,0],[0,1,0],[0,0,1]], '
+     '"fx": -5, "fy": 5}]'), "focal lengths must be positive"),
+    (('[{"width": 10.5, "height": 10, "position": [0,0,0], "rotation": [[1,0,0],[0,1,0],[0,0,1]], '
+     '"fx": 5, "fy": 5}]'), "positive integers"),
+    (('{"frames": [{"file_path": "x", "w": 4, "h": 4, "transform_matrix": [[1,0,0,0],[0,1,0,0],'
+     '[0,0,1,0],[0,0,0,1]]}]}'), "no focal length"),
 ])
 def test_bad_json_files(tmp_path, content, match):
     (tmp_path / "c.json").write_text(content)

@@ -139,7 +139,7 @@ def run(args) -> int:
 
     try:
         renderer = get_renderer(args.backend, args.device)
-    except Exception as err:  # no EGL / CUDA on this machine: a usage problem, not a crash
+    except Exception as err:  # noqa: BLE001  no EGL/CUDA here (moderngl, torch errors): usage, not a crash
         raise InputError(f"--backend {args.backend}", f"cannot start the renderer: {err}") from None
     out.mkdir(parents=True, exist_ok=True)
     images, labels = [], []
