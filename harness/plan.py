@@ -110,6 +110,13 @@ def resolve_paths(spec: SceneSpec, toolkit: Toolkit, base: Path) -> tuple[list[t
     return [("", path)], None
 
 
+def _cameras_missing(spec: SceneSpec, base: Path) -> str | None:
+    if spec.cameras is None:
+        return None
+    p = Path(spec.cameras.path)
+    return None if (p if p.is_absolute() else base / p).exists() else f"cameras not found: {spec.cameras.path}"
+
+
 def _select_test(cams: list[Camera], spec) -> tuple[list[Camera], list[Camera]]:
     """Split cameras from a file: named test views, else every ``test_every``-th (LLFF convention)."""
     if spec.test:
@@ -159,6 +166,7 @@ def load_items(config: RunConfig, cache: StageCache, toolkit: Toolkit, versions:
     items, skips = [], []
     for spec in config.scenes:
         frames, reason = resolve_paths(spec, toolkit, base)
+        reason = reason or _cameras_missing(spec, base)
         if reason:
             skips.append(Skip(spec.name, "", "*", "*", reason))
             if on_skip:
