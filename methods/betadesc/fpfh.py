@@ -211,9 +211,13 @@ def compute_fpfh(
     nbh = hybrid_search(p, radius, max_nn) if neighbors is None else neighbors
     if len(nbh) != len(p) or nbh.radius != float(radius) or nbh.max_nn != int(max_nn):
         raise ValueError("neighbors were computed for other points or search parameters")
-    spfh = compute_spfh(p, n, nbh)
+    return fpfh_from_spfh(compute_spfh(p, n, nbh), nbh)
+
+
+def fpfh_from_spfh(spfh: np.ndarray, nbh: Neighborhood) -> np.ndarray:
+    """FPFH (M, 33) from SPFH rows and the same neighbourhoods (the distance-weighted stage)."""
     out = np.zeros_like(spfh)
-    if len(p):
+    if len(spfh):
         _fpfh_kernel(spfh, nbh.index, nbh.d2, nbh.count, out)
     return out
 
