@@ -36,13 +36,12 @@ def _json_ready(metrics: dict) -> dict:
 
 
 def run(args) -> int:
-    from harness.metrics import compare_images
-    from harness.metrics.images import check_same_size, read_image
-    from harness.metrics.lpips_vgg import LpipsVGG
-
     import torch
 
     from harness.errors import InputError
+    from harness.metrics import compare_images
+    from harness.metrics.images import check_same_size, read_image
+    from harness.metrics.lpips_vgg import LpipsVGG
 
     a, b = read_image(args.a), read_image(args.b)
     check_same_size(a, b, args.a, args.b)

@@ -21,11 +21,23 @@ import numpy as np
 
 from harness.metrics.images import as_image, check_same_size, read_image
 from harness.metrics.lpips_vgg import LpipsFeatures, LpipsVGG, load_features, save_features
-from harness.metrics.psnr import psnr_from_mse, mse, summarize_psnr, yuv_psnr
-from harness.metrics.ssim import ssim_batch
+from harness.metrics.psnr import mse, psnr, psnr_from_mse, summarize_psnr, yuv_psnr
+from harness.metrics.ssim import ssim, ssim_batch
 
-__all__ = ["compare_images", "MetricSuite", "LpipsVGG", "LpipsFeatures", "default_lpips", "read_image",
-           "summarize_psnr", "save_features", "load_features"]
+__all__ = [
+    "LpipsFeatures",
+    "LpipsVGG",
+    "MetricSuite",
+    "compare_images",
+    "default_lpips",
+    "load_features",
+    "psnr",
+    "read_image",
+    "save_features",
+    "ssim",
+    "summarize_psnr",
+    "yuv_psnr",
+]
 
 
 @lru_cache(maxsize=1)

@@ -5,7 +5,8 @@ to [0, 1] themselves, so readers do not. Bad images raise :class:`~harness.error
 
 File readings (the decisions):
 * PNG (8-bit grey, grey+alpha, RGB, RGBA, palette; 16-bit grey): integer values divided by 255 or
-  65535. 16-bit *colour* PNGs are refused (Pillow would silently reduce them to 8 bits). Grey is replicated to three channels; **alpha is dropped** (colour compared as stored, not
+  65535. 16-bit *colour* PNGs are refused (Pillow would silently reduce them to 8 bits). Grey is
+  replicated to three channels; **alpha is dropped** (colour compared as stored, not
   composited) because the renderers write opaque RGB over a known background.
 * ``.npy`` (loaded without pickle): float arrays kept as they are (cast to float32), ``uint8`` /
   ``uint16`` scaled like PNG, shapes ``(H, W)``, ``(H, W, 1)``, ``(H, W, 3)`` or ``(H, W, 4)`` handled

@@ -44,7 +44,7 @@ class LpipsFeatures:
     layers: tuple
     size: tuple
 
-    def to(self, device) -> "LpipsFeatures":
+    def to(self, device) -> LpipsFeatures:
         return LpipsFeatures(tuple(t.to(device) for t in self.layers), self.size)
 
     @property

