@@ -26,14 +26,15 @@ from methods.betadesc.statistics import (
     voxel_statistics,
 )
 
-_STAGES: contextvars.ContextVar[dict | None] = contextvars.ContextVar("betadesc_stages", default=None)
+_STAGES: contextvars.ContextVar[tuple | None] = contextvars.ContextVar("betadesc_stages", default=None)
 
 
 @contextmanager
-def record_stages():
-    """``with record_stages() as t: score(...)`` fills ``t`` with seconds per stage."""
+def record_stages(clock=time.perf_counter):
+    """``with record_stages() as t: score(...)`` fills ``t`` with seconds per stage, measured by
+    ``clock`` (wall time by default; ``time.process_time`` gives CPU seconds of all threads)."""
     times: dict[str, float] = {}
-    token = _STAGES.set(times)
+    token = _STAGES.set((times, clock))
     try:
         yield times
     finally:
@@ -42,13 +43,14 @@ def record_stages():
 
 @contextmanager
 def _stage(name: str):
-    t0 = time.perf_counter()
+    active = _STAGES.get()
+    t0 = active[1]() if active else 0.0
     try:
         yield
     finally:
-        times = _STAGES.get()
-        if times is not None:
-            times[name] = times.get(name, 0.0) + time.perf_counter() - t0
+        if active:
+            times, clock = active
+            times[name] = times.get(name, 0.0) + clock() - t0
 
 
 def statistics(scene: GaussianScene, params: dict, descriptors: bool) -> tuple[np.ndarray, ...]:
