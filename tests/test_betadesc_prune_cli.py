@@ -84,6 +84,8 @@ def test_options_reach_the_pruner_and_text_report(scene_file, tmp_path, capsys):
     (["--ratio", "0.3", "--method", "random", "--preset", "flat"], "no parameter"),
     (["--ratio", "0.3", "--score", "mean"], "unknown score"),
     (["--ratio", "0.3", "--preset", "heavy"], "unknown coefficient preset"),
+    (["--ratio", "0.3", "--voxel", "0"], "voxel"),
+    (["--ratio", "0.3", "--voxel", "-0.5"], "voxel"),
 ])
 def test_bad_arguments_exit_2_without_output(scene_file, tmp_path, capsys, argv, message):
     out = tmp_path / "bad.ply"

@@ -91,6 +91,8 @@ def test_presets_keep_the_baseline_evidence_mass():
         assert c.a_o + c.a_u == pytest.approx(1.05)
     with pytest.raises(ValueError, match="unknown coefficient preset"):
         preset("heavy")
+    with pytest.raises(ValueError, match="prior must be > 0"):
+        evidence(np.ones(1), np.ones(1), np.ones(1), np.ones(1), 1.0, preset("flat"), prior=0.0)
 
 
 def test_evidence_direction_opaque_unique_splats_gain_retention_confidence():

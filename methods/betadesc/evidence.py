@@ -5,7 +5,7 @@
 
 exactly as Eq. 6 places the parentheses: w scales the neighbourhood-aggregated s, ℓ and the
 opacity terms, the uniqueness terms are added unweighted. ``e_i`` is the optional view-aware
-edge proxy (:mod:`methods.betadesc.view_aware`; 0 without cameras). The prior A₀ = B₀ (param
+edge proxy (:mod:`methods.betadesc.view_aware`; 0 without cameras). The prior A₀ = B₀ > 0 (param
 ``prior``, default 1: a uniform Beta(1, 1) before any evidence).
 
 Presets (``b_s, b_ℓ, b_o, b_u`` | ``a_o, a_u``). Every preset keeps the baseline's total masses
@@ -54,8 +54,8 @@ def evidence(s: np.ndarray, ell: np.ndarray, o: np.ndarray, u: np.ndarray, w: np
              coeffs: Coefficients, prior: float = 1.0, edge: np.ndarray | float = 0.0,
              edge_weight: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """(A, B) per splat, float64, from statistics in [0, 1] (Eq. 6 plus the optional edge term)."""
-    if not prior >= 0:
-        raise ValueError(f"prior must be >= 0, got {prior}")
+    if not prior > 0:
+        raise ValueError(f"prior must be > 0 (Beta(A, B) needs A, B > 0), got {prior}")
     c = coeffs
     b = prior + w * (c.b_s * s + c.b_l * ell + c.b_o * (1.0 - o)) + c.b_u * (1.0 - u)
     a = prior + w * (c.a_o * o) + c.a_u * u + edge_weight * edge

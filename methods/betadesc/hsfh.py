@@ -81,6 +81,9 @@ def colour_bins(scene: GaussianScene, bins: int) -> np.ndarray:
 def compute_hsfh(scene: GaussianScene, voxel: float, radius_voxels: float, max_nn: int,
                  bins: int, grid: SplatGrid | None = None) -> HSFH:
     """HSFH descriptors of every occupied voxel of ``scene`` (see the module docstring)."""
+    if not (radius_voxels > 0 and max_nn >= 1 and bins >= 1):
+        raise ValueError(f"need radius_voxels > 0, max_nn >= 1 and colour_bins >= 1; got "
+                         f"{radius_voxels}, {max_nn}, {bins}")
     grid = build_grid(scene.means, voxel) if grid is None else grid
     m = grid.m
     normals = backend.voxel_normals(grid, scene.quats, scene.scales_log, radius_voxels)
