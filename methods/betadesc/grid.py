@@ -11,7 +11,9 @@ Splat i lies in cell ``floor(t_i)``; occupied cells are numbered in increasing o
 Exactness: every per-voxel sum is a sum of *integer-valued* float64 numbers (quantities in [-1, 1]
 quantised to a fixed point of 2⁻²⁴ before summing). Such sums are exact below 2⁵³ (2²⁹ members),
 so they do not depend on summation order: permuting the splats permutes nothing at
-voxel level, and results are bit-identical for any thread count.
+voxel level, and results are bit-identical for any thread count. (This is why the pipeline does
+not use :mod:`methods.betadesc.voxel`, whose voxel points are float sums in splat order and so
+move by rounding when the splats are permuted.)
 """
 
 from __future__ import annotations
