@@ -201,3 +201,21 @@ def test_view_features_definitions():
     np.testing.assert_allclose(f[seen, 3], 0.0, atol=1e-9)  # one camera: no spread
     assert ((f[:, 4:] >= 0) & (f[:, 4:] <= 1 + 1e-12)).all()
     assert np.all(f[~seen] == 0)
+
+
+def test_edge_proxy_is_opacity_times_grazing_share():
+    from methods.betadesc.view_aware import edge_proxy
+
+    # two flat splats at the origin-ish, short axis along z (normal = z): seen from +z they face the
+    # camera (not grazing), seen from +x they are edge-on (grazing)
+    scene = GaussianScene.from_arrays(
+        means=[[0.0, 0.0, 0.0], [0.1, 0.0, 0.0]], scales_log=[[-2, -2, -6], [-2, -2, -6]],
+        quats=[[1, 0, 0, 0], [1, 0, 0, 0]], opacity_logit=[2.0, -1.0], sh_dc=np.zeros((2, 3)))
+    o = 1 / (1 + np.exp(-scene.opacity_logit.astype(np.float64)))
+    facing = Camera.look_at((0.05, 0, 5), (0.05, 0, 0), up=(0, 1, 0))
+    edge_on = Camera.look_at((5, 0, 0), (0, 0, 0), up=(0, 1, 0))
+    np.testing.assert_allclose(edge_proxy(scene, [facing], o), 0.0)
+    np.testing.assert_allclose(edge_proxy(scene, [edge_on], o), o)
+    np.testing.assert_allclose(edge_proxy(scene, [facing, edge_on], o), 0.5 * o)
+    behind = Camera.look_at((-5, 0, 0), (-10, 0, 0), up=(0, 1, 0))  # looks away: sees nothing
+    np.testing.assert_allclose(edge_proxy(scene, [behind, edge_on], o), o)
