@@ -219,3 +219,35 @@ def test_edge_proxy_is_opacity_times_grazing_share():
     np.testing.assert_allclose(edge_proxy(scene, [facing, edge_on], o), 0.5 * o)
     behind = Camera.look_at((-5, 0, 0), (-10, 0, 0), up=(0, 1, 0))  # looks away: sees nothing
     np.testing.assert_allclose(edge_proxy(scene, [behind, edge_on], o), o)
+
+
+def _plane_pole_floaters() -> tuple[GaussianScene, np.ndarray]:
+    """A redundant grey plane of flat opaque discs, a thin opaque green pole of needles, and faint
+    random floaters; labels 0 / 1 / 2."""
+    rng = np.random.default_rng(0)
+    n1, n2, n3 = 4000, 300, 300
+    plane = np.c_[rng.uniform(-1, 1, (n1, 2)), np.zeros(n1)]
+    pole = np.c_[0.3 + rng.normal(0, 0.002, (n2, 2)), rng.uniform(0, 1, n2)]
+    floaters = rng.uniform([-1, -1, 0.2], [1, 1, 1], (n3, 3))
+    scales = np.r_[np.tile([-3.5, -3.5, -8.0], (n1, 1)), np.tile([-7.0, -7.0, -3.5], (n2, 1)),
+                   np.full((n3, 3), -4.0)] + rng.normal(0, 0.1, (n1 + n2 + n3, 3))
+    quats = np.r_[np.tile([1.0, 0, 0, 0], (n1 + n2, 1)), rng.normal(size=(n3, 4))]
+    opacity = np.r_[rng.normal(3, 0.5, n1 + n2), rng.normal(-3, 0.5, n3)]
+    colour = np.r_[0.5 + rng.normal(0, 0.05, (n1, 3)), [-1.0, 1.0, -1.0] + rng.normal(0, 0.3, (n2, 3)),
+                   rng.normal(0, 1, (n3, 3))]
+    scene = GaussianScene.from_arrays(np.r_[plane, pole, floaters], scales, quats, opacity, colour)
+    return scene, np.r_[np.zeros(n1), np.ones(n2), np.full(n3, 2)]
+
+
+def test_keeps_thin_structure_and_the_literal_sign_removes_it_first():
+    scene, label = _plane_pole_floaters()
+
+    def removed(ratio, **params):
+        keep = select_by_ratio(get_pruner("betadesc").score(scene, PruneContext(params=params)), ratio).keep
+        return [int((~keep & (label == c)).sum()) for c in range(3)]
+
+    plane, pole, floaters = removed(0.3)
+    assert pole == 0 and plane > 1000  # the redundant plane goes, the pole stays
+    assert removed(0.1, score="literal")[1] == 300  # the paper's literal sign removes the pole first
+    _, pole_oh, floaters_oh = removed(0.3, preset="opacity-heavy")
+    assert pole_oh == 0 and floaters_oh >= 285 > floaters  # opacity emphasis also clears the floaters
