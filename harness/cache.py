@@ -143,22 +143,30 @@ class FileDigests:
         return self._file(path)
 
 
+def module_file(module) -> Path | None:
+    """Source file of a module object or dotted name, found without executing the module itself."""
+    import importlib.util
+
+    if isinstance(module, str):
+        spec = importlib.util.find_spec(module)  # imports parent packages only
+        return Path(spec.origin) if spec is not None and spec.origin not in (None, "built-in", "frozen") else None
+    f = getattr(module, "__file__", None)
+    return Path(f) if f else None
+
+
 def code_digest(*modules) -> str:
     """Digest of the source of ``modules`` (module objects or dotted names).
 
     A package contributes every ``.py`` file under its folder; a plain module its own file. Used as
     the "version" of a pruner, renderer or metric in cache keys, so editing the code invalidates
-    exactly the results it produced.
+    exactly the results it produced. Names are resolved with ``find_spec``, so a rerun that finds
+    everything cached never pays for importing torch-heavy modules just to version them.
     """
-    import importlib
-
     parts = []
     for mod in modules:
-        if isinstance(mod, str):
-            mod = importlib.import_module(mod)
-        f = Path(getattr(mod, "__file__", "") or "")
-        if not f.name:
-            parts.append([getattr(mod, "__name__", str(mod)), "builtin"])
+        f = module_file(mod)
+        if f is None:
+            parts.append([mod if isinstance(mod, str) else getattr(mod, "__name__", str(mod)), "builtin"])
             continue
         files = sorted(f.parent.rglob("*.py")) if f.name == "__init__.py" else [f]
         for p in files:

@@ -118,7 +118,7 @@ def write_plots(df: pd.DataFrame, run_dir: str | Path, names) -> list[Path]:
         written += plot_curves(df, out)
     if "figure1" in names:
         m, v, rs = FIG1
-        cols = [("unpruned", "input", "", 0.0)] + [(f"τ = {r:g}", m, v, r) for r in rs]
+        cols = [("unpruned", "input", "", 0.0)] + [(f"τ ≈ {r:g} ({100 * r:.0f} % pruned)", m, v, r) for r in rs]
         written += _grid(df, images, cols, "BetaDescPrune at increasing pruning (paper Fig. 1)", out / "figure1.png")
     if "figure3" in names:
         cols = [("input", "input", "", 0.0)] + list(FIG3)

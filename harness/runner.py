@@ -70,6 +70,8 @@ class Runner:
     def _map(self, stage: str, fn, tasks: list, weight=lambda t: 1):
         """Run ``fn`` over ``tasks`` on the pool (or in-process), advancing the stage's bar."""
         results = []
+        if not tasks:  # everything cached: no worker start-up, no heavy imports
+            return results
         bar = self.progress.stage(stage, sum(weight(t) for t in tasks)) if self.progress else None
         if self.workers == 1 or len(tasks) <= 1:
             init_worker(self.threads, self.toolkit.imports, self.toolkit.preload)

@@ -55,7 +55,8 @@ def to_latex(disp: pd.DataFrame, title: str, notes=(), label: str = "") -> str:
     rows = _levels(disp.index)
     cols = _levels(disp.columns)
     n_idx, n_col = len(rows[0]) if rows else 1, len(cols)
-    spec = "|" + "c" * n_idx + "|" + "|".join("c" * n for _, n in _spans([c[0] for c in cols])) + "|"
+    inner = [c[:-1] if len(c) > 1 else c for c in cols]  # one column block per method (paper style)
+    spec = "|" + "c" * n_idx + "|" + "|".join("c" * n for _, n in _spans(inner)) + "|"
     out = [r"\begin{table}[t]", r"\centering", r"\resizebox{\linewidth}{!}{%", rf"\begin{{tabular}}{{{spec}}}",
            r"\hline"]
     depth = len(cols[0]) if cols else 1
@@ -78,7 +79,7 @@ def to_latex(disp: pd.DataFrame, title: str, notes=(), label: str = "") -> str:
             out.append(" & ".join(lead + [_tex(v) for v in disp.iloc[i + j]]) + r" \\")
         out.append(r"\hline")
         i += n
-    out += [r"\end{tabular}}", rf"\caption{{{_tex(title)}" + "".join(f" {_tex(n)}" for n in notes) + "}"]
+    out += [r"\end{tabular}}", rf"\caption{{{_tex(title)}." + "".join(f" {_tex(n)}" for n in notes) + "}"]
     if label:
         out.append(rf"\label{{{label}}}")
     out.append(r"\end{table}")

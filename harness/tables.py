@@ -30,7 +30,9 @@ import pandas as pd
 from harness.cache import atomic_write_text
 
 NAMES = {"confsplat": "ConfSplatPrune", "lightgs": "LightGSPrune", "betadesc": "BetaDescPrune",
-         "opacity": "Opacity", "volume": "Volume", "random": "Random"}
+         "betadesc-nodesc": "BetaDesc (no desc.)", "betadesc-nobeta": "BetaDesc (no Beta)",
+         "betadesc-nodesc-nobeta": "BetaDesc (neither)", "opacity": "Opacity", "volume": "Volume",
+         "random": "Random"}
 GROUPS = (("Camera-Aware Methods", ("confsplat", "lightgs")), ("Simple Baselines", ("opacity", "volume", "random")),
           ("Our Method", ("betadesc",)))
 LEVELS = (("Low", 0.1), ("Mid", 0.2), ("High", 0.3))

@@ -94,16 +94,14 @@ class Toolkit:
 
 
 def module_versions(names) -> str:
-    """code_digest of the named modules that exist (a missing optional reader is skipped)."""
-    import importlib
+    """code_digest of the named modules that exist (a missing optional module is skipped)."""
+    from harness.cache import code_digest, module_file
 
-    from harness.cache import code_digest
-
-    mods = []
+    present = []
     for n in names:
         try:
-            mods.append(importlib.import_module(n))
-        except ModuleNotFoundError as err:
-            if err.name != n:
-                raise
-    return code_digest(*mods)
+            if module_file(n) is not None:
+                present.append(n)
+        except ModuleNotFoundError:
+            continue
+    return code_digest(*present)
