@@ -37,6 +37,7 @@ def test_exact_counts_and_rows_for_ratios(scene_file, tmp_path, capsys, ratio):
     report = json.loads(text)
     removed = round(ratio * N)
     assert report["splats_in"] == N and report["splats_out"] == N - removed
+    assert report["tau_quantile"] == removed / N
     assert {"read", "score", "select", "write"} <= set(report["seconds"])
     scene = load_scene(scene_file)
     scores = np.load(scores_path)

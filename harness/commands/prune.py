@@ -123,6 +123,7 @@ def run(args) -> int:
     report = {"method": spec.name, "splats_in": len(scene), "splats_out": selection.kept,
               "removed": selection.removed,
               "tau": selection.tau if math.isfinite(selection.tau) else None,  # None: nothing removed
+              "tau_quantile": selection.tau_quantile,
               "seconds": seconds}
     if args.json:
         print(json.dumps(report, default=float))
