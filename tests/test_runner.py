@@ -24,11 +24,12 @@ def scenes(tmp_path):
 
 
 def _config(scenes, methods, **extra):
+    """``scenes``: {name: path} or a list of scene entries."""
     doc = {
         "name": "t",
         "protocol": {"longest_side": 32, "metrics": ["psnr", "ssim"], "n_train": 3, "n_test": 2},
         "ratios": [0.1, 0.3],
-        "scenes": [{"name": k, "source": v} for k, v in scenes.items()],
+        "scenes": [{"name": k, "source": v} for k, v in scenes.items()] if isinstance(scenes, dict) else scenes,
         "methods": methods,
         **extra,
     }
@@ -129,3 +130,36 @@ def test_pool_of_two_workers_matches_in_process(scenes, tmp_path):
     _, df1 = _run(cfg, tmp_path / "a")
     _, df2 = _run(cfg, tmp_path / "b", workers=2)
     assert _metric_cols(df2).equals(_metric_cols(df1))
+
+
+def test_frames_sequence_shares_views_and_aggregates(tmp_path):
+    seq = tmp_path / "seq"
+    seq.mkdir()
+    for f in range(3):
+        write_scene(random_scene(200, seed=10 + f), seq / f"frame_{f:03d}.ply")
+    cfg = _config([{"name": "seq", "frames": str(seq / "frame_*.ply"), "kind": "forward-facing"}], ["fake-norm"])
+    fakes.CALLS.clear()
+    res, df = _run(cfg, tmp_path)
+    assert sorted(set(df["frame"])) == ["frame_000", "frame_001", "frame_002"]
+    assert fakes.CALLS["score:fake-norm"] == 3  # one score per frame
+    assert res.counts["views"]["misses"] == 1  # the first frame's views serve the sequence
+    assert len(df) == 3 * 2 * 2 and set(df.groupby("frame")["view"].apply(frozenset)) == {frozenset(df["view"])}
+
+
+def test_cameras_file_split_by_name(tmp_path, scenes):
+    from harness.camera_io import write_3dgs_cameras
+
+    _, train, test = fakes.make_rig("x", None, kind="", name="", n_train=3, n_test=2, longest_side=64,
+                                    aspect=1.0, seed=0)
+    cams = train + test
+    write_3dgs_cameras(cams, tmp_path / "cams.json")
+    names = [c.name for c in test]
+    cfg = _config([{"name": "s0", "source": scenes["s0"],
+                    "cameras": {"path": str(tmp_path / "cams.json"), "test": names}}], ["fake-aware"])
+    res, df = _run(cfg, tmp_path)
+    assert sorted(set(df["view"])) == sorted(names) and (df["status"] == "ok").all()
+    assert set(df["width"]) == {32}  # resized to the protocol's longest side
+    missing = _config([{"name": "s0", "source": scenes["s0"],
+                        "cameras": {"path": str(tmp_path / "gone.json"), "test_every": 8}}], ["opacity"])
+    _, df2 = _run(missing, tmp_path)
+    assert df2.iloc[0]["status"] == "skipped" and "cameras not found" in df2.iloc[0]["reason"]
