@@ -88,7 +88,10 @@ class Runner:
                                      initargs=(self.threads, self.toolkit.imports, self.toolkit.preload)) as pool:
                 futures = {pool.submit(fn, t): t for t in tasks}
                 for fut in as_completed(futures):
-                    results.append(fut.result())
+                    try:
+                        results.append(fut.result())
+                    except Exception as err:  # a worker died (e.g. killed, segfault): record, go on
+                        results.append(futures[fut].failed(f"worker failed: {type(err).__name__}: {err}"))
                     if bar:
                         bar.advance(weight(futures[fut]))
         if bar:
@@ -157,8 +160,7 @@ class Runner:
                     tasks.append(ScoreTask(
                         str(self.cache.root), key, item.path, item.spec.lod, item.digest, mv.method,
                         spec.resolve_params(mv.params), p.seed,
-                        [c.to_dict() for c in item.train] if spec.needs else None, p.renderer, p.device,
-                        self.toolkit))
+                        [c.to_dict() for c in item.train] if spec.needs else None, p.device, self.toolkit))
                 pending[key].append((i, mv.key))
         for res in self._map("score", run_score, tasks):
             if res["error"]:

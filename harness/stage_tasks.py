@@ -115,9 +115,13 @@ class ScoreTask:
     params: dict
     seed: int
     train: list[dict] | None  # camera dicts, only for camera-aware pruners
-    renderer: str
     device: str
     toolkit: Toolkit = field(default_factory=Toolkit)
+    #: handed to camera-aware pruners: the differentiable reference rasterizer with per-splat statistics
+    pruner_renderer: str = "reference"
+
+    def failed(self, message: str) -> dict:
+        return {"key": self.key, "error": message, "seconds": 0.0}
 
 
 def run_score(task: ScoreTask) -> dict:
@@ -130,7 +134,7 @@ def run_score(task: ScoreTask) -> dict:
         scene = _scene(task.toolkit, task.path, task.lod, task.scene_digest)
         spec = get_pruner(task.method)
         cams = [Camera.from_dict(c) for c in task.train] if task.train else None
-        renderer = _renderer(task.toolkit, "reference", task.device) if "renderer" in spec.needs else None
+        renderer = _renderer(task.toolkit, task.pruner_renderer, task.device) if "renderer" in spec.needs else None
         ctx = PruneContext(params=dict(task.params), seed=task.seed, cameras=cams, renderer=renderer,
                            device=task.device)
         t0 = time.perf_counter()
@@ -170,6 +174,9 @@ class ViewTask:
     render_ref: bool = True  # False: the reference render is cached, load it
     ref_png: bool = False
     toolkit: Toolkit = field(default_factory=Toolkit)
+
+    def failed(self, message: str) -> dict:
+        return {"ref_key": self.ref_key, "errors": [(None, message)], "done": 0}
 
 
 def run_view(task: ViewTask, progress=None) -> dict:
