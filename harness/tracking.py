@@ -1,0 +1,299 @@
+"""Nightly metric tracking: summarise a run, keep a history, compare with a baseline.
+
+**Summary** of a run folder (``harness run`` output: tidy ``results.parquet`` + ``run.json``):
+
+* ``groups``: per (scene, method, variant, ratio), over the rows with ``status == "ok"``: mean PSNR
+  over the *finite* values with the count of +inf views apart (identical renders), mean SSIM, mean
+  LPIPS, the number of measured views. Key ``"scene|method[variant]|ratio"``.
+* ``stages``: seconds per stage — the run's wall time per stage from ``run.json`` (``run:load``,
+  ``run:score``, ...; only when the run computed everything, i.e. no stage-cache hits, since a cached
+  stage measures nothing), the scoring time of each (scene, method variant) (``score:<scene>|<m>[<v>]``,
+  the time of the run that computed the scores), and each scene's mean per-view render and metric
+  times (``render:<scene>``, ``metrics:<scene>``).
+* ``calibration_s``: the median time of :func:`calibration_workload` — a fixed numpy + torch kernel
+  mix — on the same machine, taken from ``run.json["calibration_s"]`` when the runner recorded it, else
+  timed by ``harness track`` itself right after the run (``calibration_source`` says which).
+* ``commit`` (run.json, else ``git rev-parse HEAD``, else ``"unknown"``), ``machine``, ``when``, ``run``.
+
+**Comparison** with a baseline file ``{"tolerances": {...}, "summary": {...}}``. A regression is
+
+* a baseline group missing from the run or without a measured view (a pruner that errors or is skipped);
+* ``psnr`` falling by more than ``tolerances.psnr`` dB (finite means); a group whose every view was
+  +inf in the baseline (pruning changed nothing) regresses when it now has finite views;
+* ``ssim`` falling by more than ``tolerances.ssim``; ``lpips`` rising by more than ``tolerances.lpips``;
+* a stage whose *normalised* time t / calibration_s grew by more than the factor ``1 + tolerances.stage``
+  — machine speed cancels in the ratio — when the run's stage took at least ``tolerances.min_stage_s``
+  seconds (shorter stages are timer noise on a shared machine).
+
+Groups and stages present only in the run are reported as new, never as regressions.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import statistics
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from harness.errors import InputError
+
+SCHEMA = 1
+DEFAULT_TOLERANCES = {"psnr": 0.5, "ssim": 0.005, "lpips": 0.005, "stage": 0.5, "min_stage_s": 1.0}
+_RUN_STAGES = ("load", "score", "prune", "render_metrics", "aggregate", "total")
+
+
+# --------------------------------------------------------------------------- calibration
+def calibration_workload(seed: int = 0) -> None:
+    """A fixed mix of the kernels the harness spends its time in: dense float32 matmul (LPIPS trunk
+    stand-in), a 3×3 convolution stack in torch, float64 sorting and gathers (ranking, neighbour
+    search), and elementwise exp/sqrt (rendering). Same work on every call; ~0.2 s on one modern core."""
+    import torch
+
+    rng = np.random.default_rng(seed)
+    a = rng.standard_normal((384, 384)).astype(np.float32)
+    for _ in range(4):
+        a = np.tanh(a @ a.T * (1.0 / 384.0))
+    x = rng.standard_normal(400_000)
+    order = np.argsort(x, kind="stable")
+    np.take(x, order).cumsum()
+    np.sqrt(np.exp(-0.5 * x * x) + 1.0).sum()
+    with torch.inference_mode():
+        g = torch.Generator().manual_seed(seed)
+        img = torch.randn(1, 16, 96, 96, generator=g)
+        w = torch.randn(16, 16, 3, 3, generator=g) * 0.1
+        for _ in range(6):
+            img = torch.relu(torch.nn.functional.conv2d(img, w, padding=1))
+
+
+def time_calibration(repeats: int = 5) -> float:
+    """Median wall seconds of :func:`calibration_workload` (one warm-up call first)."""
+    calibration_workload()
+    samples = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        calibration_workload()
+        samples.append(time.perf_counter() - t0)
+    return float(statistics.median(samples))
+
+
+# --------------------------------------------------------------------------- summary
+def group_key(scene: str, method: str, variant: str, ratio: float) -> str:
+    return f"{scene}|{method}[{variant}]|{float(ratio):g}"
+
+
+def _finite_or_none(x) -> float | None:
+    return float(x) if x is not None and np.isfinite(x) else None
+
+
+def summarize_groups(df: pd.DataFrame) -> dict[str, dict]:
+    """Per (scene, method, variant, ratio) means over measured views (PSNR: finite values only)."""
+    ok = df[df["status"] == "ok"]
+    out: dict[str, dict] = {}
+    for (scene, method, variant, ratio), g in ok.groupby(["scene", "method", "variant", "ratio"], sort=True):
+        psnr = g["psnr"].astype(float).to_numpy()
+        if np.isnan(psnr).any() or np.isneginf(psnr).any():
+            raise InputError(f"results of {scene} / {method}[{variant}]", "PSNR column holds NaN or -inf on "
+                                                                        "measured rows")
+        finite = psnr[np.isfinite(psnr)]
+        out[group_key(scene, method, variant, ratio)] = {
+            "scene": scene, "method": method, "variant": variant, "ratio": float(ratio),
+            "n_views": int(len(g)),
+            "psnr": float(finite.mean()) if finite.size else None,
+            "psnr_n_inf": int(psnr.size - finite.size),
+            "ssim": _finite_or_none(g["ssim"].astype(float).mean()) if "ssim" in g else None,
+            "lpips": _finite_or_none(g["lpips"].astype(float).mean()) if "lpips" in g else None,
+        }
+    # groups the run attempted but never measured (errors, skips) are listed with n_views = 0
+    for (scene, method, variant, ratio), _ in df[df["status"] != "ok"].groupby(
+            ["scene", "method", "variant", "ratio"], sort=True, dropna=False):
+        key = group_key(scene, method, variant, 0.0 if pd.isna(ratio) else ratio)
+        out.setdefault(key, {"scene": scene, "method": method, "variant": variant,
+                             "ratio": None if pd.isna(ratio) else float(ratio), "n_views": 0,
+                             "psnr": None, "psnr_n_inf": 0, "ssim": None, "lpips": None})
+    return out
+
+
+def summarize_stages(df: pd.DataFrame, run_json: dict) -> dict[str, float]:
+    """Stage seconds (see the module docstring for the keys)."""
+    stages: dict[str, float] = {}
+    counts = run_json.get("cache_counts") or {}
+    cached = sum(int(c.get("hits", 0)) for c in counts.values()) if isinstance(counts, dict) else 0
+    if cached == 0:
+        for k, v in (run_json.get("stage_seconds") or {}).items():
+            if k in _RUN_STAGES and v is not None and np.isfinite(v):
+                stages[f"run:{k}"] = float(v)
+    ok = df[df["status"] == "ok"]
+    if len(ok):
+        per = ok.groupby(["scene", "method", "variant"], sort=True)["score_s"].first()
+        for (scene, method, variant), v in per.items():
+            if pd.notna(v):
+                stages[f"score:{scene}|{method}[{variant}]"] = float(v)
+        for col, name in (("render_s", "render"), ("metrics_s", "metrics")):
+            for scene, v in ok.groupby("scene", sort=True)[col].mean().items():
+                if pd.notna(v):
+                    stages[f"{name}:{scene}"] = float(v)
+    return stages
+
+
+def _commit(run_json: dict) -> str:
+    if run_json.get("commit"):
+        return str(run_json["commit"])
+    from harness.report import git_commit
+
+    return git_commit() or "unknown"
+
+
+def read_run(run_dir: str | Path) -> tuple[pd.DataFrame, dict]:
+    """(tidy results, run.json as a dict — empty when absent) of a run folder."""
+    from harness.results import read_results
+
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise InputError(run_dir, "is not a folder (expected a `harness run` output folder)")
+    df = read_results(run_dir)
+    meta_path = run_dir / "run.json"
+    meta: dict = {}
+    if meta_path.is_file():
+        try:
+            meta = json.loads(meta_path.read_text())
+        except (OSError, ValueError) as err:
+            raise InputError(meta_path, f"unreadable run record: {err}") from None
+    return df, meta
+
+
+def build_summary(df: pd.DataFrame, run_json: dict, calibration_s: float | None = None) -> dict:
+    """The summary of one run (module docstring). ``calibration_s`` overrides run.json's."""
+    source = "given"
+    if calibration_s is None and run_json.get("calibration_s"):
+        calibration_s, source = float(run_json["calibration_s"]), "run.json"
+    elif calibration_s is None:
+        calibration_s, source = time_calibration(), "track"
+    machine = run_json.get("machine")
+    if not machine:
+        from harness.report import machine as describe
+
+        machine = describe()
+    return {
+        "schema": SCHEMA,
+        "run": run_json.get("name") or (str(df["run"].iloc[0]) if len(df) else ""),
+        "when": run_json.get("when") or time.strftime("%Y-%m-%dT%H:%M:%S"),
+        "commit": _commit(run_json),
+        "machine": machine,
+        "calibration_s": float(calibration_s),
+        "calibration_source": source,
+        "groups": summarize_groups(df),
+        "stages": summarize_stages(df, run_json),
+    }
+
+
+# --------------------------------------------------------------------------- comparison
+@dataclass(frozen=True)
+class Finding:
+    kind: str      # "regression" | "ok" | "new" | "note"
+    key: str
+    message: str
+
+
+def _metric_findings(key: str, base: dict, cur: dict | None, tol: dict) -> list[Finding]:
+    if cur is None or cur.get("n_views", 0) == 0:
+        if base.get("n_views", 0) == 0:
+            return []
+        return [Finding("regression", key, f"{key}: measured on {base['n_views']} views in the baseline, "
+                                           "no measured view now (error or skip)")]
+    out = []
+    bp, cp = base.get("psnr"), cur.get("psnr")
+    if bp is None and base.get("psnr_n_inf", 0) > 0 and cp is not None:
+        out.append(Finding("regression", key, f"{key}: PSNR was +inf on every view (identical renders), now "
+                                              f"{cp:.3f} dB on {cur['n_views'] - cur['psnr_n_inf']} views"))
+    elif bp is not None and cp is not None:
+        d = cp - bp
+        kind = "regression" if d < -tol["psnr"] else "ok"
+        out.append(Finding(kind, key, f"{key}: PSNR {bp:.3f} -> {cp:.3f} dB ({d:+.3f}, tolerance -{tol['psnr']})"))
+    for name, sign in (("ssim", -1.0), ("lpips", +1.0)):
+        b, c = base.get(name), cur.get(name)
+        if b is None or c is None:
+            continue
+        d = c - b
+        worse = d * sign > tol[name]
+        bound = f"{'-' if sign < 0 else '+'}{tol[name]}"
+        out.append(Finding("regression" if worse else "ok", key,
+                           f"{key}: {name.upper()} {b:.4f} -> {c:.4f} ({d:+.4f}, tolerance {bound})"))
+    return out
+
+
+def _stage_findings(base: dict, cur: dict, tol: dict) -> list[Finding]:
+    out = []
+    cb, cc = base["calibration_s"], cur["calibration_s"]
+    for key, tb in sorted(base["stages"].items()):
+        tc = cur["stages"].get(key)
+        if tc is None:
+            out.append(Finding("note", key, f"stage {key}: in the baseline, not timed in this run"))
+            continue
+        rb, rc = tb / cb, tc / cc
+        if tc < tol["min_stage_s"]:
+            continue
+        factor = rc / rb if rb > 0 else math.inf
+        kind = "regression" if factor > 1.0 + tol["stage"] else "ok"
+        out.append(Finding(kind, key, f"stage {key}: {tb:.2f} s -> {tc:.2f} s, normalised {rb:.2f} -> {rc:.2f} "
+                                      f"calibration units (x{factor:.2f}, tolerance x{1.0 + tol['stage']:.2f})"))
+    return out
+
+
+def compare(baseline: dict, summary: dict) -> list[Finding]:
+    """Findings of ``summary`` against ``baseline`` (``{"tolerances", "summary"}``)."""
+    tol = {**DEFAULT_TOLERANCES, **(baseline.get("tolerances") or {})}
+    base = baseline["summary"]
+    out: list[Finding] = []
+    for key, g in sorted(base["groups"].items()):
+        out += _metric_findings(key, g, summary["groups"].get(key), tol)
+    for key in sorted(set(summary["groups"]) - set(base["groups"])):
+        out.append(Finding("new", key, f"{key}: not in the baseline"))
+    out += _stage_findings(base, summary, tol)
+    return out
+
+
+# --------------------------------------------------------------------------- files
+def load_baseline(path: str | Path) -> dict:
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except OSError as err:
+        raise InputError(path, f"cannot read baseline: {err.strerror or err}") from None
+    except ValueError as err:
+        raise InputError(path, f"baseline is not valid JSON: {err}") from None
+    if not isinstance(data, dict) or not isinstance(data.get("summary"), dict) \
+            or not isinstance(data["summary"].get("groups"), dict) or "calibration_s" not in data["summary"]:
+        raise InputError(path, "not a tracking baseline (expected {'tolerances': ..., 'summary': {...}} as "
+                               "written by `harness track --update-baseline`)")
+    tol = data.get("tolerances") or {}
+    unknown = sorted(set(tol) - set(DEFAULT_TOLERANCES))
+    if unknown:
+        raise InputError(path, f"unknown tolerance(s) {', '.join(unknown)}; known: {', '.join(DEFAULT_TOLERANCES)}")
+    return data
+
+
+def write_baseline(path: str | Path, summary: dict, tolerances: dict | None = None) -> Path:
+    """Write ``{"tolerances", "summary"}`` atomically (tolerances default to the module's)."""
+    from harness.cache import atomic_write_text
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    payload = {"tolerances": {**DEFAULT_TOLERANCES, **(tolerances or {})}, "summary": summary}
+    atomic_write_text(path, json.dumps(payload, indent=2, sort_keys=True, allow_nan=False) + "\n")
+    return path
+
+
+def append_history(history_dir: str | Path, summary: dict) -> Path:
+    """Append ``summary`` as one JSON line to ``<history_dir>/history.jsonl``."""
+    d = Path(history_dir)
+    d.mkdir(parents=True, exist_ok=True)
+    path = d / "history.jsonl"
+    line = json.dumps(summary, sort_keys=True, allow_nan=False) + "\n"
+    with open(path, "a", encoding="utf-8") as fh:  # one write of one line: readers see whole lines
+        fh.write(line)
+    return path
