@@ -69,7 +69,7 @@ class Versions:
     pruners: dict[str, str] = field(default_factory=dict)
 
     @classmethod
-    def of(cls, toolkit: Toolkit) -> "Versions":
+    def of(cls, toolkit: Toolkit) -> Versions:
         return cls(reader=module_versions(toolkit.reader_modules), rigs=module_versions(toolkit.rig_modules),
                    renderer=module_versions(toolkit.renderer_modules),
                    metrics=module_versions(toolkit.metric_modules))
@@ -156,6 +156,18 @@ def scene_views(item_spec: SceneSpec, scene, path: Path, protocol, cache: StageC
     return rig, train, test
 
 
+class _LazyScene:
+    """Loads the scene file on first call only (a fully cached rerun never reads it)."""
+
+    def __init__(self, toolkit: Toolkit, path: str, lod):
+        self.toolkit, self.path, self.lod, self.scene = toolkit, path, lod, None
+
+    def __call__(self):
+        if self.scene is None:
+            self.scene = self.toolkit.load_scene(self.path, self.lod)
+        return self.scene
+
+
 def load_items(config: RunConfig, cache: StageCache, toolkit: Toolkit, versions: Versions,
                base: Path, on_skip=None) -> tuple[list[SceneItem], list[Skip]]:
     """Resolve every scene's files, splat counts and cameras; absent scenes become skips.
@@ -176,13 +188,7 @@ def load_items(config: RunConfig, cache: StageCache, toolkit: Toolkit, versions:
         for frame, path in frames:
             t0 = time.perf_counter()
             digest = digest_json({"file": cache.files.digest(path), "lod": spec.lod})
-            loaded = {}
-
-            def scene(path=path):
-                if "s" not in loaded:
-                    loaded["s"] = toolkit.load_scene(str(path), spec.lod)
-                return loaded["s"]
-
+            scene = _LazyScene(toolkit, str(path), spec.lod)
             key = cache.key("load", scene=digest, code=versions.reader)
             info = cache.get_json("load", key)
             if info is None:

@@ -79,7 +79,7 @@ def contact_sheets(items, cache, ref_key, out_dir: Path) -> list[Path]:
 def git_commit() -> str:
     try:
         return subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO_ROOT, capture_output=True, text=True,
-                              timeout=10).stdout.strip()
+                              timeout=10, check=False).stdout.strip()
     except (OSError, subprocess.SubprocessError):
         return ""
 
@@ -119,9 +119,9 @@ def write_run_json(out_dir: Path, config, result, *, workers: int, cache_root: P
 
 def summary_lines(result, df, paths: dict) -> list[str]:
     """The closing summary: rows, skips, errors, cache hits/misses, stage times, where things are."""
-    ok = int((df["status"] == "ok").sum()) if len(df) else 0
-    lines = [f"rows: {len(df)} ({ok} measured, {int((df['status'] == 'skipped').sum()) if len(df) else 0} skipped,"
-             f" {int((df['status'] == 'error').sum()) if len(df) else 0} errors)"]
+    n = {k: int((df["status"] == k).sum()) if len(df) else 0 for k in ("ok", "skipped", "error")}
+    ok = n["ok"]
+    lines = [f"rows: {len(df)} ({ok} measured, {n['skipped']} skipped, {n['error']} errors)"]
     hits = sum(c["hits"] for c in result.counts.values())
     misses = sum(c["misses"] for c in result.counts.values())
     per = ", ".join(f"{s} {c['hits']}/{c['misses']}" for s, c in result.counts.items())

@@ -24,9 +24,15 @@ import numpy as np
 from harness.cache import StageCache, digest_mask
 from harness.config import RunConfig
 from harness.plan import SceneItem, Skip, Versions, load_items, variants_for
-from harness.stage_tasks import MaskJob, ScoreTask, ViewTask, init_worker, run_score, run_view
+from harness.stage_tasks import (
+    MaskJob,
+    ScoreTask,
+    ViewTask,
+    init_worker,
+    run_score,
+    run_view,
+)
 from harness.toolkit import Toolkit, module_versions
-
 
 
 @dataclass
@@ -262,7 +268,7 @@ class Runner:
             for mv in variants_for(item, self.config.methods):
                 if (i, mv.key) not in scores:
                     continue  # recorded as a skip
-                skey, srec = scores[(i, mv.key)]
+                srec = scores[(i, mv.key)][1]
                 ident = {**base, "scene": item.spec.name, "label": item.spec.label, "kind": item.spec.kind,
                          "frame": item.frame, "method": mv.method, "variant": mv.variant,
                          "params": canonical_json(get_pruner(mv.method).resolve_params(mv.params)),

@@ -141,7 +141,7 @@ def run_score(task: ScoreTask) -> dict:
         scores = spec.score(scene, ctx)
         seconds = time.perf_counter() - t0
         cache.put_array("score", task.key, scores)
-        cache.put_json("score", task.key, {"seconds": seconds, "n": int(len(scores))})
+        cache.put_json("score", task.key, {"seconds": seconds, "n": len(scores)})
         out["seconds"] = seconds
     except Exception as err:  # a pruner failing on one scene is recorded, the run goes on
         out["error"] = f"{type(err).__name__}: {err}"

@@ -12,9 +12,9 @@ Each entry also names the modules whose source is its "version" in cache keys
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 
 def load_scene(path: str, lod: int | None = None):

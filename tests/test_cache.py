@@ -10,8 +10,15 @@ import sys
 import numpy as np
 import pytest
 
-from harness.cache import (FileDigests, StageCache, atomic_write_with, canonical_json, code_digest, digest_json,
-                           digest_mask)
+from harness.cache import (
+    FileDigests,
+    StageCache,
+    atomic_write_with,
+    canonical_json,
+    code_digest,
+    digest_json,
+    digest_mask,
+)
 
 
 def test_keys_depend_on_content_not_order():

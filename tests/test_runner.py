@@ -91,7 +91,7 @@ def test_changing_params_recomputes_only_that_method(scenes, tmp_path):
 def test_camera_aware_without_cameras_is_skipped_with_reason(scenes, tmp_path):
     cfg = _config({"s0": scenes["s0"]}, ["fake-aware", "opacity"], protocol={
         "longest_side": 32, "metrics": ["psnr"], "n_train": 0, "n_test": 1})
-    res, df = _run(cfg, tmp_path)
+    _, df = _run(cfg, tmp_path)
     skipped = df[df["method"] == "fake-aware"]
     assert len(skipped) == 1 and skipped.iloc[0]["status"] == "skipped"
     assert "needs cameras, renderer" in skipped.iloc[0]["reason"]
@@ -100,7 +100,7 @@ def test_camera_aware_without_cameras_is_skipped_with_reason(scenes, tmp_path):
 
 def test_camera_aware_gets_train_views(scenes, tmp_path):
     fakes.CALLS.clear()
-    res, df = _run(_config({"s0": scenes["s0"]}, ["fake-aware"]), tmp_path)
+    _, df = _run(_config({"s0": scenes["s0"]}, ["fake-aware"]), tmp_path)
     assert fakes.CALLS["score:fake-aware"] == 1 and (df["status"] == "ok").all()
 
 
@@ -156,7 +156,7 @@ def test_cameras_file_split_by_name(tmp_path, scenes):
     names = [c.name for c in test]
     cfg = _config([{"name": "s0", "source": scenes["s0"],
                     "cameras": {"path": str(tmp_path / "cams.json"), "test": names}}], ["fake-aware"])
-    res, df = _run(cfg, tmp_path)
+    _, df = _run(cfg, tmp_path)
     assert sorted(set(df["view"])) == sorted(names) and (df["status"] == "ok").all()
     assert set(df["width"]) == {32}  # resized to the protocol's longest side
     missing = _config([{"name": "s0", "source": scenes["s0"],

@@ -56,7 +56,7 @@ def test_comparison_layout_and_values():
 
 
 def test_ablation_marks_best_per_row():
-    num, disp, _ = build_tables(_rows(), ["ablation"])["ablation"]
+    _, disp, _ = build_tables(_rows(), ["ablation"])["ablation"]
     row = disp.loc[("scene A", "PSNR (↑)")]
     assert row[("With Descriptors", "Beta")] == "**28.00**"
     assert row[("No Descriptors", "No Beta")] == "20.00"
@@ -64,7 +64,7 @@ def test_ablation_marks_best_per_row():
 
 
 def test_keep_table_delta_uses_the_papers_sign():
-    num, disp, _ = build_tables(_rows(), ["keep"])["keep"]
+    num, _, _ = build_tables(_rows(), ["keep"])["keep"]
     assert list(num.index) == ["30%", "50%", "70%"]
     # prune 30%: no-desc 24, with desc (25+27)/2 = 26 -> ΔPSNR = 24 - 26 = -2
     assert num.loc["30%", ("ΔPSNR", "(dB)")] == pytest.approx(-2.0)

@@ -32,7 +32,12 @@ def run(args) -> int:
     from harness.errors import InputError
     from harness.paths import cache_dir
     from harness.progress import StageProgress
-    from harness.report import contact_sheets, copy_images, summary_lines, write_run_json
+    from harness.report import (
+        contact_sheets,
+        copy_images,
+        summary_lines,
+        write_run_json,
+    )
     from harness.results import to_frame, write_results
     from harness.runner import Runner
     from harness.tables import write_outputs
@@ -59,7 +64,8 @@ def run(args) -> int:
     written = write_outputs(out_dir, df, config.tables, config.plots)
     run_json = write_run_json(out_dir, config, result, workers=workers, cache_root=cache_root, argv=sys.argv[1:])
     paths = {"results": pq, "results (csv)": csv, "tables": out_dir / "tables", "plots": out_dir / "plots",
-             "images": images, "contact sheets": out_dir / "contact_sheets", "run record": run_json,
+             "images": images, "contact sheets": f"{out_dir / 'contact_sheets'} ({len(sheets)} scenes)",
+             "run record": run_json,
              "stage cache": cache_root}
     for line in summary_lines(result, df, paths):
         print(line)
