@@ -56,7 +56,7 @@ def save_features(feats: LpipsFeatures, path: str | Path) -> Path:
     """Write ``feats`` to ``path`` atomically (temp file + rename)."""
     path = Path(path)
     part = path.with_name(path.name + f".part{os.getpid()}")
-    torch.save({"size": list(feats.size), "layers": [t.detach().cpu().contiguous() for t in feats.layers]}, part)
+    torch.save({"size": list(feats.size), "layers": [t.detach().cpu() for t in feats.layers]}, part)
     part.replace(path)
     return path
 
@@ -85,7 +85,8 @@ class LpipsVGG:
     ``weights``: path of the converted trunk (default: the fetched one; missing -> InputError
     telling to run ``harness fetch --weights``). ``batch_size``: images per trunk pass in
     :meth:`distances` (default 1 on CPU, where batching gains nothing and costs memory; on CUDA as
-    many as fit in a quarter of free memory, at most 16).
+    many as fit in a quarter of free memory, at most 16). Construction raises torch's thread count
+    to every core the process may use (:func:`use_all_cores`).
     """
 
     def __init__(self, device=None, *, weights: str | Path | None = None, precision: str = "float32",
@@ -140,7 +141,7 @@ class LpipsVGG:
         img = self._check(image, source)
         with torch.inference_mode():
             layers = self._normalised_layers([img])
-        return LpipsFeatures(tuple(t.contiguous() for t in layers), tuple(img.shape[:2]))
+        return LpipsFeatures(tuple(layers), tuple(img.shape[:2]))  # same memory layout as later passes
 
     def distances(self, ref: LpipsFeatures, images, source: str = "image") -> np.ndarray:
         """LPIPS between the reference behind ``ref`` and each image of ``images``: float64 ``(n,)``."""
