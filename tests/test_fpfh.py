@@ -67,7 +67,8 @@ def test_hybrid_search_equals_brute_force_with_ties():
     """A lattice is full of exact distance ties; the search must break them by index."""
     g = np.arange(5.0)
     lattice = np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3)
-    points = np.concatenate([lattice, lattice[:7]])  # plus exact duplicates
+    # plus exact duplicates, and a pile of 30 copies of one point (more than max_nn at distance 0)
+    points = np.concatenate([lattice, lattice[:7], np.repeat(lattice[62:63], 30, axis=0)])
     for radius, max_nn in ((1.5, 8), (2.01, 20), (1.0, 3), (10.0, 200)):
         nbh = hybrid_search(points, radius, max_nn)
         assert _as_dicts(nbh) == _brute_hybrid(points, radius, max_nn)

@@ -6,7 +6,8 @@ diagonal, normals from the splats' shortest axes (MST-oriented). Both implementa
 points, normals, radius (``--radius-voxels`` × voxel) and max_nn, in the same process, interleaved
 per repeat, so machine noise hits both alike. Reported: median and best wall and CPU seconds
 (``process_time``, all threads) of each, their ratios, the max |difference|, our per-stage split
-(search, SPFH, FPFH) and the first call in a fresh process with an empty numba cache (compile) and
+(search, SPFH, FPFH), ours again with one numba thread (on a loaded 2-core machine a
+second thread that is descheduled makes every parallel region wait), and the first call in a fresh process with an empty numba cache (compile) and
 with the on-disk cache (load). open3d is timed on a prebuilt ``PointCloud`` (its own threads);
 ours from numpy arrays, input checks included. The 1-minute load average is recorded because the
 machine is shared.
@@ -73,11 +74,12 @@ def _voxel_cloud(scene_name: str, voxel_fraction: float):
     scene = load_scene(path)
     diag = float(np.linalg.norm(np.ptp(scene.means.astype(np.float64), axis=0)))
     voxel = voxel_fraction * diag if diag > 0 else 1.0
-    t0 = time.perf_counter()
-    grid = voxel_downsample(scene.means, voxel)
-    t1 = time.perf_counter()
-    normals = voxel_normals(grid, scene.quats, scene.scales_log, weights=opacities(scene))
-    t2 = time.perf_counter()
+    for _ in range(2):  # the second, warm pass is the one timed
+        t0 = time.perf_counter()
+        grid = voxel_downsample(scene.means, voxel)
+        t1 = time.perf_counter()
+        normals = voxel_normals(grid, scene.quats, scene.scales_log, weights=opacities(scene))
+        t2 = time.perf_counter()
     info = {"scene": scene_name, "splats": len(scene), "diagonal": diag, "voxel": voxel,
             "voxel_points": len(grid), "voxel_downsample_s": t1 - t0, "voxel_normals_s": t2 - t1}
     return grid.points, normals, voxel, info
@@ -112,11 +114,21 @@ def run(args) -> int:
     def ours():
         return compute_fpfh(points, normals, radius, max_nn)
 
+    threads = numba.get_num_threads()
+
+    def ours_1thread():
+        numba.set_num_threads(1)
+        try:
+            return compute_fpfh(points, normals, radius, max_nn)
+        finally:
+            numba.set_num_threads(threads)
+
     load_before = os.getloadavg()[0]
-    ours(), theirs()  # warm-up
-    t = {k: [] for k in ("ours_wall", "ours_cpu", "o3d_wall", "o3d_cpu", "search", "spfh", "fpfh")}
+    ours(), ours_1thread(), theirs()  # warm-up
+    t = {k: [] for k in ("ours_wall", "ours_cpu", "ours1_wall", "ours1_cpu", "o3d_wall", "o3d_cpu",
+                         "search", "spfh", "fpfh")}
     for _ in range(args.repeats):
-        for name, fn in (("ours", ours), ("o3d", theirs)):
+        for name, fn in (("ours", ours), ("ours1", ours_1thread), ("o3d", theirs)):
             w0, c0 = time.perf_counter(), time.process_time()
             fn()
             t[f"{name}_wall"].append(time.perf_counter() - w0)
@@ -142,6 +154,8 @@ def run(args) -> int:
         "speedup_wall_median": med["o3d_wall"] / med["ours_wall"],
         "speedup_wall_best": best["o3d_wall"] / best["ours_wall"],
         "speedup_cpu_median": med["o3d_cpu"] / med["ours_cpu"],
+        "speedup_wall_median_1thread": med["o3d_wall"] / med["ours1_wall"],
+        "speedup_cpu_median_1thread": med["o3d_cpu"] / med["ours1_cpu"],
         "first_call": first, "samples": t,
     }
     path = write_result(NAME, payload, _markdown(payload))
@@ -161,17 +175,20 @@ def _markdown(p: dict) -> str:
         f"max_nn {p['max_nn']}; numba threads {p['numba_threads']} ({p['numba_threading_layer']}); "
         f"load average {p['load_average_1min'][0]:.1f} → {p['load_average_1min'][1]:.1f}",
         "",
-        "| | ours | open3d | open3d / ours |",
-        "|---|---|---|---|",
-        f"| wall, median (ms) | {m['ours_wall'] * ms:.2f} | {m['o3d_wall'] * ms:.2f} | {p['speedup_wall_median']:.2f}× |",
-        f"| wall, best (ms) | {b['ours_wall'] * ms:.2f} | {b['o3d_wall'] * ms:.2f} | {p['speedup_wall_best']:.2f}× |",
-        f"| CPU, median (ms) | {m['ours_cpu'] * ms:.2f} | {m['o3d_cpu'] * ms:.2f} | {p['speedup_cpu_median']:.2f}× |",
+        f"| | ours ({p['numba_threads']} threads) | ours (1 thread) | open3d (own threads) | open3d / ours |",
+        "|---|---|---|---|---|",
+        f"| wall, median (ms) | {m['ours_wall'] * ms:.2f} | {m['ours1_wall'] * ms:.2f} | {m['o3d_wall'] * ms:.2f} | "
+        f"{p['speedup_wall_median']:.2f}× ({p['speedup_wall_median_1thread']:.2f}× 1 thread) |",
+        f"| wall, best (ms) | {b['ours_wall'] * ms:.2f} | {b['ours1_wall'] * ms:.2f} | {b['o3d_wall'] * ms:.2f} | "
+        f"{p['speedup_wall_best']:.2f}× |",
+        f"| CPU, median (ms) | {m['ours_cpu'] * ms:.2f} | {m['ours1_cpu'] * ms:.2f} | {m['o3d_cpu'] * ms:.2f} | "
+        f"{p['speedup_cpu_median']:.2f}× ({p['speedup_cpu_median_1thread']:.2f}× 1 thread) |",
         "",
         f"max |ours − open3d| = {p['max_abs_diff']:.3g} (histogram values of scale 100)",
         "",
         f"our stages, median wall (ms): search {m['search'] * ms:.2f}, SPFH {m['spfh'] * ms:.2f}, "
         f"FPFH {m['fpfh'] * ms:.2f}; voxel_downsample {p['voxel_downsample_s'] * ms:.0f}, "
-        f"voxel_normals {p['voxel_normals_s'] * ms:.0f} (once)",
+        f"voxel_normals {p['voxel_normals_s'] * ms:.0f} (warm, once)",
         "",
         "first call in a fresh process (import / first call, s): " + "; ".join(
             f"{k}: {v['import_s']:.2f} / {v['first_call_s']:.2f}" for k, v in p["first_call"].items()),

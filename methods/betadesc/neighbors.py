@@ -12,7 +12,7 @@ cells along z is one contiguous slice). A query scans, per (x, y) column, only t
 that can hold a point of its ball (bounds from its exact position, with a 1e-7·h slack so rounding
 can only widen them), keeping candidates with ``d² < ρ²``. ρ is first a guess — 1.3× the previous
 query's k-th d² (queries run in cell order, so neighbours' densities are alike) — and if that ball
-holds fewer than K points the full radius r is scanned; when ≥ K lie inside the guess ball the K
+holds fewer than K points it is rescanned with a 3× larger d² bound, up to r; when ≥ K lie inside the guess ball the K
 nearest are all inside it, so the guess changes the speed, never the result. Of more than K
 candidates the K smallest under the total order ``(d², self first, index)`` are kept (bucket
 select on d², quickselect inside the boundary bucket). Ties at the K-th distance are thus broken by
@@ -36,6 +36,7 @@ import numpy as np
 _MAX_CELLS = 1 << 22  # dense grid size cap (32 MiB of int64 cell starts)
 _BUCKETS = 128  # buckets of d²/r² for the k-smallest selection
 _GUESS_GROWTH = 1.3  # first-try ball: 1.3 × the previous query's k-th d²
+_RETRY_GROWTH = 3.0  # a ball with too few points is retried with 3× the d² bound (at most r²)
 _CHUNKS = 64  # queries are processed in this many independent chunks (any thread count)
 
 
@@ -232,11 +233,11 @@ def _hybrid_kernel(points, lo, h, dims, order, starts, r2, max_nn, out_idx, out_
         for pos in range(start, stop):  # queries in cell order, so consecutive ones are close
             q = order[pos]
             # first a smaller ball from the previous query's k-th distance: if it already holds
-            # max_nn points, the max_nn nearest are all inside it (exact); else scan the full r.
+            # max_nn points, the max_nn nearest are all inside it (exact); else grow it up to r.
             rr2 = min(r2, guess * _GUESS_GROWTH)
             n = _scan_ball(q, points, sp, order, lo, h, dims, starts, rr2, slack, buf_d, buf_r)
-            if n < max_nn and rr2 < r2:
-                rr2 = r2
+            while n < max_nn and rr2 < r2:
+                rr2 = min(r2, max(rr2 * _RETRY_GROWTH, r2 / 64.0))  # ≤ 4 retries, even from 0
                 n = _scan_ball(q, points, sp, order, lo, h, dims, starts, rr2, slack, buf_d, buf_r)
             for s in range(n):
                 if buf_r[s] == q:
