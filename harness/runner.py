@@ -34,6 +34,10 @@ from harness.stage_tasks import (
 )
 from harness.toolkit import Toolkit, module_versions
 
+#: pruned sets per view task: small enough to balance two workers, large enough that the per-task
+#: reference LPIPS features (one VGG pass) stay a small overhead
+CHUNK = 8
+
 
 @dataclass
 class RunResult:
@@ -168,6 +172,9 @@ class Runner:
                         spec.resolve_params(mv.params), p.seed,
                         [c.to_dict() for c in item.train] if spec.needs else None, p.device, self.toolkit))
                 pending[key].append((i, mv.key))
+        if self.workers > 1:  # camera-aware (rendering) and big scenes first, so the pool ends together
+            cost = {k: items[ik[0][0]].n_splats * (10 if t.train else 1) for t, (k, ik) in zip(tasks, pending.items())}
+            tasks.sort(key=lambda t: -cost[t.key])
         for res in self._map("score", run_score, tasks):
             if res["error"]:
                 self.errors.append(f"score {res['key'][:12]}: {res['error']}")
@@ -220,8 +227,11 @@ class Runner:
                               code=self.versions.metrics)
 
     def _view_stage(self, items, prunes):
+        """Reference renders first (one task per view), then the pruned sets in chunks of
+        :data:`CHUNK` masks, biggest scenes first, so two workers finish together. A chunk recomputes
+        its view's reference features unless its worker measured the same view just before."""
         p = self.config.protocol
-        tasks = []
+        refs, chunks = [], []
         for i, item in enumerate(items):
             masks: dict[str, bool] = {}
             for mv in variants_for(item, self.config.methods):
@@ -237,13 +247,23 @@ class Runner:
                     if self.cache.get_json("metrics", mkey) is None:
                         jobs.append(MaskJob(mkey, mask, png and v == 0))
                 have_ref = self.cache.get_json("render_ref", ref_key) is not None
+
+                def task(jobs_, render_ref=False, ref_png=False, ref_key=ref_key, item=item, cam=cam):
+                    return ViewTask(str(self.cache.root), ref_key, item.path, item.spec.lod, item.digest,
+                                    item.n_splats, cam.to_dict(), p.renderer, p.device, p.background, p.metrics,
+                                    jobs_, render_ref=render_ref, ref_png=ref_png, toolkit=self.toolkit)
+
                 ref_png = not self.cache.has("images", ref_key, "png")  # contact sheets and figures
-                if jobs or not have_ref or ref_png:
-                    tasks.append(ViewTask(str(self.cache.root), ref_key, item.path, item.spec.lod, item.digest,
-                                          item.n_splats, cam.to_dict(), p.renderer, p.device, p.background,
-                                          p.metrics, jobs, render_ref=not have_ref, ref_png=ref_png,
-                                          toolkit=self.toolkit))
-        for res in self._map("render+metrics", run_view, tasks, weight=lambda t: max(1, len(t.masks))):
+                if not have_ref or ref_png:
+                    refs.append(task([], render_ref=not have_ref, ref_png=ref_png))
+                cost = len(jobs) * (1.0 + item.n_splats / 5e5)  # LPIPS pass + a render growing with N
+                chunks += [(cost, task(jobs[c:c + CHUNK])) for c in range(0, len(jobs), CHUNK)]
+        if self.workers > 1:  # longest first; in-process order keeps a view's chunks together
+            refs.sort(key=lambda t: -t.n_splats)
+            chunks.sort(key=lambda ct: -ct[0])
+        results = self._map("render_ref", run_view, refs)
+        results += self._map("render+metrics", run_view, [t for _, t in chunks], weight=lambda t: len(t.masks))
+        for res in results:
             for key, err in res["errors"]:
                 self.errors.append(f"view {res['ref_key'][:12]}{'' if key is None else ' mask ' + key[:12]}: {err}")
 
