@@ -76,12 +76,19 @@ def contact_sheets(items, cache, ref_key, out_dir: Path) -> list[Path]:
     return out
 
 
-def git_commit() -> str:
+def _git(*args) -> str:
     try:
-        return subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO_ROOT, capture_output=True, text=True,
-                              timeout=10, check=False).stdout.strip()
+        return subprocess.run(["git", *args], cwd=REPO_ROOT, capture_output=True, text=True, timeout=10,
+                              check=False).stdout.strip()
     except (OSError, subprocess.SubprocessError):
         return ""
+
+
+def git_commit() -> str:
+    """HEAD, with ``+dirty`` when tracked files differ from it (the numbers are then not reproducible
+    from the commit alone)."""
+    head = _git("rev-parse", "HEAD")
+    return f"{head}+dirty" if head and _git("status", "--porcelain", "--untracked-files=no") else head
 
 
 def machine() -> dict:
