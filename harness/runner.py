@@ -120,6 +120,7 @@ class Runner:
         from methods.registry import get_pruner
 
         t_all = time.perf_counter()
+        self.toolkit.check_metrics(self.config.protocol.metrics)
         versions = Versions.of(self.toolkit)
         self.versions = versions
 

@@ -73,6 +73,16 @@ def make_metrics(names: tuple[str, ...], device: str):
     return MetricSuite(names, device)
 
 
+def check_metrics(names: tuple[str, ...]) -> None:
+    """Fail before any work when a metric cannot run: LPIPS-VGG weights not fetched -> InputError."""
+    if "lpips" in names:
+        from harness.errors import InputError
+        from harness.metrics.lpips_weights import FETCH_HINT, weights_path
+
+        if not weights_path().is_file():
+            raise InputError(weights_path(), f"LPIPS-VGG backbone weights are missing; {FETCH_HINT}")
+
+
 @dataclass(frozen=True)
 class Toolkit:
     load_scene: Callable = load_scene
@@ -81,6 +91,7 @@ class Toolkit:
     load_cameras: Callable = load_cameras
     make_renderer: Callable = make_renderer
     make_metrics: Callable = make_metrics
+    check_metrics: Callable = check_metrics
     #: module names whose source versions each stage (cache-key "code" component)
     reader_modules: tuple[str, ...] = ("harness.scene_io", "harness.ply_io", "harness.splat_io", "harness.sog_io")
     rig_modules: tuple[str, ...] = ("harness.rigs", "harness.cameras")

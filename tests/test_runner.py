@@ -163,3 +163,13 @@ def test_cameras_file_split_by_name(tmp_path, scenes):
                         "cameras": {"path": str(tmp_path / "gone.json"), "test_every": 8}}], ["opacity"])
     _, df2 = _run(missing, tmp_path)
     assert df2.iloc[0]["status"] == "skipped" and "cameras not found" in df2.iloc[0]["reason"]
+
+
+def test_missing_lpips_weights_fail_before_any_work(scenes, tmp_path, monkeypatch):
+    from harness.errors import InputError
+
+    monkeypatch.setenv("HARNESS_CACHE", str(tmp_path / "empty-home"))
+    cfg = _config({"s0": scenes["s0"]}, ["opacity"], protocol={"longest_side": 32, "metrics": ["lpips"]})
+    with pytest.raises(InputError, match="harness fetch --weights"):
+        _run(cfg, tmp_path)
+    assert not (tmp_path / "cache" / "score").exists()
