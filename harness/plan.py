@@ -75,18 +75,38 @@ class Versions:
                    metrics=module_versions(toolkit.metric_modules))
 
     def pruner(self, name: str) -> str:
-        """Digest of the code defining pruner ``name`` (+ registry and targeting).
-
-        A pruner in ``pkg.sub.module`` is versioned by the whole ``pkg.sub`` package (e.g. every file
-        of ``methods.betadesc``); one in a top-level module (``methods.simple``) by that module.
-        """
+        """Digest of the code a pruner runs: its module and, transitively, every project module
+        (``methods``, ``renderers``, ``harness``) reachable through module-level names — e.g.
+        LightGS's projection code in ``renderers`` or BetaDescPrune's sibling modules — so an edit
+        anywhere on that path, and only there, invalidates its scores."""
         if name not in self.pruners:
             from methods.registry import get_pruner
 
-            parts = get_pruner(name).fn.__module__.split(".")
-            target = ".".join(parts[:2]) if len(parts) > 2 else ".".join(parts)
-            self.pruners[name] = module_versions((target, "methods.registry", "methods.targeting"))
+            mods = sorted(project_closure(get_pruner(name).fn.__module__))
+            self.pruners[name] = module_versions(tuple(mods) + ("methods.registry",))
         return self.pruners[name]
+
+
+PROJECT_PACKAGES = ("methods", "renderers", "harness")
+
+
+def project_closure(module_name: str, roots=PROJECT_PACKAGES) -> set[str]:
+    """Names of the project modules reachable from ``module_name`` through module-level globals
+    (imported modules, and the modules defining imported functions/classes)."""
+    import inspect
+    import sys
+
+    seen, todo = set(), [module_name]
+    while todo:
+        name = todo.pop()
+        if name in seen or name.split(".")[0] not in roots or name not in sys.modules:
+            continue
+        seen.add(name)
+        for value in vars(sys.modules[name]).values():
+            ref = value.__name__ if inspect.ismodule(value) else getattr(value, "__module__", None)
+            if isinstance(ref, str) and ref not in seen:
+                todo.append(ref)
+    return seen
 
 
 # --------------------------------------------------------------------------- resolving sources
