@@ -173,3 +173,11 @@ def test_missing_lpips_weights_fail_before_any_work(scenes, tmp_path, monkeypatc
     with pytest.raises(InputError, match="harness fetch --weights"):
         _run(cfg, tmp_path)
     assert not (tmp_path / "cache" / "score").exists()
+
+
+def test_pruner_version_follows_imported_project_modules():
+    from harness.plan import project_closure
+
+    mods = project_closure("tests.runner_fakes", roots=("tests", "harness", "methods"))
+    assert {"tests.runner_fakes", "harness.cameras", "harness.scene", "methods.registry", "harness.toolkit"} <= mods
+    assert not any(m.startswith(("numpy", "renderers")) for m in mods)
