@@ -102,7 +102,7 @@ def summarize_groups(df: pd.DataFrame) -> dict[str, dict]:
         finite = psnr[np.isfinite(psnr)]
         out[group_key(scene, method, variant, ratio)] = {
             "scene": scene, "method": method, "variant": variant, "ratio": float(ratio),
-            "n_views": int(len(g)),
+            "n_views": len(g),
             "psnr": float(finite.mean()) if finite.size else None,
             "psnr_n_inf": int(psnr.size - finite.size),
             "ssim": _finite_or_none(g["ssim"].astype(float).mean()) if "ssim" in g else None,

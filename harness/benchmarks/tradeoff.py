@@ -114,7 +114,14 @@ def run(args) -> int:
     from harness.rigs import scene_rig
     from harness.scene_io import load_scene
     from harness.tracking import time_calibration
-    from harness.tradeoff_knobs import PRUNE_FAMILIES, QUICK_PRUNE, Evaluator, eval_knobs, pareto_front, prune_knobs
+    from harness.tradeoff_knobs import (
+        PRUNE_FAMILIES,
+        QUICK_PRUNE,
+        Evaluator,
+        eval_knobs,
+        pareto_front,
+        prune_knobs,
+    )
     from methods.targeting import select_by_ratio
 
     if args.views < 1 or args.repeats < 1:

@@ -124,5 +124,5 @@ KNOWN_ISSUE_EVIDENCE_FLOAT32 = pytest.mark.skip(reason=(
 @KNOWN_ISSUE_EVIDENCE_FLOAT32
 def test_evidence_float32_statistics_keep_float64_precision():
     z = np.zeros(1, np.float32)
-    a, b = evidence(z, z, z, z, z, PRESETS["baseline"], prior=1e-12)
+    a, _ = evidence(z, z, z, z, z, PRESETS["baseline"], prior=1e-12)
     assert a[0] == 1e-12  # Eq. 6 with all statistics 0 is exactly the prior, in float64
