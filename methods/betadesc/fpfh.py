@@ -193,9 +193,12 @@ def _spfh_kernel(p, nrm, index, d2, count, out):
 @nb.njit(parallel=True, cache=True, fastmath=False)
 def _fpfh_kernel(spfh, index, d2, count, out):
     m = spfh.shape[0]
+    # a run-time trip count lets LLVM's loop vectoriser (with its alias check) take the 33-bin
+    # loop; a constant one is unrolled to scalars instead (1.7× slower here)
+    dim = spfh.shape[1]
     chunk = (m + _CHUNKS - 1) // _CHUNKS
     for ch in nb.prange(_CHUNKS):
-        acc = np.empty(FPFH_DIM)
+        acc = np.empty(dim)
         for i in range(ch * chunk, min(m, (ch + 1) * chunk)):
             c = count[i]
             if c <= 1:
@@ -207,7 +210,7 @@ def _fpfh_kernel(spfh, index, d2, count, out):
                     continue
                 w = 1.0 / d
                 j = index[i, k]
-                for b in range(FPFH_DIM):
+                for b in range(dim):
                     acc[b] += spfh[j, b] * w
             for blk in range(3):
                 s = 0.0

@@ -78,10 +78,13 @@ def _grid(points: np.ndarray, radius: float):
 
 
 @nb.njit(cache=True, inline="always")
-def _cell_range(q, r, h, slack, n):
-    """Cells [a, b] of one axis whose slab can hold a point within r of coordinate q (grid units)."""
-    a = int(math.floor((q - r - slack) / h))
-    b = int(math.floor((q + r + slack) / h))
+def _cell_range(q, r, inv_h, slack, n):
+    """Cells [a, b] of one axis whose slab can hold a point within r of coordinate q (grid units).
+
+    Multiplying by 1/h instead of dividing by h moves the bounds by an ulp at most, far inside the
+    slack (which only ever widens them)."""
+    a = int(math.floor((q - r - slack) * inv_h))
+    b = int(math.floor((q + r + slack) * inv_h))
     return max(a, 0), min(b, n - 1)
 
 
@@ -180,6 +183,7 @@ def _keep_smallest(buf_d, buf_r, n, k, bscale, hist, tmp_d, tmp_r):
 def _scan_ball(q, points, sp, order, lo, h, dims, starts, rr2, slack, buf_d, buf_r):
     """Append every point with d² < rr2 to ``buf`` (d², index); tight z-runs per (x, y) column."""
     nx, ny, nz = dims[0], dims[1], dims[2]
+    inv_h = 1.0 / h
     qx = points[q, 0]
     qy = points[q, 1]
     qz = points[q, 2]
@@ -187,19 +191,19 @@ def _scan_ball(q, points, sp, order, lo, h, dims, starts, rr2, slack, buf_d, buf
     gy0 = qy - lo[1]
     gz0 = qz - lo[2]
     n = 0
-    xa, xb = _cell_range(gx0, math.sqrt(rr2), h, slack, nx)
+    xa, xb = _cell_range(gx0, math.sqrt(rr2), inv_h, slack, nx)
     for x in range(xa, xb + 1):
         gx = _gap(gx0, x, h, slack)
         rx = rr2 - gx * gx
         if rx <= 0.0:
             continue
-        ya, yb = _cell_range(gy0, math.sqrt(rx), h, slack, ny)
+        ya, yb = _cell_range(gy0, math.sqrt(rx), inv_h, slack, ny)
         for y in range(ya, yb + 1):
             gy = _gap(gy0, y, h, slack)
             rxy = rx - gy * gy
             if rxy <= 0.0:
                 continue
-            za, zb = _cell_range(gz0, math.sqrt(rxy), h, slack, nz)
+            za, zb = _cell_range(gz0, math.sqrt(rxy), inv_h, slack, nz)
             base = (x * ny + y) * nz
             for s in range(starts[base + za], starts[base + zb + 1]):
                 ex = qx - sp[s, 0]
