@@ -98,7 +98,7 @@ def test_hybrid_search_rejects_bad_parameters():
 
 # --------------------------------------------------------------------------- alpha bins
 def _alpha_bin_reference(y, x):
-    return min(max(int(math.floor(11 * (math.atan2(y, x) + math.pi) / (2.0 * math.pi))), 0), 10)
+    return min(max(math.floor(11 * (math.atan2(y, x) + math.pi) / (2.0 * math.pi)), 0), 10)
 
 
 def test_alpha_bin_is_exact_near_edges_and_axes():

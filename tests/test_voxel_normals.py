@@ -71,7 +71,7 @@ def test_voxel_grid_degenerate_inputs():
     rng = np.random.default_rng(2)
     pts = rng.uniform(0, 1, size=(500, 3))
     fine = voxel_downsample(pts, 1e-4)
-    keys, members, _ = _brute_grid(pts, 1e-4)
+    keys, _, _ = _brute_grid(pts, 1e-4)
     assert [tuple(k) for k in fine.keys] == keys
     for bad in (0.0, -1.0, np.nan, np.inf):
         with pytest.raises(ValueError):

@@ -167,30 +167,37 @@ def run(args) -> int:
 def _markdown(p: dict) -> str:
     m, b = p["median_s"], p["best_s"]
     ms = 1e3
+    header = (f"{p['splats']:,} splats → {p['voxel_points']:,} voxel points (voxel {p['voxel']:.4g} = "
+              f"{p['voxel'] / p['diagonal']:.3%} of the diagonal); radius {p['radius_voxels']:g} voxels, "
+              f"max_nn {p['max_nn']}; numba threads {p['numba_threads']} ({p['numba_threading_layer']}); "
+              f"load average {p['load_average_1min'][0]:.1f} → {p['load_average_1min'][1]:.1f}")
+    wall_med = (f"| wall, median (ms) | {m['ours_wall'] * ms:.2f} | {m['ours1_wall'] * ms:.2f} | "
+                f"{m['o3d_wall'] * ms:.2f} | {p['speedup_wall_median']:.2f}× "
+                f"({p['speedup_wall_median_1thread']:.2f}× 1 thread) |")
+    wall_best = (f"| wall, best (ms) | {b['ours_wall'] * ms:.2f} | {b['ours1_wall'] * ms:.2f} | "
+                 f"{b['o3d_wall'] * ms:.2f} | {p['speedup_wall_best']:.2f}× |")
+    cpu_med = (f"| CPU, median (ms) | {m['ours_cpu'] * ms:.2f} | {m['ours1_cpu'] * ms:.2f} | "
+               f"{m['o3d_cpu'] * ms:.2f} | {p['speedup_cpu_median']:.2f}× "
+               f"({p['speedup_cpu_median_1thread']:.2f}× 1 thread) |")
+    stages = (f"our stages, median wall (ms): search {m['search'] * ms:.2f}, SPFH {m['spfh'] * ms:.2f}, "
+              f"FPFH {m['fpfh'] * ms:.2f}; voxel_downsample {p['voxel_downsample_s'] * ms:.0f}, "
+              f"voxel_normals {p['voxel_normals_s'] * ms:.0f} (warm, once)")
+    first = "; ".join(f"{k}: {v['import_s']:.2f} / {v['first_call_s']:.2f}" for k, v in p["first_call"].items())
     lines = [
         f"# FPFH: ours (numba) vs open3d — {p['scene']}",
         "",
-        f"{p['splats']:,} splats → {p['voxel_points']:,} voxel points (voxel {p['voxel']:.4g} = "
-        f"{p['voxel'] / p['diagonal']:.3%} of the diagonal); radius {p['radius_voxels']:g} voxels, "
-        f"max_nn {p['max_nn']}; numba threads {p['numba_threads']} ({p['numba_threading_layer']}); "
-        f"load average {p['load_average_1min'][0]:.1f} → {p['load_average_1min'][1]:.1f}",
+        header,
         "",
         f"| | ours ({p['numba_threads']} threads) | ours (1 thread) | open3d (own threads) | open3d / ours |",
         "|---|---|---|---|---|",
-        f"| wall, median (ms) | {m['ours_wall'] * ms:.2f} | {m['ours1_wall'] * ms:.2f} | {m['o3d_wall'] * ms:.2f} | "
-        f"{p['speedup_wall_median']:.2f}× ({p['speedup_wall_median_1thread']:.2f}× 1 thread) |",
-        f"| wall, best (ms) | {b['ours_wall'] * ms:.2f} | {b['ours1_wall'] * ms:.2f} | {b['o3d_wall'] * ms:.2f} | "
-        f"{p['speedup_wall_best']:.2f}× |",
-        f"| CPU, median (ms) | {m['ours_cpu'] * ms:.2f} | {m['ours1_cpu'] * ms:.2f} | {m['o3d_cpu'] * ms:.2f} | "
-        f"{p['speedup_cpu_median']:.2f}× ({p['speedup_cpu_median_1thread']:.2f}× 1 thread) |",
+        wall_med,
+        wall_best,
+        cpu_med,
         "",
         f"max |ours − open3d| = {p['max_abs_diff']:.3g} (histogram values of scale 100)",
         "",
-        f"our stages, median wall (ms): search {m['search'] * ms:.2f}, SPFH {m['spfh'] * ms:.2f}, "
-        f"FPFH {m['fpfh'] * ms:.2f}; voxel_downsample {p['voxel_downsample_s'] * ms:.0f}, "
-        f"voxel_normals {p['voxel_normals_s'] * ms:.0f} (warm, once)",
+        stages,
         "",
-        "first call in a fresh process (import / first call, s): " + "; ".join(
-            f"{k}: {v['import_s']:.2f} / {v['first_call_s']:.2f}" for k, v in p["first_call"].items()),
+        f"first call in a fresh process (import / first call, s): {first}",
     ]
     return "\n".join(lines)

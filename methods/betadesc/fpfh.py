@@ -70,7 +70,7 @@ _CHUNKS = 64  # points are processed in this many independent chunks (any thread
 
 @nb.njit(cache=True, fastmath=False, inline="always")
 def _alpha_bin_exact(y, x):
-    h = int(math.floor(11 * (math.atan2(y, x) + math.pi) / (2.0 * math.pi)))
+    h = math.floor(11 * (math.atan2(y, x) + math.pi) / (2.0 * math.pi))
     return min(max(h, 0), 10)
 
 
@@ -175,8 +175,8 @@ def _spfh_kernel(p, nrm, index, d2, count, out):
                 buf[6, k] = wx * tx + wy * ty + wz * tz
                 buf[7, k] = ux * tx + uy * ty + uz * tz
                 buf[11, k] = 1.0 if ok else 0.0
-                bins[1, k] = min(max(int(math.floor(11 * (phi + 1.0) * 0.5)), 0), 10)
-                bins[2, k] = min(max(int(math.floor(11 * (theta + 1.0) * 0.5)), 0), 10)
+                bins[1, k] = min(max(math.floor(11 * (phi + 1.0) * 0.5), 0), 10)
+                bins[2, k] = min(max(math.floor(11 * (theta + 1.0) * 0.5), 0), 10)
             for k in range(1, c):  # pass 3: α bins (5 = the bin of α = 0 for degenerate pairs)
                 h = _alpha_bin_fast(buf[6, k], buf[7, k])
                 bins[0, k] = h if buf[11, k] != 0.0 else 5

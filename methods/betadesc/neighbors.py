@@ -83,8 +83,8 @@ def _cell_range(q, r, inv_h, slack, n):
 
     Multiplying by 1/h instead of dividing by h moves the bounds by an ulp at most, far inside the
     slack (which only ever widens them)."""
-    a = int(math.floor((q - r - slack) * inv_h))
-    b = int(math.floor((q + r + slack) * inv_h))
+    a = math.floor((q - r - slack) * inv_h)
+    b = math.floor((q + r + slack) * inv_h)
     return max(a, 0), min(b, n - 1)
 
 

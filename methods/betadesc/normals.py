@@ -33,7 +33,11 @@ import math
 import numba as nb
 import numpy as np
 from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import breadth_first_order, connected_components, minimum_spanning_tree
+from scipy.sparse.csgraph import (
+    breadth_first_order,
+    connected_components,
+    minimum_spanning_tree,
+)
 
 from methods.betadesc.neighbors import hybrid_search
 from methods.betadesc.voxel import VoxelGrid

@@ -17,9 +17,8 @@ in splat-index order, so a permutation of the splats can change a voxel point by
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import math
+from dataclasses import dataclass
 
 import numba as nb
 import numpy as np
@@ -128,7 +127,7 @@ def _packed_keys(p, origin, voxel, dims):
     for i in nb.prange(n):
         k = 0
         for a in range(3):
-            c = min(max(int(math.floor((p[i, a] - origin[a]) / voxel)), 0), dims[a] - 1)
+            c = min(max(math.floor((p[i, a] - origin[a]) / voxel), 0), dims[a] - 1)
             k = k * dims[a] + c
         out[i] = k
     return out
