@@ -136,7 +136,7 @@ def _packed_keys(p, origin, voxel, dims):
 @nb.njit(cache=True)
 def _dense_ids(lin, ncell):
     """Voxel id of every point, ids numbered in increasing cell order, via a dense cell table."""
-    table = np.zeros(ncell, np.int64)
+    table = np.zeros(ncell, np.int32)  # voxel ids < N < 2**31; half the memory of int64
     for c in lin:
         table[c] = 1
     m = 0
