@@ -1,0 +1,76 @@
+"""LightGSPrune: LightGaussian's global significance (pruning only, no fine-tuning).
+
+Read from VITA-Group/LightGaussian (``prune.py``: ``prune_list``, ``calculate_v_imp_score``;
+``prune_finetune.py``: ``--prune_type v_important_score``, ``--v_pow 0.1``; ``scene/gaussian_model.py``:
+``prune_gaussians``) and its rasterizer's count pass (``renderCUDA_count`` in
+Kevin-2017/compress-diff-gaussian-rasterization)::
+
+    I_j  = Σ_views Σ_pixels o_j · T_j        (stored opacity times the transmittance before j, summed
+                                               over every pixel where splat j passes the α tests)
+    V_j  = s_x·s_y·s_z                       (activated scales: get_scaling = exp)
+    V_ref = sort(V, descending)[int(0.9·N)]  (the value 90 % of the way down; no clamp anywhere)
+    score_j = (V_j / V_ref)^v_pow · I_j,  v_pow = 0.1
+
+Readings decided here:
+
+* The count pass is graphdeco's forward with early termination: a pixel stops at the splat whose
+  T·(1 − α) would fall below 1e-4, and that splat and the ones behind it get nothing. ``early_stop``
+  (default true) keeps that; false counts every splat as the harness renderers composite them.
+* Footprint: the harness renderers' ±radius box (the reference's ``footprint="box"``), not graphdeco's
+  whole-tile evaluation (which also lets a splat paint faint pixels beyond its radius).
+* Views: the context's training cameras, each resized to ``longest_side`` pixels on its long side
+  (default 512, for speed; ``0`` keeps their own resolution). Σ over pixels scales with the pixel
+  count, the same factor for every splat, so only small-splat rounding depends on it.
+* (V_j / V_ref)^v_pow is evaluated as exp(v_pow·(Σ log s_j − log V_ref)) in float64, which ranks
+  like LightGaussian's float32 product but cannot underflow to 0 for tiny splats.
+
+The accumulation uses :mod:`methods.pixel_pairs` (the reference rasterizer's projection and α tests,
+compositing over enumerated (pixel, splat) pairs); it does not need a renderer from the context.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from harness.scene import GaussianScene
+from methods.pixel_pairs import build_pairs, composite
+from methods.registry import PruneContext, register_pruner
+from renderers.projection import SplatTensors, project_gaussians
+
+V_REF_FRACTION = 0.9
+
+
+def significance(scene: GaussianScene, cameras, *, longest_side: int = 512, early_stop: bool = True,
+                 device: str = "cpu") -> np.ndarray:
+    """I_j = Σ_views Σ_pixels o_j·T_j over ``cameras`` (float64, (N,))."""
+    st = SplatTensors.from_scene(scene, device=device)
+    total = np.zeros(len(scene), np.float64)
+    for cam in cameras:
+        view = cam.resized(longest_side) if longest_side else cam
+        with torch.no_grad():
+            proj = project_gaussians(st, view)
+        pairs = build_pairs(proj)
+        out = composite(pairs, early_stop=early_stop, stats=True)
+        total[pairs.ids] += out.opacity_t  # a view lists each visible splat once
+    return total
+
+
+def volume_factor(scales_log: np.ndarray, v_pow: float = 0.1) -> np.ndarray:
+    """(V_j / V_ref)^v_pow with V = Π exp(scales_log), V_ref 90 % of the way down the descending sort."""
+    log_v = scales_log.astype(np.float64).sum(axis=1)
+    n = len(log_v)
+    if n == 0:
+        return np.zeros(0)
+    log_ref = np.sort(log_v)[::-1][int(n * V_REF_FRACTION)]
+    return np.exp(v_pow * (log_v - log_ref))
+
+
+@register_pruner("lightgs", needs=("cameras",),
+                 params={"longest_side": 512, "v_pow": 0.1, "early_stop": True})
+def lightgs_score(scene: GaussianScene, ctx: PruneContext) -> np.ndarray:
+    """LightGaussian global significance Σ o·T over training views × (V/V_ref)^0.1."""
+    p = ctx.params
+    imp = significance(scene, ctx.cameras, longest_side=int(p["longest_side"]),
+                       early_stop=bool(p["early_stop"]), device=ctx.device)
+    return imp * volume_factor(scene.scales_log, float(p["v_pow"]))
