@@ -101,6 +101,18 @@ def machine() -> dict:
             "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None}
 
 
+def cpu_seconds() -> float:
+    """User + system CPU seconds of this process and its finished children (the pool's workers):
+    the work done, independent of how many other processes shared the cores."""
+    import resource
+
+    total = 0.0
+    for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN):
+        r = resource.getrusage(who)
+        total += r.ru_utime + r.ru_stime
+    return total
+
+
 def write_run_json(out_dir: Path, config, result, *, workers: int, cache_root: Path, argv=None) -> Path:
     payload = {
         "name": config.name,
@@ -112,6 +124,7 @@ def write_run_json(out_dir: Path, config, result, *, workers: int, cache_root: P
         "workers": workers,
         "cache": str(cache_root),
         "stage_seconds": result.stage_s,
+        "cpu_seconds": cpu_seconds(),
         "cache_counts": result.counts,
         "skipped": [s.__dict__ for s in result.skips],
         "errors": result.errors,
@@ -133,7 +146,8 @@ def summary_lines(result, df, paths: dict) -> list[str]:
     misses = sum(c["misses"] for c in result.counts.values())
     per = ", ".join(f"{s} {c['hits']}/{c['misses']}" for s, c in result.counts.items())
     lines.append(f"cache: {hits} hits, {misses} misses (hits/misses per stage: {per or 'none'})")
-    lines.append("stage seconds: " + ", ".join(f"{k} {v:.1f}" for k, v in result.stage_s.items()))
+    lines.append("stage seconds: " + ", ".join(f"{k} {v:.1f}" for k, v in result.stage_s.items())
+                 + f"; CPU seconds (all processes) {cpu_seconds():.1f}")
     if ok:
         finite = df.loc[(df["status"] == "ok") & np.isfinite(df["psnr"].astype(float)), "psnr"]
         lines.append(f"PSNR over measured pairs: mean {finite.mean():.2f} dB "
