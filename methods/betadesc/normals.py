@@ -86,10 +86,10 @@ def _unit(out, i):
             out[i, a] /= norm
 
 
-@nb.njit(parallel=True, cache=True, fastmath=False)
+@nb.njit(cache=True, fastmath=False)
 def _matrix_axes(rot, s):
     out = np.empty((rot.shape[0], 3))
-    for i in nb.prange(rot.shape[0]):
+    for i in range(rot.shape[0]):
         a = _shortest(s, i)
         for r in range(3):
             out[i, r] = rot[i, r, a]
@@ -97,11 +97,11 @@ def _matrix_axes(rot, s):
     return out
 
 
-@nb.njit(parallel=True, cache=True, fastmath=False)
+@nb.njit(cache=True, fastmath=False)
 def _quat_axes(quat, s):
     """Column ``argmin s`` of R(q) for unit (w, x, y, z), without building R (3DGS convention)."""
     out = np.empty((quat.shape[0], 3))
-    for i in nb.prange(quat.shape[0]):
+    for i in range(quat.shape[0]):
         w, x, y, z = quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3]
         qn = math.sqrt(w * w + x * x + y * y + z * z)
         if qn > 0.0:

@@ -119,12 +119,12 @@ def _bbox(p):
     return lo, hi
 
 
-@nb.njit(parallel=True, cache=True, fastmath=False)
+@nb.njit(cache=True, fastmath=False)
 def _packed_keys(p, origin, voxel, dims):
     """Row-major cell index of ``floor((p − origin)/voxel)`` per point (x slowest, z fastest)."""
     n = p.shape[0]
     out = np.empty(n, np.int64)
-    for i in nb.prange(n):
+    for i in range(n):
         k = 0
         for a in range(3):
             c = min(max(math.floor((p[i, a] - origin[a]) / voxel), 0), dims[a] - 1)
