@@ -172,3 +172,13 @@ def test_voxel_normals_degenerate_inputs_are_finite():
         voxel_normals(grid, quats, scales, orient="up")
     with pytest.raises(ValueError):
         voxel_normals(grid, quats[:10], scales[:10])
+
+
+def test_voxel_normal_follows_the_heavier_members():
+    """Two splats in one voxel, thin along z and along x: the weighted principal axis wins."""
+    grid = voxel_downsample(np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]]), 1.0)
+    quats = np.array([[1.0, 0, 0, 0], [1.0, 0, 0, 0]])
+    scales_log = np.log([[1.0, 1.0, 0.01], [0.01, 1.0, 1.0]])  # normals e_z and e_x
+    for weights, expect in (([1.0, 0.2], [0, 0, 1.0]), ([0.2, 1.0], [1.0, 0, 0])):
+        n = voxel_normals(grid, quats, scales_log, weights=np.array(weights), orient="none")
+        assert np.allclose(np.abs(n), [expect], atol=1e-12)
