@@ -1,0 +1,309 @@
+"""moderngl/EGL splat renderer: classic 3DGS compositing with instanced quads and GL blending.
+
+Pipeline per view (the projection math lives once, in :mod:`renderers.projection`):
+
+1. ``project_gaussians(scene, camera)`` → :class:`~renderers.projection.Projected` (visible splats:
+   2D means, conics, depths, radii, colours, opacities), torch on the CPU or GPU.
+2. Splats with ``o < 1/255`` are dropped (their α = min(0.99, o·g) with g ≤ 1 can never pass the
+   1/255 test, so this is exact). The rest are sorted front to back by view depth (stable
+   ``torch.argsort``, ties by projection order) and uploaded as one interleaved instance buffer.
+3. One instanced draw of 4-vertex triangle strips. Each quad is the smaller (by area) of
+   (a) the rectangle aligned with the conic's eigenvectors and (b) the axis-aligned rectangle
+   (clipped to the ±radius box and to the image) around the ellipse ``dᵀ Q d ≤ K``, ``K = 2·ln(255·o)``,
+   i.e. exactly where ``o·exp(−½ dᵀQd) ≥ 1/255``; pixels outside it are discarded by the α test
+   anyway, so the tight quad changes no pixel (a 0.1 % + 0.01 px margin covers float rounding).
+4. The fragment shader evaluates, for pixel ``p`` (3DGS frame, see below) and ``d = p − mean``::
+
+       power = −½ (a·dx² + c·dy²) − b·dx·dy          (discard if power > 0)
+       α     = min(0.99, o·exp(power))                (discard if α < 1/255)
+       out   = (c·α, α)                               (colour premultiplied)
+
+   and first discards pixels outside the ±radius box: pixel (i, j) is considered iff
+   ``|dx| ≤ r`` and ``|dy| ≤ r`` (the reference rasterizer's default ``footprint="box"``; graphdeco
+   evaluates every pixel of the 16-px tiles the box touches, ``footprint="tile"`` there).
+5. Front-to-back "under" compositing with the transmittance itself kept in the alpha channel of an
+   RGBA32F target cleared to (0, 0, 0, 1): blend func ``rgb: (DST_ALPHA, ONE)``,
+   ``alpha: (ZERO, ONE_MINUS_SRC_ALPHA)``, i.e. for each fragment in primitive (= depth) order::
+
+       C ← C + (c·α)·T        T ← T·(1 − α)
+
+   which is the reference recursion operation for operation (T is not re-derived as 1 − Σ).
+   GL applies blending in primitive order, so the result is the depth-sorted sum
+   ``C = Σ cᵢ αᵢ Tᵢ`` and the final image is ``C + T·bg`` (done on the CPU in float32).
+   Float32 blending is unclamped (checked on llvmpipe: values > 1 and < 0 survive).
+
+**Difference from graphdeco:** GL blending cannot stop a pixel once ``T·(1 − α) < 1e-4`` (that
+needs to read the destination in the shader), so every splat is composited; the reference
+rasterizer's ``early_stop=False`` setting matches this renderer. graphdeco also leaves out the
+splat that crosses the threshold, so against ``early_stop=True`` a pixel differs by the colour
+behind the stop, at most ``T_before·max c`` with ``T_before < 1e-4 / (1 − 0.99) = 1e-2`` (in
+practice about 1e-4).
+
+**Pixel centres:** pixel (i, j) of the image is centred at ``(i, j)`` in the ``means2d`` frame
+(graphdeco: ``pixf = (x, y)``; ``means2d = fx·x/z + cx − 0.5``). GL puts the fragment centre of
+window pixel (i, j) at ``gl_FragCoord.xy = (i + 0.5, j + 0.5)``, so the shader uses
+``p = gl_FragCoord.xy − 0.5 + tile_origin``. Window row j is image row j: means2d y (down) is used
+as GL window y (up) without a flip, and ``glReadPixels`` returns rows bottom-up = image rows
+top-down, so the read-back needs no flip either.
+
+**Tiling:** images larger than ``GL_MAX_VIEWPORT_DIMS`` / ``GL_MAX_RENDERBUFFER_SIZE`` (or the
+``max_tile`` argument) are rendered tile by tile into one framebuffer of tile size, with the tile
+origin as a uniform; every tile redraws all instances (the GL clipper drops the others).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+
+_VERTEX_SHADER = """
+#version 330
+in vec2 in_corner;          // per vertex: (±1, ±1)
+in vec4 in_mean_o_k;        // per instance: mean.xy, opacity, K = 2 ln(255 o)
+in vec4 in_conic_det;       // a, b, c, ac - b^2 (float64 on the CPU: no cancellation)
+in vec4 in_color_r;         // r, g, b, radius
+uniform vec2 u_origin;      // tile origin in pixels
+uniform vec2 u_size;        // tile size in pixels
+uniform vec2 u_image;       // image size in pixels
+flat out vec2 v_mean;
+flat out vec3 v_conic;
+flat out vec4 v_color_o;
+flat out float v_radius;
+
+void main() {
+    vec2 mean = in_mean_o_k.xy;
+    float k = in_mean_o_k.w;
+    float a = in_conic_det.x, b = in_conic_det.y, c = in_conic_det.z, det = in_conic_det.w;
+    float r = in_color_r.w;
+    const float grow = 1.001;
+    const float pad = 0.01;
+    // Eigen-aligned rectangle of the ellipse d'Qd <= K (mu2 = det/mu1 avoids cancellation).
+    float half_tr = 0.5 * (a + c);
+    float mu1 = half_tr + sqrt(max(half_tr * half_tr - det, 0.0));
+    float mu2 = det / mu1;
+    vec2 e1 = abs(b) > 1e-12 * mu1 ? normalize(vec2(b, mu1 - a)) : (a >= c ? vec2(1.0, 0.0) : vec2(0.0, 1.0));
+    vec2 e2 = vec2(-e1.y, e1.x);
+    float h1 = sqrt(k / mu1) * grow + pad;
+    float h2 = sqrt(k / mu2) * grow + pad;
+    // Axis-aligned box of the same ellipse, clipped to the ±radius box and to the image.
+    vec2 ext = min(sqrt(k * vec2(c, a) / det) * grow, vec2(r)) + pad;
+    vec2 lo = max(mean - ext, vec2(-0.5));
+    vec2 hi = min(mean + ext, u_image - 0.5);
+    vec2 box = max(hi - lo, vec2(0.0));
+    vec2 pos;
+    if (4.0 * h1 * h2 < box.x * box.y) {
+        pos = mean + in_corner.x * h1 * e1 + in_corner.y * h2 * e2;
+    } else {
+        pos = mix(lo, hi, 0.5 * in_corner + 0.5);
+    }
+    // 3DGS frame -> window (pixel centre i at i + 0.5) -> tile NDC.
+    gl_Position = vec4((pos + 0.5 - u_origin) / u_size * 2.0 - 1.0, 0.0, 1.0);
+    v_mean = mean;
+    v_conic = in_conic_det.xyz;
+    v_color_o = vec4(in_color_r.rgb, in_mean_o_k.z);
+    v_radius = r;
+}
+"""
+
+_FRAGMENT_SHADER = """
+#version 330
+flat in vec2 v_mean;
+flat in vec3 v_conic;
+flat in vec4 v_color_o;
+flat in float v_radius;
+uniform vec2 u_origin;
+out vec4 f_color;
+
+void main() {
+    vec2 pix = gl_FragCoord.xy - 0.5 + u_origin;
+    vec2 d = pix - v_mean;
+    if (any(greaterThan(abs(d), vec2(v_radius)))) discard;
+    float power = -0.5 * (v_conic.x * d.x * d.x + v_conic.z * d.y * d.y) - v_conic.y * d.x * d.y;
+    if (power > 0.0) discard;
+    float alpha = min(0.99, v_color_o.a * exp(power));
+    if (alpha < 1.0 / 255.0) discard;
+    f_color = vec4(v_color_o.rgb * alpha, alpha);
+}
+"""
+
+
+def _load_triton_first() -> None:
+    """Import triton (when installed) before Mesa loads its LLVM into the process.
+
+    Measured here: creating an llvmpipe EGL context and *then* importing triton (which
+    ``torch.compile`` does, e.g. the reference rasterizer's compiled step) segfaults while loading
+    ``libtriton.so``; in the other order both work. So the GL renderer loads triton first.
+    """
+    try:
+        import triton  # noqa: F401
+    except Exception:  # not installed or not importable: nothing can clash with it later
+        pass
+
+
+class GLUnavailable(RuntimeError):
+    """No EGL OpenGL 3.3 context could be created on this machine."""
+
+
+def pack_instances(projected) -> np.ndarray:
+    """Depth-sorted (front to back) float32 instance records ``(M, 12)`` for the shaders.
+
+    Columns: ``mean_x, mean_y, o, K, a, b, c, ac − b², r, g, b, radius`` with ``K = 2 ln(255 o)``.
+    Splats with ``o < 1/255`` are left out (exact: they never pass the α test).
+    """
+    cpu = lambda t: t.detach().to("cpu", torch.float32)  # noqa: E731
+    op = cpu(projected.opacities).reshape(-1)
+    keep = torch.nonzero(op >= 1.0 / 255.0).reshape(-1)
+    order = keep[torch.argsort(cpu(projected.depths).reshape(-1)[keep], stable=True)]
+    conics = cpu(projected.conics)[order]
+    o = op[order]
+    c64 = conics.to(torch.float64)
+    det = (c64[:, 0] * c64[:, 2] - c64[:, 1] * c64[:, 1]).clamp(min=1e-30).to(torch.float32)
+    out = torch.cat(
+        [
+            cpu(projected.means2d)[order],
+            o[:, None],
+            (2.0 * torch.log(255.0 * o))[:, None],
+            conics,
+            det[:, None],
+            cpu(projected.colors)[order],
+            cpu(projected.radii).reshape(-1)[order, None],
+        ],
+        1,
+    )
+    return out.numpy()
+
+
+def tiles(width: int, height: int, max_tile: int):
+    """Tile rectangles ``(x0, y0, w, h)`` covering a ``width × height`` image, row-major."""
+    for y0 in range(0, height, max_tile):
+        for x0 in range(0, width, max_tile):
+            yield x0, y0, min(max_tile, width - x0), min(max_tile, height - y0)
+
+
+class GLRenderer:
+    """Classic 3DGS rendering on OpenGL (EGL, headless): llvmpipe on the CPU, a GPU when present.
+
+    One context per renderer, created on first use and kept until :meth:`close`. ``max_tile``
+    caps the framebuffer side (default: the GL limits) — tests use it to force tiling.
+    """
+
+    name = "gl"
+
+    def __init__(self, max_tile: int | None = None, device=None):
+        self.device = device
+        self._max_tile_arg = max_tile
+        self.ctx = None
+        self._fbo = None
+        self._fbo_size = None
+        self._instances = None
+        self._vao = None
+
+    # ------------------------------------------------------------------ context
+    def _ensure_context(self) -> None:
+        if self.ctx is not None:
+            return
+        import moderngl
+
+        _load_triton_first()
+        try:
+            ctx = moderngl.create_standalone_context(backend="egl", require=330)
+        except Exception as exc:  # glcontext raises plain Exception subclasses
+            raise GLUnavailable(f"cannot create an EGL OpenGL 3.3 context: {exc}") from exc
+        self.ctx = ctx
+        self._moderngl = moderngl
+        with ctx:
+            self._prog = ctx.program(vertex_shader=_VERTEX_SHADER, fragment_shader=_FRAGMENT_SHADER)
+            corners = np.array([-1, -1, 1, -1, -1, 1, 1, 1], dtype=np.float32)
+            self._corners = ctx.buffer(corners.tobytes())
+            vx, rb = ctx.info["GL_MAX_VIEWPORT_DIMS"], ctx.info["GL_MAX_RENDERBUFFER_SIZE"]
+        self.max_tile = int(min(vx[0], vx[1], rb))
+        if self._max_tile_arg is not None:
+            self.max_tile = int(min(self.max_tile, self._max_tile_arg))
+
+    def _framebuffer(self, width: int, height: int):
+        if self._fbo_size != (width, height):
+            if self._fbo is not None:
+                self._fbo.release()
+                self._fbo_rb.release()
+            self._fbo_rb = self.ctx.renderbuffer((width, height), components=4, dtype="f4")
+            self._fbo = self.ctx.framebuffer(color_attachments=[self._fbo_rb])
+            self._fbo_size = (width, height)
+        return self._fbo
+
+    def _upload(self, records: np.ndarray):
+        data = records.tobytes()
+        if self._instances is None or self._instances.size < len(data):
+            if self._vao is not None:
+                self._vao.release()
+                self._instances.release()
+            self._instances = self.ctx.buffer(reserve=max(len(data), 1 << 16))
+            self._vao = self.ctx.vertex_array(
+                self._prog,
+                [
+                    (self._corners, "2f", "in_corner"),
+                    (self._instances, "4f 4f 4f/i", "in_mean_o_k", "in_conic_det", "in_color_r"),
+                ],
+            )
+        self._instances.write(data)
+        return self._vao
+
+    # ------------------------------------------------------------------ rendering
+    def render(self, scene, camera, background=(0.0, 0.0, 0.0)) -> np.ndarray:
+        """(H, W, 3) float32 linear unclamped image of ``scene`` seen from ``camera``."""
+        from renderers.projection import project_gaussians
+
+        with torch.no_grad():
+            projected = project_gaussians(scene, camera, device=self.device)
+        return self.render_projected(projected, background)
+
+    def render_projected(self, projected, background=(0.0, 0.0, 0.0)) -> np.ndarray:
+        """Composite already projected splats (a ``Projected`` of ``width × height``) into an image."""
+        self._ensure_context()
+        width, height = int(projected.width), int(projected.height)
+        bg = np.asarray(background, dtype=np.float32).reshape(3)
+        records = pack_instances(projected)
+        with self.ctx:  # several renderers (contexts) may live in one process: make ours current
+            rgbt = self._draw(records, width, height)
+        return rgbt[..., :3] + rgbt[..., 3:4] * bg
+
+    def _draw(self, records: np.ndarray, width: int, height: int) -> np.ndarray:
+        """(H, W, 4) float32: Σ cᵢαᵢTᵢ in rgb and the final transmittance T in alpha."""
+        tile = min(self.max_tile, max(width, height))
+        fbo = self._framebuffer(min(tile, width), min(tile, height))
+        vao = self._upload(records) if len(records) else None
+        ctx, mgl, prog = self.ctx, self._moderngl, self._prog
+        ctx.enable(mgl.BLEND)
+        ctx.blend_func = mgl.DST_ALPHA, mgl.ONE, mgl.ZERO, mgl.ONE_MINUS_SRC_ALPHA
+        ctx.blend_equation = mgl.FUNC_ADD
+        prog["u_image"].value = (float(width), float(height))
+        image = np.empty((height, width, 4), dtype=np.float32)
+        fbo.use()
+        for x0, y0, w, h in tiles(width, height, tile):
+            fbo.viewport = (0, 0, w, h)
+            fbo.clear(0.0, 0.0, 0.0, 1.0, viewport=(0, 0, w, h))
+            if vao is not None:
+                prog["u_origin"].value = (float(x0), float(y0))
+                prog["u_size"].value = (float(w), float(h))
+                vao.render(mgl.TRIANGLE_STRIP, vertices=4, instances=len(records))
+            raw = fbo.read(viewport=(0, 0, w, h), components=4, dtype="f4")
+            image[y0 : y0 + h, x0 : x0 + w] = np.frombuffer(raw, dtype=np.float32).reshape(h, w, 4)
+        return image
+
+    def close(self) -> None:
+        """Release every GL object and the context (a later render creates a new one)."""
+        if self.ctx is None:
+            return
+        with self.ctx:
+            for obj in (self._vao, self._instances, self._fbo, getattr(self, "_fbo_rb", None), self._corners,
+                        self._prog):
+                if obj is not None:
+                    obj.release()
+        self.ctx.release()
+        self.ctx = self._fbo = self._fbo_size = self._instances = self._vao = None
+
+    def __enter__(self) -> "GLRenderer":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
