@@ -50,29 +50,23 @@ def copy_images(images: dict, out_dir: Path) -> Path:
     return root
 
 
-def contact_sheets(items, cache, ref_key, out_dir: Path) -> list[Path]:
-    """One PNG grid of the held-out reference renders per scene (first frame)."""
-    from PIL import Image
+def contact_sheets(items, cache, ref_key, out_dir: Path, background=(0.0, 0.0, 0.0)) -> dict[str, list[float]]:
+    """One labelled grid of the held-out reference renders per scene (first frame), via
+    :func:`harness.contact_sheet.write_contact_sheet`; returns each scene's per-view coverage."""
+    from harness.contact_sheet import write_contact_sheet
 
-    out, done = [], set()
+    out: dict[str, list[float]] = {}
     for item in items:
-        if item.spec.name in done:
+        if item.spec.name in out:
             continue
-        done.add(item.spec.name)
-        tiles = [cache.path("images", ref_key(item, cam), "png") for cam in item.test]
-        imgs = [Image.open(p).convert("RGB") for p in tiles if p.exists()]
-        if not imgs:
+        pairs = [(cam.name, cache.load_array("render_ref", ref_key(item, cam))) for cam in item.test]
+        pairs = [(n, im) for n, im in pairs if im is not None]
+        if not pairs:
             continue
-        w, h = max(i.width for i in imgs), max(i.height for i in imgs)
-        cols = min(4, len(imgs))
-        rows = -(-len(imgs) // cols)
-        sheet = Image.new("RGB", (cols * w, rows * h), (32, 32, 32))
-        for k, im in enumerate(imgs):
-            sheet.paste(im, ((k % cols) * w, (k // cols) * h))
         path = Path(out_dir) / "contact_sheets" / f"{_slug(item.spec.name)}.png"
         path.parent.mkdir(parents=True, exist_ok=True)
-        sheet.save(path)
-        out.append(path)
+        out[item.spec.name] = write_contact_sheet([im for _, im in pairs], [n for n, _ in pairs], path,
+                                                  background=background)
     return out
 
 

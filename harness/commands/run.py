@@ -60,11 +60,14 @@ def run(args) -> int:
     df = to_frame(result.rows)
     pq, csv = write_results(df, out_dir)
     images = copy_images(result.images, out_dir)
-    sheets = contact_sheets(runner.items, runner.cache, runner._ref_key, out_dir)
+    sheets = contact_sheets(runner.items, runner.cache, runner._ref_key, out_dir, config.protocol.background)
     written = write_outputs(out_dir, df, config.tables, config.plots)
     run_json = write_run_json(out_dir, config, result, workers=workers, cache_root=cache_root, argv=sys.argv[1:])
     paths = {"results": pq, "results (csv)": csv, "tables": out_dir / "tables", "plots": out_dir / "plots",
-             "images": images, "contact sheets": f"{out_dir / 'contact_sheets'} ({len(sheets)} scenes)",
+             "images": images,
+             "contact sheets": f"{out_dir / 'contact_sheets'} (coverage per view: "
+                               + "; ".join(f"{k} " + " ".join(f"{100 * c:.0f}%" for c in v) for k, v in sheets.items())
+                               + ")",
              "run record": run_json,
              "stage cache": cache_root}
     for line in summary_lines(result, df, paths):
