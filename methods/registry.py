@@ -19,7 +19,19 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 ENTRY_POINT_GROUP = "harness.pruners"
-_BUILTIN_MODULES = ("methods.simple", "methods.betadesc", "methods.lightgs", "methods.confsplat")
+#: built-in pruner name -> module registering it. ``get_pruner`` imports only the module it needs,
+#: so `harness prune --method betadesc` never pays for torch (imported by the camera-aware families).
+_BUILTIN_PRUNERS = {
+    "opacity": "methods.simple",
+    "volume": "methods.simple",
+    "random": "methods.simple",
+    "betadesc": "methods.betadesc",
+    "betadesc-nodesc": "methods.betadesc",
+    "betadesc-nobeta": "methods.betadesc",
+    "betadesc-nodesc-nobeta": "methods.betadesc",
+    "lightgs": "methods.lightgs",
+    "confsplat": "methods.confsplat",
+}
 KNOWN_NEEDS = frozenset({"cameras", "renderer"})
 
 _REGISTRY: dict[str, "PrunerSpec"] = {}
@@ -115,12 +127,8 @@ def _load_all() -> None:
     if _loaded:
         return
     _loaded = True
-    for mod in _BUILTIN_MODULES:
-        try:
-            importlib.import_module(mod)
-        except ModuleNotFoundError as err:  # a family not written yet must not break the rest
-            if err.name != mod:
-                raise
+    for mod in dict.fromkeys(_BUILTIN_PRUNERS.values()):
+        importlib.import_module(mod)
     for ep in entry_points(group=ENTRY_POINT_GROUP):
         ep.load()  # importing the named module runs its @register_pruner decorators
 
@@ -131,7 +139,10 @@ def list_pruners() -> list[PrunerSpec]:
 
 
 def get_pruner(name: str) -> PrunerSpec:
-    _load_all()
+    if name in _BUILTIN_PRUNERS:
+        importlib.import_module(_BUILTIN_PRUNERS[name])
+    if name not in _REGISTRY:
+        _load_all()
     try:
         return _REGISTRY[name]
     except KeyError:
