@@ -23,6 +23,7 @@ Readings decided here:
   count, the same factor for every splat, so only small-splat rounding depends on it.
 * (V_j / V_ref)^v_pow is evaluated as exp(v_pow·(Σ log s_j − log V_ref)) in float64, which ranks
   like LightGaussian's float32 product but cannot underflow to 0 for tiny splats.
+* ``threads``: torch intra-op threads while scoring (default 1, see :func:`methods.pixel_pairs.torch_threads`).
 
 The accumulation uses :mod:`methods.pixel_pairs` (the reference rasterizer's projection and α tests,
 compositing over enumerated (pixel, splat) pairs); it does not need a renderer from the context.
@@ -34,7 +35,7 @@ import numpy as np
 import torch
 
 from harness.scene import GaussianScene
-from methods.pixel_pairs import build_pairs, composite
+from methods.pixel_pairs import build_pairs, composite, torch_threads
 from methods.registry import PruneContext, register_pruner
 from renderers.projection import SplatTensors, project_gaussians
 
@@ -67,10 +68,11 @@ def volume_factor(scales_log: np.ndarray, v_pow: float = 0.1) -> np.ndarray:
 
 
 @register_pruner("lightgs", needs=("cameras",),
-                 params={"longest_side": 512, "v_pow": 0.1, "early_stop": True})
+                 params={"longest_side": 512, "v_pow": 0.1, "early_stop": True, "threads": 1})
 def lightgs_score(scene: GaussianScene, ctx: PruneContext) -> np.ndarray:
     """LightGaussian global significance Σ o·T over training views × (V/V_ref)^0.1."""
     p = ctx.params
-    imp = significance(scene, ctx.cameras, longest_side=int(p["longest_side"]),
-                       early_stop=bool(p["early_stop"]), device=ctx.device)
+    with torch_threads(int(p["threads"])):
+        imp = significance(scene, ctx.cameras, longest_side=int(p["longest_side"]),
+                           early_stop=bool(p["early_stop"]), device=ctx.device)
     return imp * volume_factor(scene.scales_log, float(p["v_pow"]))
