@@ -129,11 +129,25 @@ def _pooled(df: pd.DataFrame, method: str, ratio: float, variant: str = "default
             "lpips": ok["lpips"].mean(), "n": len(ok), "n_inf": int(np.isinf(ok["psnr"]).sum())}
 
 
+def _common(df: pd.DataFrame, cells) -> tuple[pd.DataFrame, list[str]]:
+    """Rows of the scenes (and frames) that every (method, variant, ratio) cell was measured on, so
+    pooled means compare the methods on the same image pairs; also those scenes' names."""
+    ok = df[df["status"] == "ok"]
+    sets = []
+    for m, v, r in cells:
+        c = ok[(ok["method"] == m) & (ok["variant"] == v) & ((ok["ratio"] - r).abs() < _TOL)]
+        if len(c):
+            sets.append(set(c["scene"]))
+    common = sorted(set.intersection(*sets)) if sets else []
+    return df[df["scene"].isin(common)], common
+
+
 def table_keep(df: pd.DataFrame):
     rows, idx = [], []
     for k in KEEPS:
         r = round(1 - k, 9)
-        a, b = _pooled(df, "betadesc-nodesc", r), _pooled(df, "betadesc", r)
+        sub, _ = _common(df, [("betadesc-nodesc", "default", r), ("betadesc", "default", r)])
+        a, b = _pooled(sub, "betadesc-nodesc", r), _pooled(sub, "betadesc", r)
         if a["n"] == 0 and b["n"] == 0:
             continue
         idx.append(f"{round(100 * r)}%")
@@ -161,8 +175,10 @@ def table_sensitivity(df: pd.DataFrame, keep: float = 0.7):
     variants = [v for v in dict.fromkeys(sub["variant"]) if v == "default" or "preset=" in v or "voxel=" in v]
     if len(variants) < 2:
         return None
+    variants = sorted(variants, key=lambda v: (v != "default", "voxel=" in v, v))
+    df, common = _common(df, [("betadesc", v, r) for v in variants])
     idx, rows = [], []
-    for v in sorted(variants, key=lambda v: (v != "default", "voxel=" in v, v)):
+    for v in variants:
         p = _pooled(df, "betadesc", r, v)
         knob = "baseline" if v == "default" else ("voxel size" if "voxel=" in v else "coefficients")
         idx.append((knob, v))
@@ -173,7 +189,8 @@ def table_sensitivity(df: pd.DataFrame, keep: float = 0.7):
     for j, d in enumerate([2, 4, 4, 0, 0]):
         disp.iloc[:, j] = [(_fmt(v, d) if d else str(int(v))) for v in num.iloc[:, j]]
     spread = num["PSNR (↑)"].replace(np.inf, np.nan)
-    return num, disp, [f"betadesc at keep {keep}; PSNR spread across variants {spread.max() - spread.min():.2f} dB"]
+    return num, disp, [f"betadesc at keep {keep} on the scenes every variant ran on ({', '.join(common)}); "
+                       f"PSNR spread across variants {spread.max() - spread.min():.2f} dB"]
 
 
 def table_runtime(s: pd.DataFrame):

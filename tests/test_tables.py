@@ -31,6 +31,8 @@ def _rows():
                              splats_in=1000, splats_out=int(1000 * (1 - r)), score_s=2.0 if m == "betadesc" else 1.5))
     for preset, p in (("preset=flat", 24.0), ("voxel=0.02", 26.5)):
         rows.append({**rows[0], "variant": preset, "ratio": 0.3, "keep": 0.7, "psnr": p})
+    # a second scene measured by the default variant only: must not enter the sensitivity means
+    rows.append({**rows[0], "scene": "b", "label": "scene B", "ratio": 0.3, "keep": 0.7, "psnr": 99.0})
     rows.append({**rows[0], "method": "confsplat", "status": "skipped", "view": "", "psnr": np.nan,
                  "reason": "needs cameras"})
     return to_frame(rows)
@@ -76,8 +78,9 @@ def test_per_scene_gain_and_sensitivity():
     gains = t["per_scene"][0]
     assert gains.loc["scene A", "prune 30%"] == pytest.approx(2.0)
     assert gains.loc["scene A", "prune 70%"] == pytest.approx(0.0)
-    sens = t["sensitivity"][0]
+    sens, _, notes = t["sensitivity"]
     assert list(sens.index.get_level_values("variant")) == ["default", "preset=flat", "voxel=0.02"]
+    assert "(a)" in notes[0]
     assert sens.loc[("baseline", "default"), "PSNR (↑)"] == pytest.approx(26.0)
     rt = t["runtime"][0]
     assert rt.loc["scene A", "desc. overhead (s)"] == pytest.approx(0.5)
