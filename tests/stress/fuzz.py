@@ -175,7 +175,7 @@ def call_info(path: Path) -> tuple[int | None, str, str]:
         try:
             rc = main(["info", "--json", str(path)])
             exc = ""
-        except (Exception, MemoryError, SystemExit) as e:  # noqa: BLE001 - every escape is a finding
+        except (Exception, MemoryError, SystemExit) as e:  # noqa: BLE001 - every escape (timeouts too) is a finding
             rc, exc = None, f"{type(e).__name__}: {e}"[:300]
     return rc, err.getvalue(), exc
 
@@ -188,12 +188,25 @@ def classify(rc, stderr: str, exc: str) -> str:
     return "failure"
 
 
-def run_cases(seeds: list[dict], start: int, count: int, work: str, mem_limit_gb: float = 6.0) -> dict:
-    """Run cases ``start .. start+count`` (seed = case % len(seeds)); returns counts and failures."""
+class CaseTimeout(Exception):
+    """A case ran longer than the fuzzer's per-case limit (a reader loop that does not end)."""
+
+
+def _on_alarm(signum, frame):
+    raise CaseTimeout("case exceeded the per-case time limit")
+
+
+def run_cases(seeds: list[dict], start: int, count: int, work: str, mem_limit_gb: float = 6.0,
+              case_limit_s: int = 20) -> dict:
+    """Run cases ``start .. start+count`` (seed = case % len(seeds)) in this (worker) process, each
+    under SIGALRM after ``case_limit_s`` seconds and a ``mem_limit_gb`` address-space limit;
+    returns counts, failures (a timeout is a failure) and cases slower than 10 s."""
     import resource
+    import signal
 
     lim = int(mem_limit_gb * 2**30)
     resource.setrlimit(resource.RLIMIT_AS, (lim, lim))
+    signal.signal(signal.SIGALRM, _on_alarm)
     work_dir = Path(work) / f"w{os.getpid()}_{start}"
     work_dir.mkdir(parents=True, exist_ok=True)
     counts = {"loaded": 0, "clean_error": 0, "failure": 0}
@@ -222,7 +235,11 @@ def run_cases(seeds: list[dict], start: int, count: int, work: str, mem_limit_gb
             target = work_dir / f"case.{seed['kind']}"
             target.write_bytes(data)
         t0 = time.perf_counter()
-        rc, stderr, exc = call_info(target)
+        signal.alarm(case_limit_s)
+        try:
+            rc, stderr, exc = call_info(target)
+        finally:
+            signal.alarm(0)
         dt = time.perf_counter() - t0
         outcome = classify(rc, stderr, exc)
         counts[outcome] += 1
