@@ -238,7 +238,10 @@ def composite(proj: Projected, n_splats: int, background=(0, 0, 0), *, stats: bo
     pos = 0
     while len(act):
         count = bins.count[act]
-        k = max(1, min(int(count.max()) - pos, budget // (len(act) * npix)))
+        # block depth: the median remaining list length (short lists are padded at most ~2×, long
+        # ones continue next round), at least 8, capped by the memory budget
+        rest = count - pos
+        k = max(1, min(int(rest.max()), max(8, int(rest.median())), budget // (len(act) * npix)))
         slot = pos + torch.arange(k, device=dev)
         valid = slot[None, :] < count[:, None]
         s = bins.entries[torch.where(valid, bins.start[act][:, None] + slot[None, :], 0)]
