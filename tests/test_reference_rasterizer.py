@@ -292,3 +292,23 @@ def test_extreme_aspect_ratios(w, h):
     c = Camera.look_at((0, 0, -4), (0, 0, 0), fov_y_deg=50 if h > w else 2, width=w, height=h)
     out, img = check(scene, c)
     assert out.hits.sum() > 0
+
+
+@pytest.mark.slow
+def test_compiled_step_matches_dense():
+    """The torch.compile'd block step (used automatically for big CPU renders) is the same math."""
+    scene = make_scene(80, 3, seed=21)
+    check(scene, cam(), compiled=True)
+    check(scene, cam(50, 40), compiled=True, early_stop=True, footprint="tile")
+
+
+def test_renderer_wrapper_defaults_follow_the_gl_conventions():
+    scene = make_scene(50, 2, seed=22)
+    r = ReferenceRenderer("cpu")
+    img = r.render(scene, cam(), (0.1, 0.3, 0.9))
+    dense = dense_render(scene, cam(), (0.1, 0.3, 0.9), early_stop=False, footprint="box")[0]
+    assert img.dtype == np.float32 and img.shape == (37, 45, 3)
+    assert np.abs(img - dense).max() <= 1e-5
+    exact = ReferenceRenderer("cpu", early_stop=True, footprint="tile").render(scene, cam())
+    assert np.abs(exact - dense_render(scene, cam(), early_stop=True, footprint="tile")[0]).max() <= 1e-5
+    r.close()
