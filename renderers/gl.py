@@ -46,9 +46,10 @@ window pixel (i, j) at ``gl_FragCoord.xy = (i + 0.5, j + 0.5)``, so the shader u
 as GL window y (up) without a flip, and ``glReadPixels`` returns rows bottom-up = image rows
 top-down, so the read-back needs no flip either.
 
-**Tiling:** images larger than ``GL_MAX_VIEWPORT_DIMS`` / ``GL_MAX_RENDERBUFFER_SIZE`` (or the
-``max_tile`` argument) are rendered tile by tile into one framebuffer of tile size, with the tile
-origin as a uniform; every tile redraws all instances (the GL clipper drops the others).
+**Tiling:** images larger than ``GL_MAX_VIEWPORT_DIMS`` / ``GL_MAX_RENDERBUFFER_SIZE`` /
+:data:`DEFAULT_MAX_TILE` (or the ``max_tile`` argument) are rendered tile by tile into one
+framebuffer of tile size, with the tile origin as a uniform; every tile redraws all instances (the
+GL clipper drops the others) and is composited with the background straight into the output.
 """
 
 from __future__ import annotations
@@ -141,6 +142,11 @@ def _load_triton_first() -> None:
         pass
 
 
+#: largest framebuffer side by default: a 4096² RGBA32F target is 256 MiB (the GL limit, often
+#: 16384, would be 4 GiB); larger images are tiled.
+DEFAULT_MAX_TILE = 4096
+
+
 class GLUnavailable(RuntimeError):
     """No EGL OpenGL 3.3 context could be created on this machine."""
 
@@ -149,29 +155,22 @@ def pack_instances(projected) -> np.ndarray:
     """Depth-sorted (front to back) float32 instance records ``(M, 12)`` for the shaders.
 
     Columns: ``mean_x, mean_y, o, K, a, b, c, ac − b², r, g, b, radius`` with ``K = 2 ln(255 o)``.
-    Splats with ``o < 1/255`` are left out (exact: they never pass the α test).
+    Splats with ``o < 1/255`` are left out (exact: they never pass the α test). Computed on the
+    projection's device (one stable sort, one row gather), then copied to the host once.
     """
-    cpu = lambda t: t.detach().to("cpu", torch.float32)  # noqa: E731
-    op = cpu(projected.opacities).reshape(-1)
-    keep = torch.nonzero(op >= 1.0 / 255.0).reshape(-1)
-    order = keep[torch.argsort(cpu(projected.depths).reshape(-1)[keep], stable=True)]
-    conics = cpu(projected.conics)[order]
-    o = op[order]
+    f32 = lambda t: t.detach().to(torch.float32)  # noqa: E731
+    op = f32(projected.opacities).reshape(-1, 1)
+    conics = f32(projected.conics)
     c64 = conics.to(torch.float64)
     det = (c64[:, 0] * c64[:, 2] - c64[:, 1] * c64[:, 1]).clamp(min=1e-30).to(torch.float32)
-    out = torch.cat(
-        [
-            cpu(projected.means2d)[order],
-            o[:, None],
-            (2.0 * torch.log(255.0 * o))[:, None],
-            conics,
-            det[:, None],
-            cpu(projected.colors)[order],
-            cpu(projected.radii).reshape(-1)[order, None],
-        ],
+    packed = torch.cat(
+        [f32(projected.means2d), op, 2.0 * torch.log(255.0 * op), conics, det[:, None],
+         f32(projected.colors), f32(projected.radii).reshape(-1, 1)],
         1,
     )
-    return out.numpy()
+    keep = torch.nonzero(op[:, 0] >= 1.0 / 255.0).reshape(-1)
+    order = keep[torch.sort(f32(projected.depths).reshape(-1)[keep], stable=True).indices]
+    return torch.index_select(packed, 0, order).cpu().numpy()
 
 
 def tiles(width: int, height: int, max_tile: int):
@@ -217,7 +216,7 @@ class GLRenderer:
             corners = np.array([-1, -1, 1, -1, -1, 1, 1, 1], dtype=np.float32)
             self._corners = ctx.buffer(corners.tobytes())
             vx, rb = ctx.info["GL_MAX_VIEWPORT_DIMS"], ctx.info["GL_MAX_RENDERBUFFER_SIZE"]
-        self.max_tile = int(min(vx[0], vx[1], rb))
+        self.max_tile = int(min(vx[0], vx[1], rb, DEFAULT_MAX_TILE))
         if self._max_tile_arg is not None:
             self.max_tile = int(min(self.max_tile, self._max_tile_arg))
 
@@ -264,11 +263,10 @@ class GLRenderer:
         bg = np.asarray(background, dtype=np.float32).reshape(3)
         records = pack_instances(projected)
         with self.ctx:  # several renderers (contexts) may live in one process: make ours current
-            rgbt = self._draw(records, width, height)
-        return rgbt[..., :3] + rgbt[..., 3:4] * bg
+            return self._draw(records, width, height, bg)
 
-    def _draw(self, records: np.ndarray, width: int, height: int) -> np.ndarray:
-        """(H, W, 4) float32: Σ cᵢαᵢTᵢ in rgb and the final transmittance T in alpha."""
+    def _draw(self, records: np.ndarray, width: int, height: int, bg: np.ndarray) -> np.ndarray:
+        """Draw the records tile by tile; each tile's (Σ cᵢαᵢTᵢ, T) becomes ``C + T·bg``."""
         tile = min(self.max_tile, max(width, height))
         fbo = self._framebuffer(min(tile, width), min(tile, height))
         vao = self._upload(records) if len(records) else None
@@ -277,7 +275,7 @@ class GLRenderer:
         ctx.blend_func = mgl.DST_ALPHA, mgl.ONE, mgl.ZERO, mgl.ONE_MINUS_SRC_ALPHA
         ctx.blend_equation = mgl.FUNC_ADD
         prog["u_image"].value = (float(width), float(height))
-        image = np.empty((height, width, 4), dtype=np.float32)
+        image = np.empty((height, width, 3), dtype=np.float32)
         fbo.use()
         for x0, y0, w, h in tiles(width, height, tile):
             fbo.viewport = (0, 0, w, h)
@@ -287,7 +285,8 @@ class GLRenderer:
                 prog["u_size"].value = (float(w), float(h))
                 vao.render(mgl.TRIANGLE_STRIP, vertices=4, instances=len(records))
             raw = fbo.read(viewport=(0, 0, w, h), components=4, dtype="f4")
-            image[y0 : y0 + h, x0 : x0 + w] = np.frombuffer(raw, dtype=np.float32).reshape(h, w, 4)
+            rgbt = np.frombuffer(raw, dtype=np.float32).reshape(h, w, 4)
+            image[y0 : y0 + h, x0 : x0 + w] = rgbt[..., :3] + rgbt[..., 3:4] * bg
         return image
 
     def close(self) -> None:

@@ -211,7 +211,7 @@ def test_camera_inside_cloud_and_across_near_plane(gl, ref):
     assert_close(gl.render(scene, cam), ref.render(scene, cam))
 
 
-@pytest.mark.parametrize("size", [(300, 2), (3, 200), (1, 1)])
+@pytest.mark.parametrize("size", [(300, 2), (3, 200), (1, 1), (4100, 3)])  # 4100 > DEFAULT_MAX_TILE
 def test_extreme_aspect_ratios(gl, ref, size):
     scene = random_scene(300, sh_degree=1, seed=8)
     scene.scales_log[:] += 1.0
