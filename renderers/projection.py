@@ -68,9 +68,9 @@ class SplatTensors:
     sh: torch.Tensor
 
     @classmethod
-    def from_scene(cls, scene: GaussianScene, device=None, dtype=torch.float32) -> "SplatTensors":
+    def from_scene(cls, scene: GaussianScene, device=None, dtype=torch.float32) -> SplatTensors:
         dev = default_device(device)
-        t = lambda a: torch.as_tensor(np.ascontiguousarray(a), dtype=dtype, device=dev)  # noqa: E731
+        t = lambda a: torch.as_tensor(np.ascontiguousarray(a), dtype=dtype, device=dev)
         sh = np.concatenate([scene.sh_dc[:, None, :], scene.sh_rest], axis=1)
         return cls(t(scene.means), t(scene.scales_log), t(scene.quats), t(scene.opacity_logit), t(sh))
 

@@ -27,24 +27,35 @@ Statistics (``stats=True``), summed over pixels for every splat that passed the 
 stopped): α_i·T_i, o_i·T_i (LightGaussian's global significance: stored opacity times the transmittance
 before the splat) and the hit count. T_i is the transmittance *before* splat i.
 
-Memory: each step evaluates a (tiles × k × 256) block with tiles·k·256 ≤ ``budget`` elements, so peak
-memory is bounded whatever the scene. With autograd on, every step is checkpointed (recomputed in
-backward), so only per-step inputs are stored.
+Execution: tiles of 8×8 px for the box footprint (the image does not depend on the tile size; small
+splats waste fewer evaluations than with 16×16), 16×16 for the tile footprint. Each round evaluates a
+(tiles × k × pixels) block for all still-active tiles, k = the median remaining list length (≥ 8),
+capped so that the block holds at most ``budget`` elements — peak memory is bounded whatever the scene
+(~10 float temporaries of that size). Transmittance inside a block is a cumulative product along k,
+carried between rounds. With autograd on, every round is checkpointed (recomputed in backward), so
+only the per-round inputs are kept. Big CPU renders without autograd run the block step through
+``torch.compile`` (see :func:`rasterize`).
 """
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from functools import partial
-
-import logging
 
 import numpy as np
 import torch
 from torch.utils.checkpoint import checkpoint
 
 from harness.cameras import Camera
-from renderers.projection import TILE, Projected, SplatTensors, default_device, project_gaussians, tile_rects
+from renderers.projection import (
+    TILE,
+    Projected,
+    SplatTensors,
+    default_device,
+    project_gaussians,
+    tile_rects,
+)
 
 log = logging.getLogger(__name__)
 
@@ -174,7 +185,7 @@ def _run_step(step, eager, args, grad: bool):
         return step(*args)
     try:
         return step(*args)
-    except Exception as err:  # no C++ compiler, unsupported platform...: the eager step is the same math
+    except Exception as err:  # noqa: BLE001 -- no C++ compiler, unsupported platform...: the eager step is the same math
         log.warning("torch.compile of the reference rasterizer failed (%s); using eager mode", err)
         _COMPILE_BROKEN.append(str(err))
         return eager(*args)

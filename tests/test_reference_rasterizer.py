@@ -145,7 +145,7 @@ def check(scene, camera, tol=1e-5, **kw):
 @pytest.mark.parametrize("seed", [0, 1])
 def test_matches_dense_numpy(degree, seed):
     scene = make_scene(60, degree, seed)
-    out, img = check(scene, cam())
+    _, img = check(scene, cam())
     assert (img.sum(-1) != np.dot((0.1, 0.3, 0.9), (1, 1, 1))).mean() > 0.3  # the scene is really drawn
 
 
@@ -262,7 +262,7 @@ def test_opacity_zero_and_one():
     assert torch.equal(img0, torch.tensor(bg).expand_as(img0))
     ones = np.ones(30)
     out = rasterize(scene, cam(), bg, device="cpu", opacities=torch.ones(30), stats=True)
-    img, at, ot, hits = dense_render(scene, cam(), bg, opac=ones)
+    img, _, _, hits = dense_render(scene, cam(), bg, opac=ones)
     assert np.abs(out.image.numpy() - img).max() <= 1e-5
     np.testing.assert_array_equal(out.hits.numpy(), hits)
     scene.opacity_logit[:] = 1e4  # sigmoid → exactly 1, alpha clamps to 0.99
@@ -282,7 +282,7 @@ def test_empty_scene_returns_background():
 def test_camera_inside_the_cloud():
     scene = make_scene(200, 1, seed=13, spread=2.0, log_scale=-1.3)
     c = Camera.look_at((0.05, 0.02, 0.0), (0, 0, 1), fov_y_deg=90, width=40, height=40)
-    out, img = check(scene, c)
+    out, _ = check(scene, c)
     assert out.hits.sum() > 0 and torch.isfinite(out.image).all()
 
 
@@ -290,7 +290,7 @@ def test_camera_inside_the_cloud():
 def test_extreme_aspect_ratios(w, h):
     scene = make_scene(40, 1, seed=14)
     c = Camera.look_at((0, 0, -4), (0, 0, 0), fov_y_deg=50 if h > w else 2, width=w, height=h)
-    out, img = check(scene, c)
+    out, _ = check(scene, c)
     assert out.hits.sum() > 0
 
 

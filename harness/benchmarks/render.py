@@ -43,7 +43,7 @@ def _measure(backend: str, scene_name: str, views: int, device) -> dict:
         from renderers import get_renderer
 
         renderer = get_renderer(backend, device=device)
-    except Exception as err:  # ImportError, no EGL display, ...: reported, not fatal
+    except Exception as err:  # noqa: BLE001 -- ImportError, no EGL display, ...: reported, not fatal
         return {"available": False, "reason": f"{type(err).__name__}: {err}"}
     base_rss = peak_rss_mb()
     try:
