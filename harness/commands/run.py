@@ -49,7 +49,7 @@ def run(args) -> int:
     out_dir = Path(args.out or config.output)
     cache_root = Path(args.cache) if args.cache else cache_dir() / "stages"
     out_dir.mkdir(parents=True, exist_ok=True)
-    console = Console(stderr=True)
+    console = Console(stderr=True, soft_wrap=True)
     console.print(f"[bold]harness run[/] {config.name}: {len(config.scenes)} scenes, "
                   f"{len(config.methods)} method variants, {workers} worker(s) -> {out_dir}")
     with StageProgress(console) as progress:
