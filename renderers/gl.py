@@ -86,7 +86,7 @@ void main() {
     float r = in_color_r.w;
     const float grow = 1.001;
     const float pad = 0.01;
-    // Eigen-aligned rectangle of the ellipse d'Qd <= K (mu2 = det/mu1 avoids cancellation).
+    // Semi-axes h1, h2 along the eigenvectors e1, e2 of the ellipse d'Qd <= K (mu2 = det/mu1: no cancellation).
     float half_tr = 0.5 * (a + c);
     float mu1 = half_tr + sqrt(max(half_tr * half_tr - det, 0.0));
     float mu2 = det / mu1;
@@ -194,8 +194,10 @@ def tiles(width: int, height: int, max_tile: int):
 class GLRenderer:
     """Classic 3DGS rendering on OpenGL (EGL, headless): llvmpipe on the CPU, a GPU when present.
 
-    One context per renderer, created on first use and kept until :meth:`close`. ``max_tile``
-    caps the framebuffer side (default: the GL limits) — tests use it to force tiling.
+    One context per renderer, created on first use and kept until :meth:`close`; every GL call runs
+    with that context made current, so several renderers can share a process. ``max_tile`` caps the
+    framebuffer side (default: the GL limits and :data:`DEFAULT_MAX_TILE`); tests use it to force
+    tiling. ``device`` is the torch device of the projection (default: CUDA when available).
     """
 
     name = "gl"
@@ -205,6 +207,7 @@ class GLRenderer:
         self._max_tile_arg = max_tile
         self.ctx = None
         self._fbo = None
+        self._fbo_rb = None
         self._fbo_size = None
         self._instances = None
         self._vao = None
@@ -242,7 +245,7 @@ class GLRenderer:
         return self._fbo
 
     def _upload(self, records: np.ndarray):
-        data = records.tobytes()
+        data = memoryview(np.ascontiguousarray(records)).cast("B")
         if self._instances is None or self._instances.size < len(data):
             if self._vao is not None:
                 self._vao.release()
@@ -305,12 +308,11 @@ class GLRenderer:
         if self.ctx is None:
             return
         with self.ctx:
-            for obj in (self._vao, self._instances, self._fbo, getattr(self, "_fbo_rb", None), self._corners,
-                        self._prog):
+            for obj in (self._vao, self._instances, self._fbo, self._fbo_rb, self._corners, self._prog):
                 if obj is not None:
                     obj.release()
         self.ctx.release()
-        self.ctx = self._fbo = self._fbo_size = self._instances = self._vao = None
+        self.ctx = self._fbo = self._fbo_rb = self._fbo_size = self._instances = self._vao = None
 
     def __enter__(self) -> "GLRenderer":
         return self
