@@ -92,6 +92,7 @@ class PairOutput:
     opacity_t: np.ndarray | None = None  # (M,) float64 Σ_p o·T
     alpha_t: np.ndarray | None = None  # (M,) float64 Σ_p α·T
     hits: np.ndarray | None = None  # (M,) int64
+    saved: _Saved | None = None  # transmittances for composite_grad (save=True)
 
 
 def candidate_extent(conics: np.ndarray, opacities: np.ndarray, radii: np.ndarray):
@@ -174,19 +175,30 @@ def build_pairs(proj: Projected) -> PixelPairs:
 
 
 @nb.njit(cache=True)
-def _forward(start, splat, gauss, op, colors, bg, early_stop, stats, image, t_final, opt, alt, hits):
+def _forward(start, splat, gauss, op, colors, bg, early_stop, stats, image, t_final, opt, alt, hits, t_pair):
+    """Front-to-back compositing per pixel. With ``t_pair`` of length P, T before each pair is recorded
+    there (−1: pair not composited) for :func:`_backward`."""
     amax, amin = _F32_ALPHA_MAX, _F32_ALPHA_MIN
+    record = t_pair.shape[0] > 0
     for p in range(start.shape[0] - 1):
         t = 1.0
         c0 = c1 = c2 = 0.0
+        stopped = False
         for k in range(start[p], start[p + 1]):
+            if record:
+                t_pair[k] = -1.0
+            if stopped:
+                continue
             j = splat[k]
             a = min(amax, op[j] * gauss[k])
             if a < amin:
                 continue
             t_next = t * (1.0 - a)
             if early_stop and t_next < T_EARLY_STOP:
-                break
+                stopped = True
+                continue
+            if record:
+                t_pair[k] = t
             wgt = a * t
             c0 += colors[j, 0] * wgt
             c1 += colors[j, 1] * wgt
@@ -203,33 +215,19 @@ def _forward(start, splat, gauss, op, colors, bg, early_stop, stats, image, t_fi
 
 
 @nb.njit(cache=True)
-def _backward(start, splat, gauss, op, colors, bg, early_stop, t_final, grad_img, grad_op, t_buf):
-    amax, amin = _F32_ALPHA_MAX, _F32_ALPHA_MIN
+def _backward(start, splat, gauss, op, colors, bg, t_final, t_pair, grad_img, grad_op):
+    """Back to front per pixel over the pairs :func:`_forward` composited (``t_pair`` ≥ 0)."""
+    amax = _F32_ALPHA_MAX
     for p in range(start.shape[0] - 1):
-        s0, s1 = start[p], start[p + 1]
-        # forward again to record T before each pair (−1: not composited) and the last composited pair
-        t = 1.0
-        last = s0 - 1
-        for k in range(s0, s1):
-            t_buf[k] = -1.0
-            a = min(amax, op[splat[k]] * gauss[k])
-            if a < amin:
-                continue
-            t_next = t * (1.0 - a)
-            if early_stop and t_next < T_EARLY_STOP:
-                break
-            t_buf[k] = t
-            last = k
-            t = t_next
         g0, g1, g2 = grad_img[p, 0], grad_img[p, 1], grad_img[p, 2]
         behind = (g0 * bg[0] + g1 * bg[1] + g2 * bg[2]) * t_final[p]  # dL/dC · S, S = stuff behind
-        for k in range(last, s0 - 1, -1):
-            if t_buf[k] < 0.0:
+        for k in range(start[p + 1] - 1, start[p] - 1, -1):
+            tk = t_pair[k]
+            if tk < 0.0:
                 continue
             j = splat[k]
             raw = op[j] * gauss[k]
             a = min(amax, raw)
-            tk = t_buf[k]
             dc = (g0 * colors[j, 0] + g1 * colors[j, 1] + g2 * colors[j, 2]) * tk
             d_alpha = dc - behind / (1.0 - a)
             if raw < amax:
@@ -237,41 +235,46 @@ def _backward(start, splat, gauss, op, colors, bg, early_stop, t_final, grad_img
             behind += dc * a
 
 
+@dataclass
+class _Saved:
+    """What :func:`composite_grad` needs from the forward pass: T per pair and per pixel."""
+
+    t_pair: np.ndarray
+    t_final: np.ndarray
+
+
 def composite(pairs: PixelPairs, opacities: np.ndarray | None = None, background=(0, 0, 0), *,
-              early_stop: bool = False, stats: bool = False) -> PairOutput:
+              early_stop: bool = False, stats: bool = False, save: bool = False) -> PairOutput:
     """Render the pairs with per-visible-splat ``opacities`` (M,) (default ``pairs.opacities``; must not
-    exceed them). Returns the image and, with ``stats``, the per-visible-splat statistics."""
+    exceed them). Returns the image and, with ``stats``, the per-visible-splat statistics; ``save``
+    keeps the transmittances :func:`composite_grad` needs (in ``out.saved``)."""
     op = pairs.opacities if opacities is None else np.ascontiguousarray(opacities, dtype=np.float32)
     npix = pairs.width * pairs.height
-    m = len(pairs.ids)
+    m = len(pairs.ids) if stats else 0
     image = np.zeros((npix, 3), np.float64)
-    t_final = np.zeros(npix, np.float64)
-    opt, alt = np.zeros(m if stats else 0), np.zeros(m if stats else 0)
-    hits = np.zeros(m if stats else 0, np.int64)
-    bg = np.asarray(background, np.float64)
-    _forward(pairs.start, pairs.splat, pairs.gauss, op, pairs.colors, bg, early_stop, stats, image, t_final,
-             opt, alt, hits)
+    saved = _Saved(np.empty(len(pairs) if save else 0, np.float64), np.zeros(npix, np.float64))
+    opt, alt, hits = np.zeros(m), np.zeros(m), np.zeros(m, np.int64)
+    _forward(pairs.start, pairs.splat, pairs.gauss, op, pairs.colors, np.asarray(background, np.float64),
+             early_stop, stats, image, saved.t_final, opt, alt, hits, saved.t_pair)
     out = PairOutput(image.astype(np.float32).reshape(pairs.height, pairs.width, 3))
     if stats:
         out.opacity_t, out.alpha_t, out.hits = opt, alt, hits
+    if save:
+        out.saved = saved
     return out
 
 
 def composite_grad(pairs: PixelPairs, opacities: np.ndarray, grad_image: np.ndarray, background=(0, 0, 0), *,
-                   early_stop: bool = False) -> np.ndarray:
-    """dL/d opacities (M,) float64 given dL/d image (H, W, 3) (see the module docstring)."""
+                   early_stop: bool = False, saved: _Saved | None = None) -> np.ndarray:
+    """dL/d opacities (M,) float64 given dL/d image (H, W, 3) (see the module docstring); ``saved`` from
+    ``composite(..., save=True)`` with the same inputs skips the forward pass."""
     op = np.ascontiguousarray(opacities, dtype=np.float32)
-    npix = pairs.width * pairs.height
-    bg = np.asarray(background, np.float64)
-    image = np.zeros((npix, 3), np.float64)
-    t_final = np.zeros(npix, np.float64)
-    e = np.zeros(0)
-    _forward(pairs.start, pairs.splat, pairs.gauss, op, pairs.colors, bg, early_stop, False, image, t_final,
-             e, e, np.zeros(0, np.int64))
+    if saved is None:
+        saved = composite(pairs, op, background, early_stop=early_stop, save=True).saved
     grad = np.zeros(len(pairs.ids), np.float64)
-    gi = np.ascontiguousarray(grad_image, dtype=np.float64).reshape(npix, 3)
-    _backward(pairs.start, pairs.splat, pairs.gauss, op, pairs.colors, bg, early_stop, t_final, gi, grad,
-              np.empty(len(pairs), np.float64))
+    gi = np.ascontiguousarray(grad_image, dtype=np.float64).reshape(-1, 3)
+    _backward(pairs.start, pairs.splat, pairs.gauss, op, pairs.colors, np.asarray(background, np.float64),
+              saved.t_final, saved.t_pair, gi, grad)
     return grad
 
 
@@ -279,14 +282,14 @@ class _PairRender(torch.autograd.Function):
     @staticmethod
     def forward(ctx, opacities, pairs, background, early_stop):
         op = opacities.detach().to("cpu", torch.float32).numpy()
-        ctx.pairs, ctx.background, ctx.early_stop, ctx.op = pairs, background, early_stop, op
-        img = composite(pairs, op, background, early_stop=early_stop).image
-        return torch.from_numpy(img).to(opacities.device)
+        out = composite(pairs, op, background, early_stop=early_stop, save=opacities.requires_grad)
+        ctx.pairs, ctx.background, ctx.early_stop, ctx.op, ctx.saved = pairs, background, early_stop, op, out.saved
+        return torch.from_numpy(out.image).to(opacities.device)
 
     @staticmethod
     def backward(ctx, grad_image):
         g = composite_grad(ctx.pairs, ctx.op, grad_image.detach().cpu().numpy(), ctx.background,
-                           early_stop=ctx.early_stop)
+                           early_stop=ctx.early_stop, saved=ctx.saved)
         return torch.from_numpy(g).to(grad_image.device, grad_image.dtype), None, None, None
 
 

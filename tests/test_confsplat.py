@@ -107,3 +107,12 @@ def test_bad_parameters_and_missing_cameras():
         optimise_confidence(scene, _cams(), {"entropy_sign": "up", "iterations": 1})
     with pytest.raises(RuntimeError, match="needs cameras"):
         get_pruner("confsplat").score(scene, PruneContext())
+
+
+def test_matmul_blur_equals_the_metric_blur():
+    from harness.metrics.ssim import blur_torch, gaussian_taps
+    from methods.confsplat import blur_matmul
+
+    x = torch.rand(1, 5, 23, 41, generator=torch.Generator().manual_seed(0), dtype=torch.float64)
+    np.testing.assert_allclose(blur_matmul(x, gaussian_taps()).numpy(), blur_torch(x, gaussian_taps()).numpy(),
+                               rtol=0, atol=1e-14)

@@ -13,6 +13,7 @@
 
 from __future__ import annotations
 
+import logging
 import os
 import time
 
@@ -112,6 +113,8 @@ def run(args) -> int:
     from harness.scene_io import load_scene
     from methods import list_pruners
 
+    logging.getLogger("methods").setLevel(logging.INFO)  # confsplat reports its iterations
+    logging.basicConfig(format="%(name)s: %(message)s")
     scene = load_scene(args.scene)
     known = [s.name for s in list_pruners()]
     names = [m.strip() for m in args.methods.split(",") if m.strip()] or known
