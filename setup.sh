@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Idempotent set-up on a fresh Debian machine (root, Python 3.11, no GPU, package registries only):
-#   1. system packages for headless OpenGL through EGL (Mesa llvmpipe)      -- skipped when present
+#   1. system packages: headless OpenGL through EGL (Mesa llvmpipe), libusb -- skipped when present
 #   2. a virtual environment .venv with this package and its test extra     -- skipped when up to date
 #   3. the registry scenes and the LPIPS-VGG weights (`harness fetch`)      -- verified, no-op when present
 # A second call reuses everything and takes a few seconds.
@@ -10,12 +10,16 @@ cd "$(dirname "$0")"
 PY=${PYTHON:-python3.11}
 command -v "$PY" >/dev/null 2>&1 || PY=python3
 
-egl_ok() { ldconfig -p 2>/dev/null | grep -q 'libEGL_mesa.so' && ls /usr/lib/*/dri/swrast_dri.so >/dev/null 2>&1; }
-if ! egl_ok; then
-  echo "setup: installing EGL/Mesa system packages"
+# EGL + Mesa (llvmpipe) for the GL renderer; libusb because open3d's wheel links against it.
+sys_ok() {
+  ldconfig -p 2>/dev/null | grep -q 'libEGL_mesa.so' && ldconfig -p | grep -q 'libusb-1.0.so.0' &&
+    ls /usr/lib/*/dri/swrast_dri.so >/dev/null 2>&1
+}
+if ! sys_ok; then
+  echo "setup: installing EGL/Mesa and libusb system packages"
   SUDO=""; [ "$(id -u)" = 0 ] || SUDO="sudo"
   $SUDO apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq libegl1 libegl-mesa0 libgl1-mesa-dri >/dev/null
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq libegl1 libegl-mesa0 libgl1-mesa-dri libusb-1.0-0 >/dev/null
 fi
 
 stamp=.venv/.installed-$(sha256sum pyproject.toml | cut -c1-16)
