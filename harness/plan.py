@@ -56,6 +56,7 @@ class Skip:
     method: str
     variant: str
     reason: str
+    status: str = "skipped"  # or "error": the input exists but cannot be used (bad file, bad split)
 
 
 @dataclass
@@ -166,6 +167,11 @@ def scene_views(item_spec: SceneSpec, scene, path: Path, protocol, cache: StageC
     if item_spec.cameras is not None:
         cams = [c.resized(p.longest_side) for c in toolkit.load_cameras(str(cpath))]
         train, test = _select_test(cams, item_spec.cameras)
+        if not test:
+            from harness.errors import InputError
+
+            raise InputError(cpath, f"none of the held-out views {list(item_spec.cameras.test)} is among its "
+                                    f"{len(cams)} cameras ({', '.join(c.name for c in cams[:6])}, ...)")
         rig = "file"
     else:
         rig, train, test = toolkit.make_rig(item_spec.rig, scene(), kind=item_spec.kind, name=item_spec.name,
@@ -195,6 +201,8 @@ def load_items(config: RunConfig, cache: StageCache, toolkit: Toolkit, versions:
     Scenes are loaded only when a stage needs them (a miss of ``load`` or ``views``), so a rerun
     with everything cached never reads a scene file.
     """
+    from harness.errors import InputError
+
     items, skips = [], []
     for spec in config.scenes:
         frames, reason = resolve_paths(spec, toolkit, base)
@@ -204,23 +212,33 @@ def load_items(config: RunConfig, cache: StageCache, toolkit: Toolkit, versions:
             if on_skip:
                 on_skip(spec, reason)
             continue
-        views = None
-        for frame, path in frames:
-            t0 = time.perf_counter()
-            digest = digest_json({"file": cache.files.digest(path), "lod": spec.lod})
-            scene = _LazyScene(toolkit, str(path), spec.lod)
-            key = cache.key("load", scene=digest, code=versions.reader)
-            info = cache.get_json("load", key)
-            if info is None:
-                s = scene()
-                info = {"n_splats": len(s), "sh_degree": int(s.sh_degree)}
-                cache.put_json("load", key, info)
-            if views is None:  # the first frame's views serve the whole sequence
-                views = scene_views(spec, scene, path, config.protocol, cache, toolkit, versions, digest, base)
-            rig, train, test = views
-            items.append(SceneItem(spec, frame, str(path), digest, info["n_splats"], info["sh_degree"], rig,
-                                   train, test, time.perf_counter() - t0))
+        try:
+            items += _scene_items(spec, frames, config, cache, toolkit, versions, base)
+        except InputError as err:  # a bad file spoils this scene only; the run goes on and exits 1
+            skips.append(Skip(spec.name, "", "*", "*", f"cannot use it: {err}", status="error"))
+            if on_skip:
+                on_skip(spec, f"cannot use it: {err}")
     return items, skips
+
+
+def _scene_items(spec, frames, config, cache, toolkit, versions, base) -> list[SceneItem]:
+    items, views = [], None
+    for frame, path in frames:
+        t0 = time.perf_counter()
+        digest = digest_json({"file": cache.files.digest(path), "lod": spec.lod})
+        scene = _LazyScene(toolkit, str(path), spec.lod)
+        key = cache.key("load", scene=digest, code=versions.reader)
+        info = cache.get_json("load", key)
+        if info is None:
+            s = scene()
+            info = {"n_splats": len(s), "sh_degree": int(s.sh_degree)}
+            cache.put_json("load", key, info)
+        if views is None:  # the first frame's views serve the whole sequence
+            views = scene_views(spec, scene, path, config.protocol, cache, toolkit, versions, digest, base)
+        rig, train, test = views
+        items.append(SceneItem(spec, frame, str(path), digest, info["n_splats"], info["sh_degree"], rig,
+                               train, test, time.perf_counter() - t0))
+    return items
 
 
 def variants_for(item: SceneItem, methods: list[MethodVariant]) -> list[MethodVariant]:

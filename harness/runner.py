@@ -129,6 +129,7 @@ class Runner:
 
         items, skips = self._timed("load", load_items, self.config, self.cache, self.toolkit, versions,
                                    self.base, skipped)
+        self.errors += [f"scene {s.scene}: {s.reason}" for s in skips if s.status == "error"]
         self.items = items
         scores, skips2 = self._timed("score", self._score_stage, items, get_pruner)
         skips += skips2
@@ -280,7 +281,7 @@ class Runner:
             spec = next((s for s in self.config.scenes if s.name == sk.scene), None)
             rows.append({**base, "scene": sk.scene, "label": spec.label if spec else sk.scene,
                          "kind": spec.kind if spec else "", "frame": sk.frame, "method": sk.method,
-                         "variant": sk.variant, "status": "skipped", "reason": sk.reason})
+                         "variant": sk.variant, "status": sk.status, "reason": sk.reason})
         for i, item in enumerate(items):
             ref_keys = [self._ref_key(item, cam) for cam in item.test]
             ref_recs = [self.cache.load_json("render_ref", k) or {} for k in ref_keys]

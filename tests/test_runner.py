@@ -181,3 +181,21 @@ def test_pruner_version_follows_imported_project_modules():
     mods = project_closure("tests.runner_fakes", roots=("tests", "harness", "methods"))
     assert {"tests.runner_fakes", "harness.cameras", "harness.scene", "methods.registry", "harness.toolkit"} <= mods
     assert not any(m.startswith(("numpy", "renderers")) for m in mods)
+
+
+def test_bad_scene_file_or_split_is_an_error_row_and_the_run_goes_on(scenes, tmp_path):
+    from harness.camera_io import write_3dgs_cameras
+
+    bad = tmp_path / "bad.ply"
+    bad.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 10\nend_header\n")
+    _, train, test = fakes.make_rig("x", None, kind="", name="", n_train=2, n_test=1, longest_side=64,
+                                    aspect=1.0, seed=0)
+    write_3dgs_cameras(train + test, tmp_path / "cams.json")
+    cfg = _config([{"name": "bad", "source": str(bad)}, {"name": "s0", "source": scenes["s0"]},
+                   {"name": "split", "source": scenes["s1"],
+                    "cameras": {"path": str(tmp_path / "cams.json"), "test": ["v99"]}}], ["opacity"])
+    res, df = _run(cfg, tmp_path)
+    rows = df.set_index("scene")
+    assert rows.loc["bad", "status"] == "error" and "cannot use it" in rows.loc["bad", "reason"]
+    assert rows.loc["split", "status"] == "error" and "v99" in rows.loc["split", "reason"]
+    assert (df[df["scene"] == "s0"]["status"] == "ok").all() and len(res.errors) == 2
