@@ -89,8 +89,9 @@ def plot(path: Path, rows, flags) -> None:
         for (r, _), x, y in zip(pts, xs, ys):
             ax.annotate(r.setting + (" (ref)" if r.reference else ""), (x, y), fontsize=7,
                         xytext=(3, 3), textcoords="offset points")
-        ax.set_xscale("log")
-        ax.xaxis.set_minor_formatter(NullFormatter())  # minor log labels collide on narrow ranges
+        if max(xs) >= 10 * max(min(xs), 1e-9):  # log axis only when the times span a decade
+            ax.set_xscale("log")
+            ax.xaxis.set_minor_formatter(NullFormatter())  # minor log labels collide
         ax.set_title(fam)
         ax.set_xlabel("CPU seconds" + (" per scene" if key.startswith("1-") else " per view"))
         ax.set_ylabel(key)
