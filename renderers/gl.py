@@ -23,9 +23,11 @@ Pipeline per view (the projection math lives once, in :mod:`renderers.projection
        α     = min(0.99, o·exp(power))                (discard if α < 1/255)
        out   = (c·α, α)                               (colour premultiplied)
 
-   and first discards pixels outside the ±radius box: pixel (i, j) is considered iff
-   ``|dx| ≤ r`` and ``|dy| ≤ r`` (the reference rasterizer's default ``footprint="box"``; graphdeco
-   evaluates every pixel of the 16-px tiles the box touches, ``footprint="tile"`` there).
+   and first discards pixels outside the splat's footprint, as the reference rasterizer's
+   ``footprint`` option: ``"box"`` (default): pixel (i, j) is considered iff ``|dx| ≤ r`` and
+   ``|dy| ≤ r``; ``"tile"`` (graphdeco): every pixel of the 16-px tiles of ``getRect``
+   (``[⌊(m − r)/16⌋, ⌊(m + r + 15)/16⌋)`` clamped to the grid), which also paints faint pixels just
+   beyond the radius of splats with o > e^4.5/255 ≈ 0.35. Either way the triangle bounds the work.
 5. Front-to-back "under" compositing with the transmittance itself kept in the alpha channel of an
    RGBA32F target cleared to (0, 0, 0, 1): blend func ``rgb: (DST_ALPHA, ONE)``,
    ``alpha: (ZERO, ONE_MINUS_SRC_ALPHA)``, i.e. for each fragment in primitive (= depth) order::
@@ -74,10 +76,11 @@ in vec4 in_color_r;         // r, g, b, radius
 uniform vec2 u_origin;      // tile origin in pixels
 uniform vec2 u_size;        // tile size in pixels
 uniform vec2 u_image;       // image size in pixels
+uniform bool u_tiles;       // footprint "tile" (graphdeco getRect, 16-px tiles) instead of "box"
 flat out vec2 v_mean;
 flat out vec3 v_conic;
 flat out vec4 v_color_o;
-flat out float v_radius;
+flat out vec4 v_bounds;     // tile footprint: pixel indices [x0, x1) x [y0, y1)
 
 void main() {
     vec2 mean = in_mean_o_k.xy;
@@ -94,10 +97,21 @@ void main() {
     vec2 e2 = vec2(-e1.y, e1.x);
     float h1 = sqrt(k / mu1) * grow + pad;
     float h2 = sqrt(k / mu2) * grow + pad;
-    // Axis-aligned box of the same ellipse, clipped to the ±radius box and to the image.
-    vec2 ext = min(sqrt(k * vec2(c, a) / det) * grow, vec2(r)) + pad;
-    vec2 lo = max(mean - ext, vec2(-0.5));
-    vec2 hi = min(mean + ext, u_image - 0.5);
+    // graphdeco getRect: tiles [floor((m - r)/16), floor((m + r + 15)/16)) clamped to the grid.
+    vec2 grid = ceil(u_image / 16.0);
+    vec2 t0 = clamp(floor((mean - r) / 16.0), vec2(0.0), grid);
+    vec2 t1 = clamp(floor((mean + r + 15.0) / 16.0), vec2(0.0), grid);
+    v_bounds = vec4(t0, t1) * 16.0;
+    // Axis-aligned box of the same ellipse, clipped to the footprint and to the image.
+    vec2 ext = sqrt(k * vec2(c, a) / det) * grow + pad;
+    vec2 lo = mean - (u_tiles ? ext : min(ext, vec2(r + pad)));
+    vec2 hi = mean + (u_tiles ? ext : min(ext, vec2(r + pad)));
+    if (u_tiles) {
+        lo = max(lo, v_bounds.xy - 0.5);
+        hi = min(hi, v_bounds.zw - 0.5);
+    }
+    lo = max(lo, vec2(-0.5));
+    hi = min(hi, u_image - 0.5);
     vec2 box = max(hi - lo, vec2(0.0));
     // One triangle per splat: the one circumscribing the unit circle, (0, 2), (±sqrt3, -1), mapped onto
     // the ellipse (area 3 sqrt3 h1 h2), or the right triangle lo, lo + (2w, 0), lo + (0, 2h) around the
@@ -114,7 +128,7 @@ void main() {
     v_mean = mean;
     v_conic = in_conic_det.xyz;
     v_color_o = vec4(in_color_r.rgb, in_mean_o_k.z);
-    v_radius = r;
+    if (!u_tiles) v_bounds = vec4(r);
 }
 """
 
@@ -123,14 +137,17 @@ _FRAGMENT_SHADER = """
 flat in vec2 v_mean;
 flat in vec3 v_conic;
 flat in vec4 v_color_o;
-flat in float v_radius;
+flat in vec4 v_bounds;
 uniform vec2 u_origin;
+uniform bool u_tiles;
 out vec4 f_color;
 
 void main() {
     vec2 pix = gl_FragCoord.xy - 0.5 + u_origin;
     vec2 d = pix - v_mean;
-    if (any(greaterThan(abs(d), vec2(v_radius)))) discard;
+    if (u_tiles) {
+        if (any(lessThan(pix, v_bounds.xy)) || any(greaterThanEqual(pix, v_bounds.zw))) discard;
+    } else if (any(greaterThan(abs(d), v_bounds.xy))) discard;   // v_bounds = radius here
     float power = -0.5 * (v_conic.x * d.x * d.x + v_conic.z * d.y * d.y) - v_conic.y * d.x * d.y;
     if (power > 0.0) discard;
     float alpha = min(0.99, v_color_o.a * exp(power));
@@ -152,6 +169,8 @@ def _load_triton_first() -> None:
     except Exception:  # not installed or not importable: nothing can clash with it later
         pass
 
+
+FOOTPRINTS = ("box", "tile")
 
 #: largest framebuffer side by default: a 4096² RGBA32F target is 256 MiB (the GL limit, often
 #: 16384, would be 4 GiB); larger images are tiled.
@@ -198,11 +217,15 @@ class GLRenderer:
     with that context made current, so several renderers can share a process. ``max_tile`` caps the
     framebuffer side (default: the GL limits and :data:`DEFAULT_MAX_TILE`); tests use it to force
     tiling. ``device`` is the torch device of the projection (default: CUDA when available).
+    ``footprint``: ``"box"`` or ``"tile"``, see the module docstring.
     """
 
     name = "gl"
 
-    def __init__(self, max_tile: int | None = None, device=None):
+    def __init__(self, max_tile: int | None = None, device=None, footprint: str = "box"):
+        if footprint not in FOOTPRINTS:
+            raise ValueError(f"footprint must be one of {FOOTPRINTS}, got {footprint!r}")
+        self.footprint = footprint
         self.device = device
         self._max_tile_arg = max_tile
         self.ctx = None
@@ -289,6 +312,7 @@ class GLRenderer:
         ctx.blend_func = mgl.DST_ALPHA, mgl.ONE, mgl.ZERO, mgl.ONE_MINUS_SRC_ALPHA
         ctx.blend_equation = mgl.FUNC_ADD
         prog["u_image"].value = (float(width), float(height))
+        prog["u_tiles"].value = self.footprint == "tile"
         image = np.empty((height, width, 3), dtype=np.float32)
         fbo.use()
         for x0, y0, w, h in tiles(width, height, tile):
