@@ -32,8 +32,8 @@ splats waste fewer evaluations than with 16×16), 16×16 for the tile footprint.
 (tiles × k × pixels) block for all still-active tiles, k = the median remaining list length (≥ 8),
 capped so that the block holds at most ``budget`` elements — peak memory is bounded whatever the scene
 (~10 float temporaries of that size). Transmittance inside a block is a cumulative product along k,
-carried between rounds. With autograd on, every round is checkpointed (recomputed in backward), so
-only the per-round inputs are kept. Big CPU renders without autograd run the block step through
+carried between rounds. With autograd on, big renders checkpoint every round (recomputed in
+backward), so only the per-round inputs are kept. Big CPU renders without autograd run the block step through
 ``torch.compile`` (see :func:`rasterize`).
 """
 
@@ -45,7 +45,7 @@ from functools import partial
 
 import numpy as np
 import torch
-from torch.utils.checkpoint import checkpoint
+from torch.utils import checkpoint as ckpt_util
 
 from harness.cameras import Camera
 from renderers.projection import (
@@ -123,21 +123,28 @@ def bin_splats(proj: Projected, footprint: str = "box", tile: int = TILE) -> _Bi
     return _Bins(entries, start, count, gx, gy)
 
 
-def _composite_step(ent, valid, px, py, pix_ok, t_in, done_in, early_stop: bool, box: bool, stats: bool):
-    """Composite k depth-ordered splats over B tiles of P pixels, front to back.
+def _composite_step(ent, valid, cols, rows, col_ok, row_ok, t_in, done_in, early_stop: bool, box: bool, stats: bool):
+    """Composite k depth-ordered splats over B tiles of T×T pixels (P = T², row-major), front to back.
 
     ``ent`` (B, k, 10) packs per entry (mx, my, −a/2, −b, −c/2, o, r, colour); ``valid`` (B, k) marks
-    real entries; ``px, py, pix_ok`` (B, P) are pixel centres and in-image flags; ``t_in``/``done_in``
-    (B, P) the transmittance and graphdeco done flags so far. Returns the colour added (B, 3, P), T and
-    done after, and, when ``stats``, per-entry Σ_p α·T, Σ_p o·T and hit counts (B, k)."""
+    real entries; ``cols``/``rows`` (B, T) are the tile's pixel-centre x and y, ``col_ok``/``row_ok``
+    (B, T) their in-image flags; ``t_in``/``done_in`` (B, P) the transmittance and graphdeco done flags so far.
+    The offsets, the box test and two of the three quadratic terms are separable in x and y, so they
+    are evaluated on (B, k, T) and only combined on (B, k, P). Returns the colour added (B, 3, P), T
+    and done after, and, when ``stats``, per-entry Σ_p α·T, Σ_p o·T and hit counts (B, k)."""
     mx, my, ha, nb, hc, op, rad = (ent[..., i, None] for i in range(7))
-    dx = px[:, None, :] - mx
-    dy = py[:, None, :] - my
-    power = (ha * dx + nb * dy) * dx + hc * dy * dy  # −½(a dx² + c dy²) − b dx dy
+    dx = cols[:, None, :] - mx  # (B, k, T) along a row
+    dy = rows[:, None, :] - my  # (B, k, T) along a column
+    # −½(a dx² + c dy²) − b dx dy, laid out (B, k, row, col) → (B, k, P)
+    power = ((hc * dy * dy)[..., :, None] + (ha * dx * dx)[..., None, :]
+             + (nb * dy)[..., :, None] * dx[..., None, :]).flatten(-2)
     alpha = torch.clamp_max(op * torch.exp(power), ALPHA_MAX)
-    mask = (power <= 0) & (alpha >= ALPHA_MIN) & valid[:, :, None] & pix_ok[:, None, :]
+    in_x = valid[:, :, None] & col_ok[:, None, :]
+    in_y = valid[:, :, None] & row_ok[:, None, :]
     if box:
-        mask &= (dx.abs() <= rad) & (dy.abs() <= rad)
+        in_x, in_y = in_x & (dx.abs() <= rad), in_y & (dy.abs() <= rad)
+    support = (in_y[..., :, None] & in_x[..., None, :]).flatten(-2)
+    mask = (power <= 0) & (alpha >= ALPHA_MIN) & support
     if early_stop:
         mask &= ~done_in[:, None, :]
     nil = torch.zeros((), dtype=alpha.dtype, device=alpha.device)
@@ -166,6 +173,9 @@ _STEPS: dict = {}
 _COMPILE_BROKEN: list = []
 #: evaluations (entries × pixels per tile) from which ``compiled=None`` compiles the CPU step
 AUTO_COMPILE_MIN = 1 << 26
+#: evaluations from which ``checkpoint=None`` recomputes blocks in backward instead of keeping them
+#: (~10 saved floats per evaluation: 2^25 evaluations ≈ 1.3 GB)
+AUTO_CHECKPOINT_MIN = 1 << 25
 
 
 def _step_function(early_stop: bool, box: bool, stats: bool, compiled: bool):
@@ -178,9 +188,9 @@ def _step_function(early_stop: bool, box: bool, stats: bool, compiled: bool):
     return _STEPS[key]
 
 
-def _run_step(step, eager, args, grad: bool):
+def _run_step(step, eager, args, grad: bool, ckpt: bool):
     if grad:
-        return checkpoint(step, *args, use_reentrant=False)
+        return ckpt_util.checkpoint(step, *args, use_reentrant=False) if ckpt else step(*args)
     if step is eager:
         return step(*args)
     try:
@@ -194,7 +204,8 @@ def _run_step(step, eager, args, grad: bool):
 def rasterize(scene, camera: Camera, background=(0, 0, 0), *, device=None,
               opacities: torch.Tensor | None = None, stats: bool = False,
               early_stop: bool = False, footprint: str = "box", tile: int | None = None,
-              budget: int = 1 << 24, compiled: bool | None = None) -> RasterOutput:
+              budget: int = 1 << 24, compiled: bool | None = None,
+              checkpoint: bool | None = None) -> RasterOutput:
     """Render ``scene`` (a :class:`GaussianScene` or :class:`SplatTensors`) from ``camera``.
 
     ``opacities`` (N,) overrides sigmoid(opacity_logit) and may require grad; the image is then
@@ -204,7 +215,9 @@ def rasterize(scene, camera: Camera, background=(0, 0, 0), *, device=None,
     evaluation block (tiles × splats × pixels; ~10 float temporaries of that size live at once).
     ``compiled``: run the per-block step through ``torch.compile``; ``None`` = on the CPU, without
     autograd, for renders of at least :data:`AUTO_COMPILE_MIN` evaluations (same math, float rounding
-    differs by ~1e-7; the first compile in a fresh cache takes about a minute)."""
+    differs by ~1e-7; the first compile in a fresh cache takes about a minute). ``checkpoint``: with
+    autograd, recompute each block in backward instead of keeping its intermediates; ``None`` = only
+    for renders of at least :data:`AUTO_CHECKPOINT_MIN` evaluations."""
     if footprint not in FOOTPRINTS:
         raise ValueError(f"footprint must be one of {FOOTPRINTS}, got {footprint!r}")
     if isinstance(scene, SplatTensors):
@@ -213,12 +226,13 @@ def rasterize(scene, camera: Camera, background=(0, 0, 0), *, device=None,
         st = SplatTensors.from_scene(scene, device=default_device(device))
     proj = project_gaussians(st, camera, opacities=opacities)
     return composite(proj, len(st), background, stats=stats, early_stop=early_stop,
-                     footprint=footprint, tile=tile, budget=budget, compiled=compiled)
+                     footprint=footprint, tile=tile, budget=budget, compiled=compiled, checkpoint=checkpoint)
 
 
 def composite(proj: Projected, n_splats: int, background=(0, 0, 0), *, stats: bool = False,
               early_stop: bool = False, footprint: str = "box", tile: int | None = None,
-              budget: int = 1 << 24, compiled: bool | None = None) -> RasterOutput:
+              budget: int = 1 << 24, compiled: bool | None = None,
+              checkpoint: bool | None = None) -> RasterOutput:
     """Rasterize already projected splats (see :func:`rasterize`); statistics are indexed by scene id
     (``n_splats`` long)."""
     tile = tile or (TILE if footprint == "tile" else 8)
@@ -230,6 +244,8 @@ def composite(proj: Projected, n_splats: int, background=(0, 0, 0), *, stats: bo
     if compiled is None:
         compiled = (dev.type == "cpu" and not grad and not _COMPILE_BROKEN
                     and len(bins.entries) * npix >= AUTO_COMPILE_MIN)
+    if checkpoint is None:
+        checkpoint = len(bins.entries) * npix >= AUTO_CHECKPOINT_MIN
     eager = _step_function(early_stop, footprint == "box", stats, compiled=False)
     step = _step_function(early_stop, footprint == "box", stats, compiled=bool(compiled) and not grad)
     packed = torch.cat([proj.means2d, -0.5 * proj.conics[:, :1], -proj.conics[:, 1:2],
@@ -239,9 +255,9 @@ def composite(proj: Projected, n_splats: int, background=(0, 0, 0), *, stats: bo
 
     act = torch.nonzero(bins.count > 0).squeeze(1)
     lin = torch.arange(npix, device=dev)
-    px = ((act % bins.gx)[:, None] * tile + lin % tile).to(dtype)
-    py = (torch.div(act, bins.gx, rounding_mode="floor")[:, None] * tile + lin // tile).to(dtype)
-    ok = (px < w) & (py < h)
+    cols = ((act % bins.gx)[:, None] * tile + lin[:tile]).to(dtype)
+    rows = (torch.div(act, bins.gx, rounding_mode="floor")[:, None] * tile + lin[:tile]).to(dtype)
+    ok = ((rows < h)[:, :, None] & (cols < w)[:, None, :]).flatten(1)
     t_act = torch.ones(len(act), npix, dtype=dtype, device=dev)
     done = ~ok if early_stop else torch.zeros_like(ok)  # graphdeco: pixels outside the image are done
     c_act = torch.zeros(len(act), 3, npix, dtype=dtype, device=dev)
@@ -256,7 +272,7 @@ def composite(proj: Projected, n_splats: int, background=(0, 0, 0), *, stats: bo
         slot = pos + torch.arange(k, device=dev)
         valid = slot[None, :] < count[:, None]
         s = bins.entries[torch.where(valid, bins.start[act][:, None] + slot[None, :], 0)]
-        out = _run_step(step, eager, (packed[s], valid, px, py, ok, t_act, done), grad)
+        out = _run_step(step, eager, (packed[s], valid, cols, rows, cols < w, rows < h, t_act, done), grad, checkpoint)
         c_act, t_act, done = c_act + out[0], out[1], out[2]
         if stats:
             acc.index_add_(1, s[valid], torch.stack([o[valid].detach().to(dtype) for o in out[3:]]))
@@ -268,7 +284,7 @@ def composite(proj: Projected, n_splats: int, background=(0, 0, 0), *, stats: bo
                 retired = ~(torch.where(ok, t_act, 0.0).amax(1) >= T_RETIRE)
             still = (count > pos) & ~retired
         fin.append((act[~still], c_act[~still], t_act[~still]))
-        act, px, py, ok, t_act, done, c_act = (x[still] for x in (act, px, py, ok, t_act, done, c_act))
+        act, cols, rows, ok, t_act, done, c_act = (x[still] for x in (act, cols, rows, ok, t_act, done, c_act))
 
     n_tiles = bins.gx * bins.gy
     color = torch.zeros(n_tiles, 3, npix, dtype=dtype, device=dev)

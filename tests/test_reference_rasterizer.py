@@ -312,3 +312,14 @@ def test_renderer_wrapper_defaults_follow_the_gl_conventions():
     exact = ReferenceRenderer("cpu", early_stop=True, footprint="tile").render(scene, cam())
     assert np.abs(exact - dense_render(scene, cam(), early_stop=True, footprint="tile")[0]).max() <= 1e-5
     r.close()
+
+
+def test_checkpointed_blocks_give_the_same_gradient():
+    scene = make_scene(60, 1, seed=23)
+    o = torch.sigmoid(torch.tensor(scene.opacity_logit)).requires_grad_(True)
+    grads = []
+    for ckpt in (True, False):
+        img = rasterize(scene, cam(), device="cpu", opacities=o, checkpoint=ckpt, budget=4096).image
+        grads.append(torch.autograd.grad(img.square().sum(), o)[0])
+    assert grads[0].abs().sum() > 0
+    assert torch.allclose(grads[0], grads[1], atol=1e-6)
