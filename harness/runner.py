@@ -8,6 +8,10 @@ on a local process pool of ``workers`` spawned processes, each with ``cores // w
 Deduplication: scores are computed once per (scene, method, resolved params) for all ratios; a
 view's reference render and reference metric features once for all methods; a pruned set identical
 to another (same keep-mask digest) is rendered and measured once per view.
+
+Cache keys hold the code digests taken when the run starts; workers import the code when they
+start (one pool per stage), so editing pruner/renderer/metric sources *during* a run can store a
+result under the previous code's key. Rerun with ``--force`` after such edits.
 """
 
 from __future__ import annotations
