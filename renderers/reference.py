@@ -253,38 +253,46 @@ def composite(proj: Projected, n_splats: int, background=(0, 0, 0), *, stats: bo
                         proj.colors], 1)
     acc = torch.zeros(3, len(proj), dtype=dtype, device=dev) if stats else None
 
-    act = torch.nonzero(bins.count > 0).squeeze(1)
-    lin = torch.arange(npix, device=dev)
-    cols = ((act % bins.gx)[:, None] * tile + lin[:tile]).to(dtype)
-    rows = (torch.div(act, bins.gx, rounding_mode="floor")[:, None] * tile + lin[:tile]).to(dtype)
-    ok = ((rows < h)[:, :, None] & (cols < w)[:, None, :]).flatten(1)
-    t_act = torch.ones(len(act), npix, dtype=dtype, device=dev)
-    done = ~ok if early_stop else torch.zeros_like(ok)  # graphdeco: pixels outside the image are done
-    c_act = torch.zeros(len(act), 3, npix, dtype=dtype, device=dev)
-    fin = []  # (tiles, colour, T) of retired tiles
-    pos = 0
-    while len(act):
-        count = bins.count[act]
-        # block depth: the median remaining list length (short lists are padded at most ~2×, long
-        # ones continue next round), at least 8, capped by the memory budget
-        rest = count - pos
-        k = max(1, min(int(rest.max()), max(8, int(rest.median())), budget // (len(act) * npix)))
-        slot = pos + torch.arange(k, device=dev)
-        valid = slot[None, :] < count[:, None]
-        s = bins.entries[torch.where(valid, bins.start[act][:, None] + slot[None, :], 0)]
-        out = _run_step(step, eager, (packed[s], valid, cols, rows, cols < w, rows < h, t_act, done), grad, checkpoint)
-        c_act, t_act, done = c_act + out[0], out[1], out[2]
-        if stats:
-            acc.index_add_(1, s[valid], torch.stack([o[valid].detach().to(dtype) for o in out[3:]]))
-        pos += k
-        with torch.no_grad():
-            if early_stop:
-                retired = done.all(1)
-            else:  # every in-image pixel below T_RETIRE
-                retired = ~(torch.where(ok, t_act, 0.0).amax(1) >= T_RETIRE)
-            still = (count > pos) & ~retired
-        fin.append((act[~still], c_act[~still], t_act[~still]))
-        act, cols, rows, ok, t_act, done, c_act = (x[still] for x in (act, cols, rows, ok, t_act, done, c_act))
+    lin = torch.arange(tile, device=dev)
+
+    def run_tiles(act):
+        """Composite the tiles ``act`` to the end of their lists; returns [(tiles, colour, T)]."""
+        cols = ((act % bins.gx)[:, None] * tile + lin).to(dtype)
+        rows = (torch.div(act, bins.gx, rounding_mode="floor")[:, None] * tile + lin).to(dtype)
+        ok = ((rows < h)[:, :, None] & (cols < w)[:, None, :]).flatten(1)
+        t_act = torch.ones(len(act), npix, dtype=dtype, device=dev)
+        done = ~ok if early_stop else torch.zeros_like(ok)  # graphdeco: pixels outside the image are done
+        c_act = torch.zeros(len(act), 3, npix, dtype=dtype, device=dev)
+        fin, pos = [], 0
+        while len(act):
+            count = bins.count[act]
+            # block depth: the median remaining list length (short lists are padded at most ~2×, long
+            # ones continue next round), at least 8, capped by the memory budget
+            rest = count - pos
+            k = max(1, min(int(rest.max()), max(8, int(rest.median())), budget // (len(act) * npix)))
+            slot = pos + torch.arange(k, device=dev)
+            valid = slot[None, :] < count[:, None]
+            s = bins.entries[torch.where(valid, bins.start[act][:, None] + slot[None, :], 0)]
+            args = (packed[s], valid, cols, rows, cols < w, rows < h, t_act, done)
+            out = _run_step(step, eager, args, grad, checkpoint)
+            c_act, t_act, done = c_act + out[0], out[1], out[2]
+            if stats:
+                acc.index_add_(1, s[valid], torch.stack([o[valid].detach().to(dtype) for o in out[3:]]))
+            pos += k
+            with torch.no_grad():
+                if early_stop:
+                    retired = done.all(1)
+                else:  # every in-image pixel below T_RETIRE
+                    retired = ~(torch.where(ok, t_act, 0.0).amax(1) >= T_RETIRE)
+                still = (count > pos) & ~retired
+            fin.append((act[~still], c_act[~still], t_act[~still]))
+            act, cols, rows, ok, t_act, done, c_act = (x[still] for x in (act, cols, rows, ok, t_act, done, c_act))
+        return fin
+
+    # tiles are independent: groups small enough that a block of ≥ 8 entries per tile fits the budget
+    tiles_all = torch.nonzero(bins.count > 0).squeeze(1)
+    group = max(1, budget // (8 * npix))
+    fin = [f for g in range(0, len(tiles_all), group) for f in run_tiles(tiles_all[g:g + group])]
 
     n_tiles = bins.gx * bins.gy
     color = torch.zeros(n_tiles, 3, npix, dtype=dtype, device=dev)
