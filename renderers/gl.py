@@ -61,11 +61,14 @@ GL clipper drops the others) and is composited with the background straight into
 
 from __future__ import annotations
 
+import logging
 import math
+from typing import Self
 
 import numpy as np
 import torch
 
+log = logging.getLogger(__name__)
 
 _VERTEX_SHADER = """
 #version 330
@@ -166,8 +169,10 @@ def _load_triton_first() -> None:
     """
     try:
         import triton  # noqa: F401
-    except Exception:  # not installed or not importable: nothing can clash with it later
-        pass
+    except ImportError:  # not installed: nothing can clash with it later
+        return
+    except Exception as err:  # noqa: BLE001 - a broken triton install is torch's business, not ours
+        log.debug("triton import failed before creating the GL context: %s", err)
 
 
 FOOTPRINTS = ("box", "tile")
@@ -188,7 +193,7 @@ def pack_instances(projected) -> np.ndarray:
     Splats with ``o < 1/255`` are left out (exact: they never pass the α test). Computed on the
     projection's device (one stable sort, one row gather), then copied to the host once.
     """
-    f32 = lambda t: t.detach().to(torch.float32)  # noqa: E731
+    f32 = lambda t: t.detach().to(torch.float32)
     op = f32(projected.opacities).reshape(-1, 1)
     conics = f32(projected.conics)
     c64 = conics.to(torch.float64)
@@ -338,7 +343,7 @@ class GLRenderer:
         self.ctx.release()
         self.ctx = self._fbo = self._fbo_rb = self._fbo_size = self._instances = self._vao = None
 
-    def __enter__(self) -> "GLRenderer":
+    def __enter__(self) -> Self:
         return self
 
     def __exit__(self, *exc) -> None:
