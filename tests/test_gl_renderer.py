@@ -112,7 +112,7 @@ def test_matches_dense_composite(gl):
 
 
 def test_thin_rotated_splats_keep_every_pixel(gl):
-    """Eccentric ellipses (1:40) at all angles: the tight eigen-aligned quads must not lose pixels.
+    """Eccentric ellipses (1:40) at all angles: the tight eigen-aligned triangles must not lose pixels.
 
     float32 evaluation of dᵀQd cancels for such conics (relative error ~1e-5 of the colour, both in
     GL and in the reference), so the tolerance is 1e-4; a lost edge pixel would differ by ≥ c/255."""
