@@ -285,8 +285,10 @@ def composite(proj: Projected, n_splats: int, background=(0, 0, 0), *, stats: bo
                 else:  # every in-image pixel below T_RETIRE
                     retired = ~(torch.where(ok, t_act, 0.0).amax(1) >= T_RETIRE)
                 still = (count > pos) & ~retired
-            fin.append((act[~still], c_act[~still], t_act[~still]))
-            act, cols, rows, ok, t_act, done, c_act = (x[still] for x in (act, cols, rows, ok, t_act, done, c_act))
+            gone, keep = torch.nonzero(~still).squeeze(1), torch.nonzero(still).squeeze(1)
+            fin.append((act[gone], c_act.index_select(0, gone), t_act.index_select(0, gone)))
+            act, cols, rows, ok, t_act, done, c_act = (
+                x.index_select(0, keep) for x in (act, cols, rows, ok, t_act, done, c_act))
         return fin
 
     # tiles are independent: groups small enough that a block of ≥ 8 entries per tile fits the budget
