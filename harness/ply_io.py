@@ -159,6 +159,12 @@ def _read_binary(path: Path, header: PlyHeader, vertex: PlyElement) -> np.ndarra
 def _read_ascii(path: Path, header: PlyHeader, vertex: PlyElement) -> np.ndarray:
     dtype = _vertex_dtype(vertex, "<", path)
     skip = sum(el.count for el in header.elements[: header.elements.index(vertex)])
+    # every ascii row holds at least one character and one separator per property: a count the file
+    # cannot possibly hold is rejected before reading (a huge count must not loop or exhaust memory)
+    available = path.stat().st_size - header.data_offset
+    if skip + vertex.count * 2 * len(vertex.properties) > available:
+        raise InputError(path, f"header declares {vertex.count} vertices but the file is too short to "
+                               f"hold them (truncated file or wrong count)")
     with open(path, "rb") as f:
         f.seek(header.data_offset)
         for _ in range(skip):

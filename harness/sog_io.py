@@ -45,6 +45,8 @@ from harness.scene import SH_REST_COUNT, GaussianScene
 
 _SQRT2 = np.sqrt(2.0)
 _OPACITY_EPS = 1e-6
+_MAX_COUNT = 2**31 - 1  # texture pixels are addressed with 32-bit ints by every SOG tool
+_MAX_META_VALUE = 1e30  # codebooks / ranges beyond this overflow float32 maths downstream
 
 
 class _Files:
@@ -128,11 +130,29 @@ def _get(meta: dict, files: _Files, name: str, *keys):
     return node
 
 
+def _numbers(meta, files, name, *keys, length: int) -> np.ndarray:
+    """A list of ``length`` finite numbers at ``meta[keys]`` as float64 (clear error otherwise)."""
+    node = _get(meta, files, name, *keys)
+    where = ".".join(map(str, keys))
+    if not isinstance(node, list) or len(node) != length:
+        raise InputError(files.label(name), f"'{where}' must be a list of {length} numbers")
+    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in node):
+        raise InputError(files.label(name), f"'{where}' holds a value that is not a number")
+    out = np.asarray(node, dtype=np.float64)
+    if not (np.all(np.isfinite(out)) and np.all(np.abs(out) <= _MAX_META_VALUE)):
+        raise InputError(files.label(name), f"'{where}' holds a non-finite or out-of-range value")
+    return out
+
+
+def _file_name(meta, files, name, *keys) -> str:
+    node = _get(meta, files, name, *keys)
+    if not isinstance(node, str) or not node:
+        raise InputError(files.label(name), f"'{'.'.join(map(str, keys))}' must be a file name")
+    return node
+
+
 def _codebook(meta, files, name, key) -> np.ndarray:
-    book = np.asarray(_get(meta, files, name, key, "codebook"), dtype=np.float64)
-    if book.shape != (256,):
-        raise InputError(files.label(name), f"'{key}.codebook' has {book.size} entries, expected 256")
-    return book.astype(np.float32)
+    return _numbers(meta, files, name, key, "codebook", length=256).astype(np.float32)
 
 
 def _decode_quats(px: np.ndarray) -> np.ndarray:
@@ -157,21 +177,24 @@ def _read_meta_file(files: _Files, name: str) -> GaussianScene:
     if meta.get("version") != 2:
         raise InputError(files.label(name), f"unsupported SOG version {meta.get('version')!r} (only version 2)")
     count = _get(meta, files, name, "count")
-    if not isinstance(count, int) or count < 0:
+    if not isinstance(count, int) or isinstance(count, bool) or not 0 <= count <= _MAX_COUNT:
         raise InputError(files.label(name), f"bad SOG count {count!r}")
     folder = posixpath.dirname(name)  # image names are relative to their meta.json
 
     def img(*keys) -> np.ndarray:
-        return files.image(posixpath.join(folder, _get(meta, files, name, *keys)), count).reshape(-1, 4)[:count]
+        return files.image(posixpath.join(folder, _file_name(meta, files, name, *keys)), count).reshape(-1, 4)[:count]
 
     # means: 16-bit lerp of the log-transformed positions
     lo, hi = img("means", "files", 0), img("means", "files", 1)
     q16 = lo[:, :3].astype(np.float64) + 256.0 * hi[:, :3]
-    mins = np.asarray(_get(meta, files, name, "means", "mins"), np.float64)
-    maxs = np.asarray(_get(meta, files, name, "means", "maxs"), np.float64)
+    mins = _numbers(meta, files, name, "means", "mins", length=3)
+    maxs = _numbers(meta, files, name, "means", "maxs", length=3)
     span = np.where(maxs - mins == 0, 1.0, maxs - mins)
     v = mins + span * (q16 / 65535.0)
-    means = np.sign(v) * np.expm1(np.abs(v))
+    with np.errstate(over="ignore"):
+        means = np.sign(v) * np.expm1(np.abs(v))
+    if not np.all(np.isfinite(means.astype(np.float32))):
+        raise InputError(files.label(name), "'means.mins/maxs' decode to positions outside float32 range")
 
     quats = _decode_quats(img("quats", "files", 0))
     scales_log = _codebook(meta, files, name, "scales")[img("scales", "files", 0)[:, :3]]
@@ -190,9 +213,11 @@ def _decode_sh_rest(meta: dict, files: _Files, name: str, count: int, folder: st
     if bands not in (1, 2, 3):
         raise InputError(files.label(name), f"'shN.bands' is {bands!r}, expected 1, 2 or 3")
     k = SH_REST_COUNT[bands]
-    palette = int(_get(meta, files, name, "shN", "count"))
+    palette = _get(meta, files, name, "shN", "count")
+    if not isinstance(palette, int) or isinstance(palette, bool) or not 0 < palette <= 65536:
+        raise InputError(files.label(name), f"'shN.count' is {palette!r}, expected 1..65536 palette entries")
     book = _codebook(meta, files, name, "shN")
-    cent_name, label_name = (posixpath.join(folder, _get(meta, files, name, "shN", "files", i)) for i in (0, 1))
+    cent_name, label_name = (posixpath.join(folder, _file_name(meta, files, name, "shN", "files", i)) for i in (0, 1))
     cent = files.image(cent_name, None)
     if cent.shape[1] != 64 * k or cent.shape[0] * 64 < palette:
         raise InputError(files.label(cent_name), f"SH centroid image is {cent.shape[1]}x{cent.shape[0]}; "

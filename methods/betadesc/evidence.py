@@ -57,6 +57,7 @@ def evidence(s: np.ndarray, ell: np.ndarray, o: np.ndarray, u: np.ndarray, w: np
     if not prior > 0:
         raise ValueError(f"prior must be > 0 (Beta(A, B) needs A, B > 0), got {prior}")
     c = coeffs
+    s, ell, o, u, w, edge = (np.asarray(x, dtype=np.float64) for x in (s, ell, o, u, w, edge))
     b = prior + w * (c.b_s * s + c.b_l * ell + c.b_o * (1.0 - o)) + c.b_u * (1.0 - u)
     a = prior + w * (c.a_o * o) + c.a_u * u + edge_weight * edge
-    return np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    return a, b

@@ -115,13 +115,6 @@ def test_extreme_corners_exactly(stress_counts):
     assert mu[2] < 1e-23 and mu[6] == 1.0  # A=1e-12, B=1e12 -> μ = 1e-24; reversed -> 1 exactly
 
 
-KNOWN_ISSUE_EVIDENCE_FLOAT32 = pytest.mark.skip(reason=(
-    "known issue (stress report): evidence() computes A, B in the dtype of its statistics and casts to "
-    "float64 only at the end; float32 statistics lose the prior's precision (prior 1e-12 -> 9.99999996e-13). "
-    "The pipeline passes float64 statistics, so scores are unaffected. Remove this mark once fixed."))
-
-
-@KNOWN_ISSUE_EVIDENCE_FLOAT32
 def test_evidence_float32_statistics_keep_float64_precision():
     z = np.zeros(1, np.float32)
     a, _ = evidence(z, z, z, z, z, PRESETS["baseline"], prior=1e-12)

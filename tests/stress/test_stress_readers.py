@@ -101,13 +101,6 @@ def test_reader_fuzzer(seeds, stress_counts, tmp_path):
     _fuzz(files, stress_counts, tmp_path, "readers", n(1000, 10_000))
 
 
-KNOWN_ISSUE_ASCII_COUNT = pytest.mark.skipif(not FULL, reason=(
-    "known issue (stress report): harness/ply_io.py _read_ascii calls f.readline() vertex.count times "
-    "before checking the file, so an ascii PLY declaring 'element vertex 4294967296' loops for minutes "
-    "and ends in MemoryError (or fills RAM); runs (and fails) with HARNESS_STRESS=full until fixed"))
-
-
-@KNOWN_ISSUE_ASCII_COUNT
 def test_reader_fuzzer_ascii_ply(seeds, stress_counts, tmp_path):
     """ASCII .ply seed (grape's first rows re-encoded)."""
     files = [s for s in seeds if s["name"] == "grape-ascii"]
@@ -116,13 +109,6 @@ def test_reader_fuzzer_ascii_ply(seeds, stress_counts, tmp_path):
     _fuzz(files, stress_counts, tmp_path, "readers_ascii", n(100, 1_000))
 
 
-KNOWN_ISSUE_SOG_META = pytest.mark.skipif(not FULL, reason=(
-    "known issue (stress report): harness/sog_io.py lets malformed meta.json values escape as raw "
-    "ValueError tracebacks (means.mins of length 2; a string in means.maxs) and prints a numpy "
-    "RuntimeWarning for a codebook value of 1e308; runs (and fails) with HARNESS_STRESS=full until fixed"))
-
-
-@KNOWN_ISSUE_SOG_META
 def test_reader_fuzzer_sog(seeds, stress_counts, tmp_path):
     """SOG: mutated meta.json keys and values, corrupted images (smallest playbot level)."""
     sog = [s for s in seeds if s["kind"] == "sog"]
