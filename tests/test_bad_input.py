@@ -172,4 +172,4 @@ def test_console_script_prints_one_line_without_traceback(tmp_path):
                           check=False, capture_output=True, text=True)
     assert proc.returncode == 2 and proc.stdout == ""
     assert proc.stderr.strip() == (f"harness: {tmp_path / 'bad.ply'}: header declares 2 vertices but the file "
-                                   "holds only 1 rows (truncated file or wrong count)")
+                                   "is too short to hold them (truncated file or wrong count)")
