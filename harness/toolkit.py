@@ -95,6 +95,8 @@ class Toolkit:
     #: module names whose source versions each stage (cache-key "code" component)
     reader_modules: tuple[str, ...] = ("harness.scene_io", "harness.ply_io", "harness.splat_io", "harness.sog_io")
     rig_modules: tuple[str, ...] = ("harness.rigs", "harness.cameras")
+    #: whole packages: renderers and metrics import their shared code lazily, inside functions, so a
+    #: module-level import closure would miss it (over-invalidation is the safe side)
     renderer_modules: tuple[str, ...] = ("renderers",)
     metric_modules: tuple[str, ...] = ("harness.metrics", "harness.metric_suite")
     #: extra modules each worker imports first (e.g. a plugin registering pruners)
