@@ -163,7 +163,8 @@ def table_keep(df: pd.DataFrame):
     disp = num.copy().astype(object)
     for j, d in enumerate(digits):
         disp.iloc[:, j] = [(_fmt(v, d) if d else str(int(v))) for v in num.iloc[:, j]]
-    notes = ["pooled over every measured pair of all scenes; ΔPSNR = no-desc − with-desc (paper's sign)"]
+    notes = ["pooled over every pair of the scenes both were measured on; "
+             "ΔPSNR = no-desc − with-desc (paper's sign)"]
     sub = df[(df["status"] == "ok") & df["method"].isin(["betadesc", "betadesc-nodesc"])]
     k_inf = int(np.isinf(sub["psnr"]).sum())
     return num, disp, notes + ([f"{k_inf} identical pair(s) (PSNR = inf) excluded from PSNR means"] if k_inf else [])
