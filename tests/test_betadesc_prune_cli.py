@@ -109,3 +109,13 @@ def test_bad_input_files_exit_2_without_output(tmp_path, capsys):
     status, _, err = _prune(capsys, good, tmp_path / "d.ply", "--ratio", "0.3", "--scores", tmp_path / "no" / "s.npy")
     assert status == 2 and "output folder does not exist" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["good.ply", "t.splat"]
+
+
+def test_header_comments_are_kept(tmp_path, capsys):
+    """Pruned = input minus rows: the input's header comments (e.g. embedded cameras) survive."""
+    from harness.ply_io import read_ply_header
+
+    src = tmp_path / "in.ply"
+    write_scene(random_scene(40, 1, seed=2), src, comments=['camera {"name": "c0"}', "made by a test"])
+    assert main(["prune", str(src), str(tmp_path / "out.ply"), "--ratio", "0.25"]) == 0
+    assert read_ply_header(tmp_path / "out.ply").comments == ['camera {"name": "c0"}', "made by a test"]

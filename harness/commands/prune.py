@@ -73,6 +73,15 @@ def _save_scores(path: str, scores: np.ndarray) -> None:
         raise
 
 
+def _ply_comments(source) -> list[str]:
+    """Header comments of a .ply input (kept in the output: pruned = input minus rows); none otherwise."""
+    from harness.datasets import resolve_scene
+    from harness.ply_io import read_ply_header
+
+    path = resolve_scene(source)
+    return read_ply_header(path).comments if path.suffix.lower() == ".ply" else []
+
+
 def run(args) -> int:
     from harness.scene_io import load_scene, write_scene
     from methods import PruneContext, get_pruner, select_by_ratio
@@ -115,7 +124,7 @@ def run(args) -> int:
     seconds["select"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    write_scene(scene.subset(selection.keep), args.output)
+    write_scene(scene.subset(selection.keep), args.output, comments=_ply_comments(args.input))
     if args.scores is not None:
         _save_scores(args.scores, scores)
     seconds["write"] = time.perf_counter() - t0
