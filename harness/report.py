@@ -108,6 +108,10 @@ def cpu_seconds() -> float:
 
 
 def write_run_json(out_dir: Path, config, result, *, workers: int, cache_root: Path, argv=None) -> Path:
+    """run.json, with the calibration workload timed right after the run (``harness track`` divides
+    stage times by it, so machine speed cancels out of the regression check)."""
+    from harness.tracking import time_calibration
+
     payload = {
         "name": config.name,
         "config_path": config.source_path,
@@ -119,6 +123,7 @@ def write_run_json(out_dir: Path, config, result, *, workers: int, cache_root: P
         "cache": str(cache_root),
         "stage_seconds": result.stage_s,
         "cpu_seconds": cpu_seconds(),
+        "calibration_s": time_calibration(),
         "cache_counts": result.counts,
         "skipped": [s.__dict__ for s in result.skips],
         "errors": result.errors,
