@@ -4,8 +4,10 @@ The retention probability p_i ~ Beta(A_i, B_i) (A = retention evidence, B = prun
 
     μ_i = A/(A+B),   σ_i² = AB / ((A+B)²(A+B+1)) = μ(1−μ)/(A+B+1).
 
-Computed as μ = A/n and ν = 1−μ = B/n (no cancellation), σ² = μν/(n+1): finite and accurate in
-float64 for A, B anywhere in [1e-12, 1e12].
+Computed as μ = 1/(1 + B/A) and ν = 1/(1 + A/B) (no cancellation; a chain of correctly rounded,
+monotone operations, so μ is exactly non-decreasing in A and non-increasing in B even where a step
+is below one ulp — A/(A+B) is not), σ² = μν/(A+B+1): finite and accurate in float64 for A, B
+anywhere in [1e-12, 1e12].
 
 Scores (param ``score``):
 
@@ -32,10 +34,9 @@ def beta_moments(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, 
     """(μ = A/(A+B), ν = B/(A+B), σ) of Beta(A, B), float64."""
     a = np.asarray(a, dtype=np.float64)
     b = np.asarray(b, dtype=np.float64)
-    n = a + b
-    mu = a / n
-    nu = b / n
-    sigma = np.sqrt(mu * nu / (n + 1.0))
+    mu = 1.0 / (1.0 + b / a)
+    nu = 1.0 / (1.0 + a / b)
+    sigma = np.sqrt(mu * nu / (a + b + 1.0))
     return mu, nu, sigma
 
 
