@@ -67,10 +67,11 @@ def make_renderer(name: str, device: str):
 
 
 def make_metrics(names: tuple[str, ...], device: str):
-    """A metric suite with ``reference(key, img)`` and ``score(key, img) -> dict``."""
-    from harness.metric_suite import MetricSuite
+    """A metric suite with ``reference(key, img)`` and ``score(key, img) -> dict``; one view's
+    features in memory at a time (a view task measures all its pruned sets before the next view)."""
+    from harness.metrics import MetricSuite
 
-    return MetricSuite(names, device)
+    return MetricSuite(names=names, device=device, max_in_memory=1)
 
 
 def check_metrics(names: tuple[str, ...]) -> None:
@@ -98,7 +99,7 @@ class Toolkit:
     #: whole packages: renderers and metrics import their shared code lazily, inside functions, so a
     #: module-level import closure would miss it (over-invalidation is the safe side)
     renderer_modules: tuple[str, ...] = ("renderers",)
-    metric_modules: tuple[str, ...] = ("harness.metrics", "harness.metric_suite")
+    metric_modules: tuple[str, ...] = ("harness.metrics",)
     #: extra modules each worker imports first (e.g. a plugin registering pruners)
     imports: tuple[str, ...] = field(default_factory=tuple)
     #: imported before any GL context exists: triton (via torchvision/lpips) segfaults when first

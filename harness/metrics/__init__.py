@@ -25,6 +25,7 @@ from harness.metrics.psnr import mse, psnr, psnr_from_mse, summarize_psnr, yuv_p
 from harness.metrics.ssim import ssim, ssim_batch
 
 __all__ = [
+    "METRICS",
     "LpipsFeatures",
     "LpipsVGG",
     "MetricSuite",
@@ -46,9 +47,16 @@ def default_lpips() -> LpipsVGG:
     return LpipsVGG()
 
 
-def _pair_metrics(ref: np.ndarray, img: np.ndarray, yuv: bool, ssim_border: str, device) -> dict:
-    out = {"psnr": psnr_from_mse(mse(ref, img)),
-           "ssim": float(ssim_batch(ref[None], img[None], border=ssim_border, device=device)[0])}
+METRICS = ("psnr", "ssim", "lpips")
+
+
+def _pair_metrics(ref: np.ndarray, img: np.ndarray, yuv: bool, ssim_border: str, device,
+                  names=METRICS) -> dict:
+    out = {}
+    if "psnr" in names:
+        out["psnr"] = psnr_from_mse(mse(ref, img))
+    if "ssim" in names:
+        out["ssim"] = float(ssim_batch(ref[None], img[None], border=ssim_border, device=device)[0])
     if yuv:
         out.update(yuv_psnr(ref, img))
     return out
@@ -70,12 +78,27 @@ class MetricSuite:
     ``suite.reference(key, image)`` registers a view's reference; ``suite.score(key, image)`` (or
     ``score_many``) then costs one LPIPS trunk pass per image. At most ``max_in_memory`` views keep
     their features in memory (about 380 MB per 1024x768 view); with ``feature_dir`` every reference is
-    also written there (features + image, atomically) and reloaded when evicted.
+    also written there (features + image, atomically) and reloaded when evicted. ``names`` selects
+    the metrics (a subset of ``METRICS``); without "lpips" no network is loaded. A model the suite
+    creates itself leaves the process's torch thread count as it found it (the runner budgets
+    workers × threads ≤ cores).
     """
 
-    def __init__(self, lpips_model: LpipsVGG | None = None, *, feature_dir: str | Path | None = None,
-                 max_in_memory: int = 4, yuv: bool = False, ssim_border: str = "zero"):
-        self.lpips = lpips_model or default_lpips()
+    def __init__(self, lpips_model: LpipsVGG | None = None, *, names=METRICS, device=None,
+                 feature_dir: str | Path | None = None, max_in_memory: int = 4, yuv: bool = False,
+                 ssim_border: str = "zero"):
+        self.names = tuple(names)
+        unknown = sorted(set(self.names) - set(METRICS))
+        if unknown:
+            raise ValueError(f"unknown metric(s) {', '.join(unknown)}; known: {', '.join(METRICS)}")
+        if "lpips" in self.names and lpips_model is None:
+            import torch
+
+            threads = torch.get_num_threads()
+            lpips_model = LpipsVGG(device=device) if device is not None else default_lpips()
+            torch.set_num_threads(threads)
+        self.lpips = lpips_model if "lpips" in self.names else None
+        self.device = self.lpips.device if self.lpips is not None else device
         self.feature_dir = Path(feature_dir) if feature_dir is not None else None
         if self.feature_dir is not None:
             self.feature_dir.mkdir(parents=True, exist_ok=True)
@@ -97,8 +120,8 @@ class MetricSuite:
         """Register (or replace) the reference image of ``view_key`` and cache its features."""
         key = str(view_key)
         img = as_image(image, f"reference of {key}")
-        feats = self.lpips.features(img, f"reference of {key}")
-        if self.feature_dir is not None:
+        feats = self.lpips.features(img, f"reference of {key}") if self.lpips is not None else None
+        if self.feature_dir is not None and feats is not None:
             stem = self._stem(key)
             part = stem.with_name(stem.name + f".part{os.getpid()}.npy")
             np.save(part, img)
@@ -130,11 +153,12 @@ class MetricSuite:
         imgs = [as_image(im, f"image {i} of {key}") for i, im in enumerate(images)]
         for i, img in enumerate(imgs):
             check_same_size(ref, img, f"reference of {key}", f"image {i} of {key}")
-        lp = self.lpips.distances(feats, imgs, f"image of {key}")
+        lp = self.lpips.distances(feats, imgs, f"image of {key}") if self.lpips is not None else [None] * len(imgs)
         rows = []
         for img, d in zip(imgs, lp):
-            row = _pair_metrics(ref, img, self.yuv, self.ssim_border, self.lpips.device)
-            row["lpips"] = float(d)
+            row = _pair_metrics(ref, img, self.yuv, self.ssim_border, self.device, self.names)
+            if d is not None:
+                row["lpips"] = float(d)
             rows.append(row)
         return rows
 
