@@ -33,6 +33,8 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+from methods.betadesc.voxel import as_points
+
 _MAX_CELLS = 1 << 22  # dense grid size cap (32 MiB of int64 cell starts)
 _BUCKETS = 128  # buckets of d²/r² for the k-smallest selection
 _GUESS_GROWTH = 1.3  # first-try ball: 1.3 × the previous query's k-th d²
@@ -271,11 +273,7 @@ def hybrid_search(points: np.ndarray, radius: float, max_nn: int) -> Neighborhoo
     Same neighbour sets as open3d ``KDTreeSearchParamHybrid(radius, max_nn)`` except for exact
     distance ties at the max_nn boundary (see the module docstring).
     """
-    pts = np.ascontiguousarray(points, dtype=np.float64)
-    if pts.ndim != 2 or pts.shape[1] != 3:
-        raise ValueError(f"points must be (M, 3), got {pts.shape}")
-    if not np.all(np.isfinite(pts)):
-        raise ValueError("points contain NaN or inf")
+    pts = as_points(points)
     radius = float(radius)
     max_nn = int(max_nn)
     if not np.isfinite(radius) or radius <= 0.0 or max_nn < 1:

@@ -55,13 +55,19 @@ class VoxelGrid:
         return self.order[self.offsets[v] : self.offsets[v + 1]]
 
 
-def voxel_downsample(points: np.ndarray, voxel: float, weights: np.ndarray | None = None) -> VoxelGrid:
-    """Group ``points`` (N, 3) into cubic voxels of edge ``voxel`` (see the module docstring)."""
+def as_points(points) -> np.ndarray:
+    """``points`` as a contiguous float64 (N, 3) array; ValueError for another shape or NaN/inf."""
     p = np.ascontiguousarray(points, dtype=np.float64)
     if p.ndim != 2 or p.shape[1] != 3:
         raise ValueError(f"points must be (N, 3), got {p.shape}")
     if not np.all(np.isfinite(p)):
         raise ValueError("points contain NaN or inf")
+    return p
+
+
+def voxel_downsample(points: np.ndarray, voxel: float, weights: np.ndarray | None = None) -> VoxelGrid:
+    """Group ``points`` (N, 3) into cubic voxels of edge ``voxel`` (see the module docstring)."""
+    p = as_points(points)
     voxel = float(voxel)
     if not (np.isfinite(voxel) and voxel > 0.0):
         raise ValueError(f"voxel must be a positive finite size, got {voxel}")
