@@ -58,7 +58,8 @@ def _brute_hybrid(points, radius, max_nn):
 
 
 def _as_dicts(nbh):
-    return [dict(zip(nbh.index[i, : nbh.count[i]].tolist(), nbh.d2[i, : nbh.count[i]].tolist()))
+    d2 = nbh.squared_distances()
+    return [dict(zip(nbh.index[i, : nbh.count[i]].tolist(), d2[i, : nbh.count[i]].tolist()))
             for i in range(len(nbh))]
 
 
@@ -75,16 +76,31 @@ def test_hybrid_search_equals_brute_force_with_ties():
         assert np.array_equal(nbh.index[:, 0], np.arange(len(points)))  # itself first
 
 
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    m=st.integers(1, 400),
+    radius=st.sampled_from([0.5, 1.0, 1.5, 2.0, 3.0, 10.0]),
+    max_nn=st.integers(1, 80),
+)
+def test_hybrid_search_equals_brute_force_on_tied_clouds(seed, m, radius, max_nn):
+    """Integer coordinates on a 6³ lattice: many points share a d², and many repeat exactly, so
+    the k-th nearest is often one of a run of ties — the selection must still cut by index."""
+    points = np.random.default_rng(seed).integers(0, 6, size=(m, 3)).astype(np.float64)
+    assert _as_dicts(hybrid_search(points, radius, max_nn)) == _brute_hybrid(points, radius, max_nn)
+
+
 @needs_o3d
 def test_hybrid_search_equals_open3d():
     rng = np.random.default_rng(3)
     points = rng.normal(size=(800, 3))
     tree = o3d.geometry.KDTreeFlann(o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points)))
     nbh = hybrid_search(points, 0.6, 25)
+    ours = _as_dicts(nbh)
     for i in range(len(points)):
         k, idx, d2 = tree.search_hybrid_vector_3d(points[i], 0.6, 25)
         assert nbh.count[i] == k
-        assert dict(zip(np.asarray(idx).tolist(), np.asarray(d2).tolist())) == _as_dicts(nbh)[i]
+        assert dict(zip(np.asarray(idx).tolist(), np.asarray(d2).tolist())) == ours[i]
 
 
 def test_hybrid_search_rejects_bad_parameters():
@@ -204,7 +220,7 @@ def test_fpfh_block_sums_and_thread_count_independence():
         numba.set_num_threads(before)
     (f1, n1), (f2, n2) = runs
     assert np.array_equal(f1, f2)
-    assert np.array_equal(n1.index, n2.index) and np.array_equal(n1.d2, n2.d2)
+    assert np.array_equal(n1.index, n2.index) and np.array_equal(n1.count, n2.count)
     # every block of a point with neighbours is SPFH (sums to 100) + normalised sum (100)
     has = n1.count > 1
     blocks = f1.reshape(-1, 3, 11).sum(axis=2)

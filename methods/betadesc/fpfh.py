@@ -106,13 +106,14 @@ def _alpha_bin(y: float, x: float) -> int:
 
 
 @nb.njit(parallel=True, cache=True, fastmath=False)
-def _spfh_kernel(p, nrm, index, d2, count, out):
+def _spfh_kernel(p, nrm, index, count, out):
     """SPFH rows in three passes over a row's neighbours.
 
     One pass per pair would be one long dependent chain (sqrt → divide → cross → sqrt → divide →
     polynomial) that leaves the out-of-order core idle; short passes over all neighbours keep many
     independent pairs in flight (about 3× faster, same arithmetic, same bits). ``dist`` is
-    ``sqrt(d2)`` from the search, the same float as open3d's ``(p₂ − p₁).norm()``.
+    ``sqrt((dx² + dy²) + dz²)``, the search's d² (squares of p₂ − p₁ equal those of p₁ − p₂
+    exactly) and the same float as open3d's ``(p₂ − p₁).norm()``.
     """
     m = p.shape[0]
     kmax = index.shape[1]
@@ -122,9 +123,14 @@ def _spfh_kernel(p, nrm, index, d2, count, out):
         # θ 9, dist 10, ok 11
         buf = np.empty((12, kmax))
         bins = np.empty((3, kmax), np.int64)
+        row = np.empty(FPFH_DIM)
         for i in range(ch * chunk, min(m, (ch + 1) * chunk)):
             c = count[i]
+            for b in range(FPFH_DIM):
+                row[b] = 0.0
             if c <= 1:
+                for b in range(FPFH_DIM):
+                    out[i, b] = 0.0
                 continue
             p1x, p1y, p1z = p[i, 0], p[i, 1], p[i, 2]
             m1x, m1y, m1z = nrm[i, 0], nrm[i, 1], nrm[i, 2]
@@ -133,7 +139,7 @@ def _spfh_kernel(p, nrm, index, d2, count, out):
                 dx = p[j, 0] - p1x
                 dy = p[j, 1] - p1y
                 dz = p[j, 2] - p1z
-                dist = math.sqrt(d2[i, k])
+                dist = math.sqrt(dx * dx + dy * dy + dz * dz)
                 sd = dist if dist != 0.0 else 1.0
                 m2x, m2y, m2z = nrm[j, 0], nrm[j, 1], nrm[j, 2]
                 a1 = (m1x * dx + m1y * dy + m1z * dz) / sd
@@ -185,13 +191,15 @@ def _spfh_kernel(p, nrm, index, d2, count, out):
                 h = bins[0, k]
                 if h < 0:
                     h = _alpha_bin_exact(buf[6, k], buf[7, k])
-                out[i, h] += incr
-                out[i, 11 + bins[1, k]] += incr
-                out[i, 22 + bins[2, k]] += incr
+                row[h] += incr
+                row[11 + bins[1, k]] += incr
+                row[22 + bins[2, k]] += incr
+            for b in range(FPFH_DIM):
+                out[i, b] = row[b]
 
 
 @nb.njit(parallel=True, cache=True, fastmath=False)
-def _fpfh_kernel(spfh, index, d2, count, out):
+def _fpfh_kernel(spfh, p, index, count, out):
     m = spfh.shape[0]
     # a run-time trip count lets LLVM's loop vectoriser (with its alias check) take the 33-bin
     # loop; a constant one is unrolled to scalars instead (1.7× slower here)
@@ -202,14 +210,20 @@ def _fpfh_kernel(spfh, index, d2, count, out):
         for i in range(ch * chunk, min(m, (ch + 1) * chunk)):
             c = count[i]
             if c <= 1:
+                for b in range(dim):
+                    out[i, b] = 0.0
                 continue
             acc[:] = 0.0
+            px, py, pz = p[i, 0], p[i, 1], p[i, 2]
             for k in range(1, c):
-                d = d2[i, k]
+                j = index[i, k]
+                dx = px - p[j, 0]
+                dy = py - p[j, 1]
+                dz = pz - p[j, 2]
+                d = dx * dx + dy * dy + dz * dz  # the search's d², bit for bit
                 if d == 0.0:
                     continue
                 w = 1.0 / d
-                j = index[i, k]
                 for b in range(dim):
                     acc[b] += spfh[j, b] * w
             for blk in range(3):
@@ -224,9 +238,9 @@ def _fpfh_kernel(spfh, index, d2, count, out):
 def compute_spfh(points: np.ndarray, normals: np.ndarray, nbh: Neighborhood) -> np.ndarray:
     """Simplified PFH (M, 33) on precomputed neighbourhoods (see the module docstring)."""
     p, n = _check(points, normals)
-    out = np.zeros((len(p), FPFH_DIM))
+    out = np.empty((len(p), FPFH_DIM))  # every row is written once (a fresh page faults once)
     if len(p):
-        _spfh_kernel(p, n, nbh.index, nbh.d2, nbh.count, out)
+        _spfh_kernel(p, n, nbh.index, nbh.count, out)
     return out
 
 
@@ -252,9 +266,9 @@ def compute_fpfh(
 
 def fpfh_from_spfh(spfh: np.ndarray, nbh: Neighborhood) -> np.ndarray:
     """FPFH (M, 33) from SPFH rows and the same neighbourhoods (the distance-weighted stage)."""
-    out = np.zeros_like(spfh)
+    out = np.empty_like(spfh)  # every row is written
     if len(spfh):
-        _fpfh_kernel(spfh, nbh.index, nbh.d2, nbh.count, out)
+        _fpfh_kernel(spfh, nbh.points, nbh.index, nbh.count, out)
     return out
 
 
