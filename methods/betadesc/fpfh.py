@@ -28,7 +28,11 @@ differently if the compiler rounds differently (never observed).
 
 Speed (see ``harness bench fpfh``): one search serves SPFH and FPFH (open3d searches twice); the
 α bin comes from a polynomial atan2 with an exact fallback near bin edges; SPFH runs in short passes
-over a row's neighbours that LLVM vectorises; the FPFH stage multiplies by 1/d² once per neighbour.
+over a row's neighbours; the FPFH stage multiplies by 1/d² once per neighbour. Each output row is
+written once into an uninitialised array (a zeroed array that is read-modify-written faults twice
+per fresh page, which on these VMs cost more than the arithmetic). SPFH is bound by the divider:
+5 divisions and 2 square roots per pair, which must be true divisions to bin exactly as open3d
+(a structure-of-arrays rewrite that LLVM vectorised to AVX2 ran no faster).
 
 Parallel over chunks of points with ``prange`` and no cross-thread reductions: bit-identical for any
 numba thread count. Everything is float64; translation is harmless up to float64 resolution of the inputs
@@ -213,7 +217,8 @@ def _fpfh_kernel(spfh, p, index, count, out):
                 for b in range(dim):
                     out[i, b] = 0.0
                 continue
-            acc[:] = 0.0
+            for b in range(dim):  # a loop, not a slice assignment: numba's slices cost ~0.1 µs
+                acc[b] = 0.0
             px, py, pz = p[i, 0], p[i, 1], p[i, 2]
             for k in range(1, c):
                 j = index[i, k]
