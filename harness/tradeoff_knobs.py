@@ -89,7 +89,9 @@ def prune_knobs(scene, families: dict, repeats: int = 1) -> tuple[list[Row], np.
             scores[v] = s
             times[v] = tuple(np.median(np.asarray(samples), axis=0))
         for v in values:
-            rho = float(spearmanr(scores[v], scores[ref]).statistic)
+            # identical scores correlate exactly 1; spearmanr's float arithmetic can return 1 − 1 ulp
+            same = np.array_equal(scores[v], scores[ref])
+            rho = 1.0 if same else float(spearmanr(scores[v], scores[ref]).statistic)
             rows.append(Row(family, f"{param}={v:g}", v == ref, *times[v],
                             {"1-spearman": 1.0 - rho, "1-jaccard@0.3": 1.0 - removed_jaccard(scores[v], scores[ref])}))
             if family == "voxel" and v == spec.params["voxel"]:
