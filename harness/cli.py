@@ -6,7 +6,7 @@
     def run(args) -> int: ...          # exit status
 
 Modules are discovered, so adding a command touches no shared file. Bad input anywhere raises
-:class:`harness.errors.InputError`, printed here as one line on stderr with exit status 2.
+:class:`harness.core.errors.InputError`, printed here as one line on stderr with exit status 2.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import pkgutil
 import sys
 
 from harness import __version__
-from harness.errors import InputError
+from harness.core.errors import InputError
 
 
 def _command_modules():

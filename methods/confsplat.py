@@ -20,7 +20,7 @@ which splats the scene's own images need. Score = c. Left out: their saliency ra
 Readings decided here:
 
 * Rendering: the reference rasterizer's projection and α tests at reduced resolution (``longest_side``,
-  default 128) through :mod:`methods.pixel_pairs`, whose image and opacity gradient equal the tile
+  default 128) through :mod:`renderers.pixel_pairs`, whose image and opacity gradient equal the tile
   rasterizer's (tested) at a fraction of the cost; black background; ``early_stop`` false as the
   harness renderers. SSIM is the 3DGS window (11×11, σ = 1.5, zero padding) of
   :func:`harness.metrics.ssim.ssim_map` with a differentiable banded-matmul blur (:func:`blur_matmul`),
@@ -32,7 +32,7 @@ Readings decided here:
 * A splat invisible from every training view never enters a rendered pair, so its image gradient is
   exactly zero; only the sparsity and entropy terms move it (c falls from 0.5), while splats the
   images need rise above 0.5.
-* ``threads``: torch intra-op threads while scoring (default 1, see :func:`methods.pixel_pairs.torch_threads`).
+* ``threads``: torch intra-op threads while scoring (default 1, see :func:`renderers.pixel_pairs.torch_threads`).
 """
 
 from __future__ import annotations
@@ -46,8 +46,8 @@ import torch
 import torch.nn.functional as F
 
 from harness.metrics.ssim import ssim_map
-from harness.scene import GaussianScene
-from methods.pixel_pairs import (
+from harness.core.scene import GaussianScene
+from renderers.pixel_pairs import (
     PixelPairs,
     build_pairs,
     composite,

@@ -23,9 +23,9 @@ Readings decided here:
   count, the same factor for every splat, so only small-splat rounding depends on it.
 * (V_j / V_ref)^v_pow is evaluated as exp(v_pow·(Σ log s_j − log V_ref)) in float64, which ranks
   like LightGaussian's float32 product but cannot underflow to 0 for tiny splats.
-* ``threads``: torch intra-op threads while scoring (default 1, see :func:`methods.pixel_pairs.torch_threads`).
+* ``threads``: torch intra-op threads while scoring (default 1, see :func:`renderers.pixel_pairs.torch_threads`).
 
-The accumulation uses :mod:`methods.pixel_pairs` (the reference rasterizer's projection and α tests,
+The accumulation uses :mod:`renderers.pixel_pairs` (the reference rasterizer's projection and α tests,
 compositing over enumerated (pixel, splat) pairs); it does not need a renderer from the context.
 """
 
@@ -34,8 +34,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from harness.scene import GaussianScene
-from methods.pixel_pairs import build_pairs, composite, torch_threads
+from harness.core.scene import GaussianScene
+from renderers.pixel_pairs import build_pairs, composite, torch_threads
 from methods.registry import PruneContext, register_pruner
 from renderers.projection import SplatTensors, project_gaussians
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness.scene import GaussianScene
+from harness.core.scene import GaussianScene
 from methods.registry import PruneContext, register_pruner
 
 

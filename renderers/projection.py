@@ -6,7 +6,7 @@ rotation W, translation t, focal lengths fx, fy, principal point cx, cy and size
 * view point p = W μ + t (OpenCV axes: x right, y down, z forward); **cull z ≤ 0.2** (strict ``z > 0.2``
   kept, as graphdeco ``in_frustum``).
 * Σ = R S Sᵀ Rᵀ with S = diag(exp ŝ) and R from q normalised on use; a zero-norm quaternion is read as
-  the identity rotation (as :func:`harness.scene.normalized_quats`).
+  the identity rotation (as :func:`harness.core.scene.normalized_quats`).
 * EWA: J = [[fx/z, 0, −fx·x'/z²], [0, fy/z, −fy·y'/z²]] at x' = clamp(x/z, −lim_x⁻, lim_x⁺)·z (same
   for y) with gsplat's limits lim_x⁺ = (w − cx)/fx + 0.3·tan_x, lim_x⁻ = cx/fx + 0.3·tan_x,
   tan_x = w / (2 fx). For a centred principal point (cx = w/2) this is graphdeco's ±1.3·tan(fov_x/2);
@@ -37,8 +37,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from harness.cameras import Camera
-from harness.scene import GaussianScene
+from harness.core.cameras import Camera
+from harness.core.scene import GaussianScene
 from renderers.sh import sh_to_color
 
 NEAR_Z = 0.2

@@ -47,7 +47,7 @@ import numpy as np
 import torch
 from torch.utils import checkpoint as ckpt_util
 
-from harness.cameras import Camera
+from harness.core.cameras import Camera
 from renderers.projection import (
     TILE,
     Projected,

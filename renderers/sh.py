@@ -64,7 +64,7 @@ def eval_sh(sh: torch.Tensor, dirs: torch.Tensor, degree: int) -> torch.Tensor:
     """Σ_k sh[:, k, :]·Y_k(dirs) → (M, 3).
 
     ``sh`` is (M, K+1, 3): the dc coefficient first, then the higher ones coefficient-major (the
-    :class:`harness.scene.GaussianScene` layout). Only the first (degree+1)² coefficients are used, so a
+    :class:`harness.core.scene.GaussianScene` layout). Only the first (degree+1)² coefficients are used, so a
     scene may be evaluated at a lower degree than it stores; asking for more than it stores is an error.
     """
     n = SH_COEFFS.get(degree)

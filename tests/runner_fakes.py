@@ -13,9 +13,9 @@ from collections import Counter
 
 import numpy as np
 
-from harness.cameras import Camera
-from harness.scene import base_colors, opacities
-from harness.toolkit import Toolkit
+from harness.core.cameras import Camera
+from harness.core.scene import base_colors, opacities
+from harness.run.toolkit import Toolkit
 from methods.registry import register_pruner
 
 CALLS: Counter = Counter()

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness.scene import SH_REST_COUNT, GaussianScene
+from harness.core.scene import SH_REST_COUNT, GaussianScene
 
 
 def random_scene(n: int, sh_degree: int = 0, seed: int = 0, extra: bool = False) -> GaussianScene:

@@ -12,10 +12,10 @@ import pytest
 from plyfile import PlyData, PlyElement
 
 from harness.cli import main
-from harness.errors import InputError
-from harness.ply_io import write_ply
-from harness.scene_io import write_scene
-from harness.splat_io import SPLAT_RECORD, write_splat
+from harness.core.errors import InputError
+from harness.io.ply import write_ply
+from harness.io.scenes import write_scene
+from harness.io.splat import SPLAT_RECORD, write_splat
 from tests.scene_factory import random_scene
 
 

@@ -7,7 +7,7 @@ import argparse
 import pytest
 
 from harness.benchmarks import render
-from harness.errors import InputError
+from harness.core.errors import InputError
 
 
 def _args(**kw):

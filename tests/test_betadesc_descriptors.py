@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.scene import SH_C0, GaussianScene
+from harness.core.scene import SH_C0, GaussianScene
 from methods.betadesc import backend
 from methods.betadesc.grid import build_grid
 from methods.betadesc.hsfh import band_fractions, compute_hsfh, normalise_fpfh

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from harness.cli import main
-from harness.scene_io import load_scene, write_scene
+from harness.io.scenes import load_scene, write_scene
 from methods import PruneContext, get_pruner
 from tests.scene_factory import random_scene
 
@@ -113,7 +113,7 @@ def test_bad_input_files_exit_2_without_output(tmp_path, capsys):
 
 def test_header_comments_are_kept(tmp_path, capsys):
     """Pruned = input minus rows: the input's header comments (e.g. embedded cameras) survive."""
-    from harness.ply_io import read_ply_header
+    from harness.io.ply import read_ply_header
 
     src = tmp_path / "in.ply"
     write_scene(random_scene(40, 1, seed=2), src, comments=['camera {"name": "c0"}', "made by a test"])

@@ -12,8 +12,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from harness.cameras import Camera
-from harness.scene import GaussianScene
+from harness.core.cameras import Camera
+from harness.core.scene import GaussianScene
 from methods import PruneContext, get_pruner, select_by_ratio
 from tests.scene_factory import random_scene
 

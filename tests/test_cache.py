@@ -10,7 +10,7 @@ import sys
 import numpy as np
 import pytest
 
-from harness.cache import (
+from harness.run.cache import (
     FileDigests,
     StageCache,
     atomic_write_with,

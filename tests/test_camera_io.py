@@ -13,16 +13,16 @@ import struct
 import numpy as np
 import pytest
 
-from harness.camera_io import (
+from harness.io.cameras import (
     load_cameras,
     ply_camera_comments,
     read_3dgs_cameras,
     read_transforms_json,
     write_3dgs_cameras,
 )
-from harness.cameras import Camera
-from harness.colmap_io import MODEL_IDS, read_colmap_model
-from harness.errors import InputError
+from harness.core.cameras import Camera
+from harness.io.colmap import MODEL_IDS, read_colmap_model
+from harness.core.errors import InputError
 
 
 def project(cam: Camera, p) -> tuple[float, float, float]:
@@ -180,7 +180,7 @@ def test_transforms_camera_angle_and_image_size(tmp_path):
 
 # ------------------------------------------------------------------------------ PLY header
 def test_ply_header_cameras_round_trip(tmp_path):
-    from harness.ply_io import write_ply
+    from harness.io.ply import write_ply
     from tests.scene_factory import random_scene
 
     cams = random_cameras()

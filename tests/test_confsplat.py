@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 import torch
 
-from harness.cameras import Camera
+from harness.core.cameras import Camera
 from methods import PruneContext, get_pruner
 from methods.confsplat import beta_gate, image_loss, optimise_confidence, prepare_views
 from methods.lightgs import significance
-from methods.pixel_pairs import render_pairs
+from renderers.pixel_pairs import render_pairs
 from tests.scene_factory import random_scene
 
 N_HIDDEN = 8

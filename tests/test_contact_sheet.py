@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from harness.contact_sheet import coverage, to_uint8, write_contact_sheet
+from harness.views.contact_sheet import coverage, to_uint8, write_contact_sheet
 
 
 def test_coverage_counts_pixels_that_differ_from_the_background():

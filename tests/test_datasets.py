@@ -9,9 +9,9 @@ import tarfile
 
 import pytest
 
-from harness import datasets
+from harness.io import datasets
 from harness.cli import main
-from harness.errors import InputError
+from harness.core.errors import InputError
 
 
 @pytest.fixture

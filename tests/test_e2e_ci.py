@@ -11,7 +11,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from harness.datasets import scene_path
+from harness.io.datasets import scene_path
 from harness.metrics.lpips_weights import weights_path
 
 REPO = Path(__file__).resolve().parent.parent

@@ -150,12 +150,12 @@ def test_fpfh_matches_open3d_random(seed):
 
 @needs_o3d
 def test_fpfh_matches_open3d_on_grape_small():
-    from harness.paths import shared_data_dir
+    from harness.core.paths import shared_data_dir
 
     path = shared_data_dir() / "grape_small.ply"
     if not path.exists():
         pytest.skip(f"shared data folder absent ({path})")
-    from harness.scene_io import load_scene
+    from harness.io.scenes import load_scene
     from methods.betadesc.normals import voxel_normals
     from methods.betadesc.voxel import voxel_downsample
 

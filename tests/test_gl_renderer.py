@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 import torch
 
-from harness.cameras import Camera
-from harness.scene import GaussianScene
+from harness.core.cameras import Camera
+from harness.core.scene import GaussianScene
 from renderers.gl import GLRenderer, GLUnavailable, tiles
 from renderers.projection import Projected
 from renderers.reference import ReferenceRenderer
@@ -250,8 +250,8 @@ def test_zero_norm_quaternions_and_huge_scales(gl, ref):
 
 @pytest.mark.data
 def test_real_scene_agrees_with_reference(gl, ref):
-    from harness.paths import shared_data_dir
-    from harness.scene_io import load_scene
+    from harness.core.paths import shared_data_dir
+    from harness.io.scenes import load_scene
 
     path = shared_data_dir() / "grape_small.ply"
     if not path.exists():

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from harness.cameras import Camera
+from harness.core.cameras import Camera
 from methods import PruneContext, get_pruner
 from methods.lightgs import volume_factor
 from renderers.projection import project_gaussians

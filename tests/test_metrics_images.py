@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from harness.errors import InputError
+from harness.core.errors import InputError
 from harness.metrics.images import as_image, read_image
 
 

@@ -5,7 +5,7 @@ import pytest
 import torch
 from skimage import data, filters
 
-from harness.errors import InputError
+from harness.core.errors import InputError
 from harness.metrics import lpips_weights as lw
 from harness.metrics.lpips_vgg import LpipsVGG, load_features, save_features
 

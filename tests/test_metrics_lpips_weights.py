@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from harness.errors import InputError
+from harness.core.errors import InputError
 from harness.metrics import lpips_weights as lw
 
 SKIP_REASON = "LPIPS-VGG weights not converted here: run harness fetch --weights"

@@ -7,7 +7,7 @@ import pytest
 from skimage import data
 from skimage.metrics import peak_signal_noise_ratio
 
-from harness.errors import InputError
+from harness.core.errors import InputError
 from harness.metrics.psnr import psnr, rgb_to_yuv709, summarize_psnr, yuv_psnr
 
 

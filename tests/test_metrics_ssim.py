@@ -6,7 +6,7 @@ import torch
 from skimage import data
 from skimage.metrics import structural_similarity
 
-from harness.errors import InputError
+from harness.core.errors import InputError
 from harness.metrics.ssim import blur_scipy, blur_torch, ssim, ssim_batch, ssim_map
 
 

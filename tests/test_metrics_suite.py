@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from skimage import data
 
-from harness.errors import InputError
+from harness.core.errors import InputError
 from harness.metrics import MetricSuite, compare_images
 from harness.metrics import lpips_weights as lw
 from harness.metrics.lpips_vgg import LpipsVGG

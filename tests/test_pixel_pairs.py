@@ -1,4 +1,4 @@
-"""Pair compositing (methods.pixel_pairs) against the reference tile rasterizer: image, per-splat
+"""Pair compositing (renderers.pixel_pairs) against the reference tile rasterizer: image, per-splat
 statistics and the opacity gradient must agree (the rasterizer is itself checked against dense numpy)."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 import torch
 
-from harness.cameras import Camera
-from methods.pixel_pairs import build_pairs, composite, render_pairs
+from harness.core.cameras import Camera
+from renderers.pixel_pairs import build_pairs, composite, render_pairs
 from renderers.projection import SplatTensors, project_gaussians
 from renderers.reference import rasterize
 from tests.scene_factory import random_scene

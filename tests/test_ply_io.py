@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from plyfile import PlyData, PlyElement
 
-from harness import datasets
-from harness.ply_io import atomic_write, read_ply, read_ply_header, write_ply
-from harness.scene import GaussianScene
+from harness.io import datasets
+from harness.io.ply import atomic_write, read_ply, read_ply_header, write_ply
+from harness.core.scene import GaussianScene
 from tests.scene_factory import random_scene
 
 CORE = ("means", "scales_log", "quats", "opacity_logit", "sh_dc", "sh_rest")

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 import torch
 
-from harness.cameras import Camera
-from harness.scene import GaussianScene
+from harness.core.cameras import Camera
+from harness.core.scene import GaussianScene
 from renderers.projection import SplatTensors, project_gaussians
 from renderers.reference import ReferenceRenderer, rasterize
 

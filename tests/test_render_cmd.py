@@ -7,9 +7,9 @@ import json
 import numpy as np
 import pytest
 
-from harness.camera_io import load_cameras, write_3dgs_cameras
+from harness.io.cameras import load_cameras, write_3dgs_cameras
 from harness.cli import main
-from harness.contact_sheet import coverage, to_uint8
+from harness.views.contact_sheet import coverage, to_uint8
 from tests.scene_factory import random_scene
 
 reference = pytest.importorskip("renderers.reference", reason="the reference renderer (renderers/reference.py) is not importable")
@@ -17,7 +17,7 @@ reference = pytest.importorskip("renderers.reference", reason="the reference ren
 
 @pytest.fixture(scope="module")
 def scene_file(tmp_path_factory):
-    from harness.ply_io import write_ply
+    from harness.io.ply import write_ply
 
     path = tmp_path_factory.mktemp("scene") / "tiny.ply"
     scene = random_scene(150, sh_degree=1, seed=4)
@@ -38,7 +38,7 @@ def test_rig_npy_matches_a_direct_render(scene_file, tmp_path, capsys):
     assert files == ["000_orbit_001.npy", "001_orbit_003.npy", "cameras.json", "contact_sheet.png", "coverage.json"]
     cams = load_cameras(out / "cameras.json")
     assert [c.name for c in cams] == ["orbit_001", "orbit_003"]  # the held-out views of 5
-    from harness.scene_io import load_scene
+    from harness.io.scenes import load_scene
 
     scene = load_scene(scene_file)
     renderer = reference.ReferenceRenderer(device="cpu")
@@ -55,7 +55,7 @@ def test_rig_npy_matches_a_direct_render(scene_file, tmp_path, capsys):
 def test_camera_file_png_split(scene_file, tmp_path):
     from PIL import Image
 
-    from harness.cameras import Camera
+    from harness.core.cameras import Camera
 
     cams = [Camera.look_at((np.cos(a) * 5, 0.5, np.sin(a) * 5), (0, 0, 0), width=64, height=32, name=f"v{i}")
             for i, a in enumerate(np.linspace(0, 6, 10))]

@@ -14,7 +14,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from harness.paths import shared_data_dir
+from harness.core.paths import shared_data_dir
 
 CONFIG = """
 name: resume
@@ -29,7 +29,7 @@ COLS = ["scene", "method", "variant", "ratio", "view", "status", "psnr", "ssim",
 
 
 def _gl_or_skip():
-    from harness.cameras import Camera
+    from harness.core.cameras import Camera
     from tests.scene_factory import random_scene
 
     try:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.rigs import (
+from harness.views.rigs import (
     SCENE_RIGS,
     choose_rig,
     held_out_indices,
@@ -14,8 +14,8 @@ from harness.rigs import (
     scene_key,
     scene_rig,
 )
-from harness.scene import GaussianScene
-from harness.scene_frame import scene_frame
+from harness.core.scene import GaussianScene
+from harness.views.placement import scene_frame
 from tests.scene_factory import random_scene
 
 RIGS = ("orbit", "room", "forward")

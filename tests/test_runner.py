@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.config import parse_config
-from harness.results import to_frame
-from harness.runner import Runner
-from harness.scene_io import write_scene
+from harness.run.config import parse_config
+from harness.report.results import to_frame
+from harness.run.runner import Runner
+from harness.io.scenes import write_scene
 from tests import runner_fakes as fakes
 from tests.scene_factory import random_scene
 
@@ -147,7 +147,7 @@ def test_frames_sequence_shares_views_and_aggregates(tmp_path):
 
 
 def test_cameras_file_split_by_name(tmp_path, scenes):
-    from harness.camera_io import write_3dgs_cameras
+    from harness.io.cameras import write_3dgs_cameras
 
     _, train, test = fakes.make_rig("x", None, kind="", name="", n_train=3, n_test=2, longest_side=64,
                                     aspect=1.0, seed=0)
@@ -166,7 +166,7 @@ def test_cameras_file_split_by_name(tmp_path, scenes):
 
 
 def test_missing_lpips_weights_fail_before_any_work(scenes, tmp_path, monkeypatch):
-    from harness.errors import InputError
+    from harness.core.errors import InputError
 
     monkeypatch.setenv("HARNESS_CACHE", str(tmp_path / "empty-home"))
     cfg = _config({"s0": scenes["s0"]}, ["opacity"], protocol={"longest_side": 32, "metrics": ["lpips"]})
@@ -176,15 +176,15 @@ def test_missing_lpips_weights_fail_before_any_work(scenes, tmp_path, monkeypatc
 
 
 def test_pruner_version_follows_imported_project_modules():
-    from harness.plan import project_closure
+    from harness.run.plan import project_closure
 
     mods = project_closure("tests.runner_fakes", roots=("tests", "harness", "methods"))
-    assert {"tests.runner_fakes", "harness.cameras", "harness.scene", "methods.registry", "harness.toolkit"} <= mods
+    assert {"tests.runner_fakes", "harness.core.cameras", "harness.core.scene", "methods.registry", "harness.run.toolkit"} <= mods
     assert not any(m.startswith(("numpy", "renderers")) for m in mods)
 
 
 def test_bad_scene_file_or_split_is_an_error_row_and_the_run_goes_on(scenes, tmp_path):
-    from harness.camera_io import write_3dgs_cameras
+    from harness.io.cameras import write_3dgs_cameras
 
     bad = tmp_path / "bad.ply"
     bad.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 10\nend_header\n")

@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from harness import datasets
+from harness.io import datasets
 from harness.cli import main
-from harness.errors import InputError
-from harness.ply_io import read_ply, write_ply
-from harness.sog_io import lod_levels, read_sog
+from harness.core.errors import InputError
+from harness.io.ply import read_ply, write_ply
+from harness.io.sog import lod_levels, read_sog
 
 SQRT2 = math.sqrt(2.0)
 

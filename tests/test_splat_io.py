@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness import datasets
-from harness.ply_io import read_ply, write_ply
-from harness.scene import SH_C0, normalized_quats, sigmoid
-from harness.splat_io import SPLAT_RECORD, encode_splat, read_splat, write_splat
+from harness.io import datasets
+from harness.io.ply import read_ply, write_ply
+from harness.core.scene import SH_C0, normalized_quats, sigmoid
+from harness.io.splat import SPLAT_RECORD, encode_splat, read_splat, write_splat
 from tests.scene_factory import random_scene
 
 

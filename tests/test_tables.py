@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from harness.cli import main
-from harness.results import read_results, to_frame, write_results
-from harness.tables import build_tables, summarise, write_tables
+from harness.report.results import read_results, to_frame, write_results
+from harness.report.tables import build_tables, summarise, write_tables
 
 
 def _rows():

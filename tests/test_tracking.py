@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from harness import tracking
+from harness.report import tracking
 from harness.cli import main
-from harness.results import to_frame, write_results
+from harness.report.results import to_frame, write_results
 
 CALIB = 0.5
 

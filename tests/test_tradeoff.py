@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from harness.benchmarks.tradeoff import LIMITS, markdown, within
-from harness.tradeoff_knobs import Row, downsample, pareto_front, removed_jaccard
+from harness.benchmarks._tradeoff_knobs import Row, downsample, pareto_front, removed_jaccard
 
 
 def test_pareto_front_by_hand():
@@ -51,7 +51,7 @@ def test_cheapest_within_tolerance():
 @pytest.mark.weights
 def test_quick_run_writes_table_json_and_plot(tmp_path):
     from harness.cli import main
-    from harness.paths import shared_data_dir
+    from harness.core.paths import shared_data_dir
 
     if not (shared_data_dir() / "grape_small.ply").is_file():
         pytest.skip("grape_small.ply missing from the shared data folder")

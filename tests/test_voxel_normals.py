@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.scene import quat_to_rotmat
+from harness.core.scene import quat_to_rotmat
 from methods.betadesc.normals import orient_mst, splat_normals, voxel_normals
 from methods.betadesc.voxel import voxel_downsample
 

@@ -11,7 +11,7 @@ import time
 from contextlib import contextmanager
 from pathlib import Path
 
-from harness.paths import results_dir
+from harness.core.paths import results_dir
 
 
 def machine() -> dict:

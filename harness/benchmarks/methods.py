@@ -2,7 +2,7 @@
 
 1. **Scoring time**: every registered pruner (or ``--methods``) scores ``--scene`` (default
    bonsai-7k-mini) once; camera-aware pruners get the training views of the scene's default rig
-   (:func:`harness.rigs.default_rig`, 48 training views at 1024 px; each pruner resizes them to its own
+   (:func:`harness.views.rigs.default_rig`, 48 training views at 1024 px; each pruner resizes them to its own
    ``longest_side``). Wall and process CPU seconds per method, with the load average, since the
    machine is shared.
 2. **Quality** (``--quality``): at ``--ratio`` (default 30 %) for lightgs, confsplat, opacity, random
@@ -108,9 +108,9 @@ def _markdown(scene_name: str, n: int, n_train: int, timings: dict, quality: dic
 
 def run(args) -> int:
     from harness.benchmarks._common import write_result
-    from harness.errors import InputError
-    from harness.rigs import default_rig
-    from harness.scene_io import load_scene
+    from harness.core.errors import InputError
+    from harness.views.rigs import default_rig
+    from harness.io.scenes import load_scene
     from methods import list_pruners
 
     logging.getLogger("methods").setLevel(logging.INFO)  # confsplat reports its iterations

@@ -86,7 +86,7 @@ def _end_to_end(scene: str, ratio: float, repeats: int) -> dict:
 def _cpu_stages(scene_name: str, ratio: float, repeats: int) -> dict:
     """CPU seconds (all threads) per stage in this process, median of ``repeats`` after a warm-up:
     on a shared machine CPU time is what the code costs, wall time also measures the neighbours."""
-    from harness.scene_io import load_scene, write_scene
+    from harness.io.scenes import load_scene, write_scene
     from methods import PruneContext, get_pruner, select_by_ratio
     from methods.betadesc.pipeline import record_stages
 
@@ -116,7 +116,7 @@ def _cpu_stages(scene_name: str, ratio: float, repeats: int) -> dict:
 def _fpfh_vs_open3d(scene_name: str, repeats: int) -> dict:
     import open3d as o3d
 
-    from harness.scene_io import load_scene
+    from harness.io.scenes import load_scene
     from methods import get_pruner
     from methods.betadesc import backend
     from methods.betadesc.grid import build_grid
@@ -150,8 +150,8 @@ def _fpfh_vs_open3d(scene_name: str, repeats: int) -> dict:
 
 
 def _sanity(scene_name: str, ratio: float) -> dict:
-    from harness.scene import opacities
-    from harness.scene_io import load_scene
+    from harness.core.scene import opacities
+    from harness.io.scenes import load_scene
     from methods import PruneContext, get_pruner, select_by_ratio
 
     scene = load_scene(scene_name)
@@ -188,7 +188,7 @@ def _markdown(e2e: dict, fp: dict, sanity: dict, scene: str) -> str:
 
 def run(args) -> int:
     from harness.benchmarks._common import write_result
-    from harness.scene_io import load_scene
+    from harness.io.scenes import load_scene
 
     load_scene(args.scene)  # a clear InputError (run `harness fetch`) before any timing
     e2e = _end_to_end(args.scene, args.ratio, args.repeats)

@@ -35,9 +35,9 @@ def _peak_alloc_mb(fn) -> float:
 
 def run(args) -> int:
     from harness.benchmarks._common import median_time, peak_rss_mb, write_result
-    from harness.datasets import resolve_scene
-    from harness.errors import InputError
-    from harness.scene_io import load_scene, write_scene
+    from harness.io.datasets import resolve_scene
+    from harness.core.errors import InputError
+    from harness.io.scenes import load_scene, write_scene
 
     path = resolve_scene(args.scene)
     scene = load_scene(path)

@@ -1,12 +1,12 @@
 """`harness bench tradeoff`: run time against error for every speed/accuracy knob, in one run.
 
-Knobs and error measures: :mod:`harness.tradeoff_knobs`. Output: ``tradeoff.json`` / ``tradeoff.md``
+Knobs and error measures: :mod:`harness.benchmarks._tradeoff_knobs`. Output: ``tradeoff.json`` / ``tradeoff.md``
 (a table per family, the reference setting marked, Pareto-optimal settings marked) and
 ``tradeoff_pareto.png`` (CPU seconds vs the family's main error, Pareto front drawn) under
 ``results/bench/`` (``--out`` elsewhere).
 
 "Cheapest within tolerance" per family is the fastest (CPU) setting whose error stays inside the
-tolerances of nightly tracking (:data:`harness.tracking.DEFAULT_TOLERANCES`: |ΔPSNR| ≤ 0.5 dB,
+tolerances of nightly tracking (:data:`harness.report.tracking.DEFAULT_TOLERANCES`: |ΔPSNR| ≤ 0.5 dB,
 |ΔSSIM| ≤ 0.005, |ΔLPIPS| ≤ 0.005) tightened tenfold for PSNR (0.05 dB) — a default must not eat the
 regression budget — and, for pruning knobs, Jaccard of removed sets ≥ 0.9 and Spearman ρ ≥ 0.95.
 """
@@ -109,13 +109,13 @@ def run(args) -> int:
     import numpy as np
 
     from harness.benchmarks._common import machine
-    from harness.errors import InputError
+    from harness.core.errors import InputError
     from harness.metrics.lpips_vgg import LpipsVGG
-    from harness.paths import results_dir
-    from harness.rigs import scene_rig
-    from harness.scene_io import load_scene
-    from harness.tracking import time_calibration
-    from harness.tradeoff_knobs import (
+    from harness.core.paths import results_dir
+    from harness.views.rigs import scene_rig
+    from harness.io.scenes import load_scene
+    from harness.report.tracking import time_calibration
+    from harness.benchmarks._tradeoff_knobs import (
         PRUNE_FAMILIES,
         QUICK_PRUNE,
         Evaluator,

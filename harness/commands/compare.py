@@ -38,7 +38,7 @@ def _json_ready(metrics: dict) -> dict:
 def run(args) -> int:
     import torch
 
-    from harness.errors import InputError
+    from harness.core.errors import InputError
     from harness.metrics import compare_images
     from harness.metrics.images import check_same_size, read_image
     from harness.metrics.lpips_vgg import LpipsVGG

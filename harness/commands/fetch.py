@@ -18,7 +18,7 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     both = not (args.scenes or args.weights)
     if args.scenes or both:
-        from harness.datasets import fetch_scenes
+        from harness.io.datasets import fetch_scenes
 
         fetch_scenes(log=print)
     if args.weights or both:

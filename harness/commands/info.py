@@ -34,7 +34,7 @@ def _fmt_stats(s: dict) -> str:
 
 
 def run(args) -> int:
-    from harness.scene_io import describe_scene, read_scene
+    from harness.io.scenes import describe_scene, read_scene
 
     result = read_scene(args.scene, lod=args.lod, drop_nonfinite=args.drop_nonfinite)
     if result.dropped_nonfinite:

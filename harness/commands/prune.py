@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.errors import InputError
+from harness.core.errors import InputError
 
 NAME = "prune"
 HELP = "prune a splat scene to a ratio with BetaDescPrune (or any registered pruner) and write a .ply"
@@ -75,15 +75,15 @@ def _save_scores(path: str, scores: np.ndarray) -> None:
 
 def _ply_comments(source) -> list[str]:
     """Header comments of a .ply input (kept in the output: pruned = input minus rows); none otherwise."""
-    from harness.datasets import resolve_scene
-    from harness.ply_io import read_ply_header
+    from harness.io.datasets import resolve_scene
+    from harness.io.ply import read_ply_header
 
     path = resolve_scene(source)
     return read_ply_header(path).comments if path.suffix.lower() == ".ply" else []
 
 
 def run(args) -> int:
-    from harness.scene_io import load_scene, write_scene
+    from harness.io.scenes import load_scene, write_scene
     from methods import PruneContext, get_pruner, select_by_ratio
 
     ratio = _check_args(args)

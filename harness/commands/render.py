@@ -5,12 +5,12 @@ Writes into DIR (created if needed; every file written atomically):
 * ``NNN_<view name>.png`` (image clamped to [0, 1], 8-bit, no gamma: the linear render as-is) or
   ``.npy`` (float32 H×W×3, linear, unclamped: exactly what the renderer returned);
 * ``contact_sheet.png`` (all rendered views, labelled with their coverage, see
-  :mod:`harness.contact_sheet`), ``coverage.json`` (per view) and ``cameras.json`` (the views, 3DGS
+  :mod:`harness.views.contact_sheet`), ``coverage.json`` (per view) and ``cameras.json`` (the views, 3DGS
   format, so a render can be repeated with ``--cameras``).
 
-Views: ``--rig`` builds a synthetic rig (:mod:`harness.rigs`; ``default`` = the scene's table entry,
+Views: ``--rig`` builds a synthetic rig (:mod:`harness.views.rigs`; ``default`` = the scene's table entry,
 ``auto`` for unknown scenes), split into train/test. ``--cameras`` reads a camera file
-(:mod:`harness.camera_io`); its held-out ``test`` split is every 8th view (index i with i % 8 == 0,
+(:mod:`harness.io.cameras`); its held-out ``test`` split is every 8th view (index i with i % 8 == 0,
 the 3DGS ``llffhold`` convention), ``train`` the others. ``--longest-side`` resizes camera-file
 views (default: as stored) and sets the rig resolution (default 1024).
 """
@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.errors import InputError
+from harness.core.errors import InputError
 
 NAME = "render"
 HELP = "render a scene from a camera file or a synthetic rig (images + contact sheet)"
@@ -66,7 +66,7 @@ def select_views(args, scene):
     if args.longest_side is not None and args.longest_side < 1:
         raise InputError("--longest-side", "must be a positive number of pixels")
     if args.cameras:
-        from harness.camera_io import load_cameras
+        from harness.io.cameras import load_cameras
 
         cams = load_cameras(args.cameras)
         if args.longest_side:
@@ -74,7 +74,7 @@ def select_views(args, scene):
         test = [c for i, c in enumerate(cams) if i % LLFF_HOLD == 0]
         train = [c for i, c in enumerate(cams) if i % LLFF_HOLD != 0]
     else:
-        from harness.rigs import scene_rig
+        from harness.views.rigs import scene_rig
 
         if args.n_test < 1 or args.n_train < 0:
             raise InputError("--n-test/--n-train", "need at least one test view and no negative counts")
@@ -119,15 +119,15 @@ def _save_image(image: np.ndarray, path: Path, fmt: str) -> None:
     else:
         from PIL import Image
 
-        from harness.contact_sheet import to_uint8
+        from harness.views.contact_sheet import to_uint8
 
         _atomic(path, lambda t: Image.fromarray(to_uint8(image)).save(t, format="PNG"))
 
 
 def run(args) -> int:
-    from harness.camera_io import write_3dgs_cameras
-    from harness.contact_sheet import write_contact_sheet
-    from harness.scene_io import load_scene
+    from harness.io.cameras import write_3dgs_cameras
+    from harness.views.contact_sheet import write_contact_sheet
+    from harness.io.scenes import load_scene
 
     background = _background(args.background)
     out = Path(args.out)

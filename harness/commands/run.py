@@ -1,7 +1,7 @@
 """`harness run CONFIG [--workers N] [--out DIR] [--force] [--cache DIR]`: the CTC-style evaluation.
 
-Reads and validates the YAML config (:mod:`harness.config`), runs the staged, cached plan
-(:mod:`harness.runner`), writes tidy results, the paper's tables and plots, contact sheets and
+Reads and validates the YAML config (:mod:`harness.run.config`), runs the staged, cached plan
+(:mod:`harness.run.runner`), writes tidy results, the paper's tables and plots, contact sheets and
 ``run.json`` into the output folder, and prints a summary saying where everything is. Scenes whose
 files are absent are skipped with a message (exit status 0); a stage that fails on some scene is
 recorded in the results and run.json and makes the exit status 1.
@@ -28,19 +28,19 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     from rich.console import Console
 
-    from harness.config import load_config
-    from harness.errors import InputError
-    from harness.paths import cache_dir
-    from harness.progress import StageProgress
-    from harness.report import (
+    from harness.run.config import load_config
+    from harness.core.errors import InputError
+    from harness.core.paths import cache_dir
+    from harness.run.progress import StageProgress
+    from harness.report.record import (
         contact_sheets,
         copy_images,
         summary_lines,
         write_run_json,
     )
-    from harness.results import to_frame, write_results
-    from harness.runner import Runner
-    from harness.tables import write_outputs
+    from harness.report.results import to_frame, write_results
+    from harness.run.runner import Runner
+    from harness.report.tables import write_outputs
 
     config = load_config(args.config)
     workers = args.workers if args.workers is not None else config.workers

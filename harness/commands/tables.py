@@ -16,10 +16,10 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from harness.config import PLOTS, TABLES
-    from harness.errors import InputError
-    from harness.results import read_results
-    from harness.tables import write_outputs
+    from harness.run.config import PLOTS, TABLES
+    from harness.core.errors import InputError
+    from harness.report.results import read_results
+    from harness.report.tables import write_outputs
 
     run_dir = Path(args.run_dir)
     df = read_results(run_dir)

@@ -1,6 +1,6 @@
 """`harness track RUN_DIR [--baseline FILE] [--history DIR] [--update-baseline]`: nightly tracking.
 
-Summarises the run (:mod:`harness.tracking`), appends the summary as one JSON line to
+Summarises the run (:mod:`harness.report.tracking`), appends the summary as one JSON line to
 ``<history>/history.jsonl``, compares it with the baseline and prints every check. Exit status:
 0 when nothing regressed, 1 when something did (each regression printed on its own ``REGRESSION``
 line), 2 for bad input (no results in RUN_DIR, unreadable or missing baseline).
@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from harness.paths import results_dir
+from harness.core.paths import results_dir
 
 NAME = "track"
 HELP = "summarise a run into results/history/ and compare it with the baseline (exit 1 on a regression)"
@@ -31,8 +31,8 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from harness import tracking
-    from harness.errors import InputError
+    from harness.report import tracking
+    from harness.core.errors import InputError
 
     history = Path(args.history) if args.history else results_dir() / "history"
     baseline_path = Path(args.baseline) if args.baseline else results_dir() / "history" / "baseline.json"

@@ -1,7 +1,7 @@
 """Reading and validating the images that metrics compare.
 
 An *image* here is a float32 array ``(H, W, 3)`` of linear colour nominally in [0, 1]; metrics clamp
-to [0, 1] themselves, so readers do not. Bad images raise :class:`~harness.errors.InputError`.
+to [0, 1] themselves, so readers do not. Bad images raise :class:`~harness.core.errors.InputError`.
 
 File readings (the decisions):
 * PNG (8-bit grey, grey+alpha, RGB, RGBA, palette; 16-bit grey): integer values divided by 255 or
@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.errors import InputError
+from harness.core.errors import InputError
 
 _INT_SCALE = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0}
 

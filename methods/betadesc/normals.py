@@ -52,7 +52,7 @@ def splat_normals(rotations: np.ndarray, scales_log: np.ndarray) -> np.ndarray:
 
     ``rotations`` is either (N, 3, 3) matrices whose columns are the local axes, or (N, 4)
     quaternions (w, x, y, z), normalised here (a zero quaternion is the identity, as in
-    :func:`harness.scene.normalized_quats`).
+    :func:`harness.core.scene.normalized_quats`).
     """
     s = np.ascontiguousarray(scales_log, dtype=np.float64)
     rot = np.ascontiguousarray(rotations, dtype=np.float64)

@@ -14,7 +14,7 @@ from contextlib import contextmanager
 
 import numpy as np
 
-from harness.scene import GaussianScene
+from harness.core.scene import GaussianScene
 from methods.betadesc import evidence as ev
 from methods.betadesc.grid import build_grid
 from methods.betadesc.hsfh import compute_hsfh

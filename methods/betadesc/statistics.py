@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness.scene import SH_C0, GaussianScene, opacities
+from harness.core.scene import SH_C0, GaussianScene, opacities
 from methods.betadesc.hsfh import BINS_PER_ANGLE, HSFH, band_fractions
 
 

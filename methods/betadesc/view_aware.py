@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness.scene import GaussianScene, bounding_box, quat_to_rotmat
+from harness.core.scene import GaussianScene, bounding_box, quat_to_rotmat
 
 N_FEATURES = 10
 GRAZING_COS = 0.3

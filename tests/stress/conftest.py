@@ -45,7 +45,7 @@ def stress_counts() -> _Counter:
 
 def _report_path(config) -> Path:
     if FULL:
-        from harness.paths import results_dir
+        from harness.core.paths import results_dir
 
         return results_dir() / "stress" / "counts.json"
     return Path(config._tmp_path_factory.getbasetemp()) / "stress-counts.json"

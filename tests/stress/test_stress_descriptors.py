@@ -14,7 +14,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from harness.scene import SH_REST_COUNT, GaussianScene
+from harness.core.scene import SH_REST_COUNT, GaussianScene
 from methods.registry import PruneContext, get_pruner
 from methods.targeting import select_by_ratio
 from tests.stress.budget import examples

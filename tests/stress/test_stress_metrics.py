@@ -17,7 +17,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from harness.errors import InputError
+from harness.core.errors import InputError
 from harness.metrics import psnr, ssim
 from tests.stress.budget import examples
 

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from harness.paths import data_dir, shared_data_dir
+from harness.core.paths import data_dir, shared_data_dir
 from tests.stress.budget import FULL, n
 from tests.stress.fuzz import run_cases
 
@@ -71,7 +71,7 @@ def seeds(tmp_path_factory) -> list[dict]:
 
 
 def test_seed_files_load_unmutated(seeds):
-    from harness.scene_io import read_scene
+    from harness.io.scenes import read_scene
 
     for s in seeds:
         path = Path(s["dir"]) / "meta.json" if s["kind"] == "sog" else s["path"]

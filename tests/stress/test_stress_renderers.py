@@ -14,8 +14,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from harness.cameras import Camera
-from harness.scene import SH_C0, GaussianScene
+from harness.core.cameras import Camera
+from harness.core.scene import SH_C0, GaussianScene
 from renderers.reference import ReferenceRenderer
 from tests.stress.budget import examples, n
 

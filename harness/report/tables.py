@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from harness.cache import atomic_write_text
+from harness.run.cache import atomic_write_text
 
 NAMES = {"confsplat": "ConfSplatPrune", "lightgs": "LightGSPrune", "betadesc": "BetaDescPrune",
          "betadesc-nodesc": "BetaDesc (no desc.)", "betadesc-nobeta": "BetaDesc (no Beta)",
@@ -252,7 +252,7 @@ def build_tables(df: pd.DataFrame, names) -> dict:
 
 def write_tables(df: pd.DataFrame, out_dir: str | Path, names) -> list[Path]:
     """Write ``tables/<name>.md|csv|tex`` for each table with data, plus ``tables/summary.csv``."""
-    from harness.table_format import to_latex, to_markdown
+    from harness.report.formats import to_latex, to_markdown
 
     out_dir = Path(out_dir) / "tables"
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -271,6 +271,6 @@ def write_tables(df: pd.DataFrame, out_dir: str | Path, names) -> list[Path]:
 
 def write_outputs(run_dir: str | Path, df: pd.DataFrame, tables, plots) -> list[Path]:
     """Tables and plots of a run folder from its results (no recomputation)."""
-    from harness.plots import write_plots
+    from harness.report.plots import write_plots
 
     return write_tables(df, run_dir, tables) + write_plots(df, run_dir, plots)

@@ -3,7 +3,7 @@
 ``world_to_cam`` is the 4×4 matrix taking homogeneous world points to camera coordinates;
 pixel ``(u, v) = (fx·x/z + cx, fy·y/z + cy)`` with pixel centres at integer + 0.5 convention
 of the 3DGS rasterizer (pixel index i covers [i, i+1)). Readers for camera files live in
-:mod:`harness.camera_io`; synthetic rigs in :mod:`harness.rigs`.
+:mod:`harness.io.cameras`; synthetic rigs in :mod:`harness.views.rigs`.
 """
 
 from __future__ import annotations

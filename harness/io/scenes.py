@@ -2,7 +2,7 @@
 
 Formats by extension / shape: ``.ply`` (INRIA), ``.splat`` (antimatter15), SOG (a folder with
 ``lod-meta.json`` or ``meta.json``, either JSON file, or a ``.sog`` bundle). Named scenes
-(``bonsai-7k``, ``playbot``, ...) resolve through :mod:`harness.datasets`.
+(``bonsai-7k``, ``playbot``, ...) resolve through :mod:`harness.io.datasets`.
 
 Validation after reading (every format):
 
@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.errors import InputError
-from harness.scene import GaussianScene, bounding_box, opacities, scales
+from harness.core.errors import InputError
+from harness.core.scene import GaussianScene, bounding_box, opacities, scales
 
 log = logging.getLogger(__name__)
 
@@ -84,7 +84,7 @@ def check_scene(scene: GaussianScene, source, *, drop_nonfinite: bool = False) -
 
 def read_scene(path_or_name, *, lod: int | str | None = None, drop_nonfinite: bool = False) -> LoadResult:
     """Read and validate a scene given by path or name (see module docstring)."""
-    from harness.datasets import resolve_scene
+    from harness.io.datasets import resolve_scene
 
     path = resolve_scene(path_or_name)
     fmt = detect_format(path)
@@ -92,15 +92,15 @@ def read_scene(path_or_name, *, lod: int | str | None = None, drop_nonfinite: bo
         raise InputError(path, f"has no LOD levels (asked for level {lod})")
     try:
         if fmt == "ply":
-            from harness.ply_io import read_ply
+            from harness.io.ply import read_ply
 
             scene = read_ply(path)
         elif fmt == "splat":
-            from harness.splat_io import read_splat
+            from harness.io.splat import read_splat
 
             scene = read_splat(path)
         else:
-            from harness.sog_io import lod_levels, read_sog
+            from harness.io.sog import lod_levels, read_sog
 
             scene = read_sog(path, lod)
             lod = (0 if lod is None else lod) if lod_levels(path) is not None else None
@@ -125,7 +125,7 @@ def load_scene(path_or_name, *, lod: int | str | None = None, drop_nonfinite: bo
 def write_scene(scene: GaussianScene, path, *, comments=(), sibr_layout: bool = False) -> Path:
     """Write ``.ply`` (lossless) or ``.splat`` (lossy export) atomically; returns the path.
 
-    ``comments`` (header comment lines) and ``sibr_layout`` apply to ``.ply``, see :mod:`harness.ply_io`.
+    ``comments`` (header comment lines) and ``sibr_layout`` apply to ``.ply``, see :mod:`harness.io.ply`.
     """
     path = Path(path)
     suffix = path.suffix.lower()
@@ -135,11 +135,11 @@ def write_scene(scene: GaussianScene, path, *, comments=(), sibr_layout: bool = 
         raise InputError(path, "output folder does not exist")
     try:
         if suffix == ".ply":
-            from harness.ply_io import write_ply
+            from harness.io.ply import write_ply
 
             write_ply(scene, path, comments=comments, sibr_layout=sibr_layout)
         else:
-            from harness.splat_io import write_splat
+            from harness.io.splat import write_splat
 
             write_splat(scene, path)
     except OSError as err:  # permission, read-only or full disk: the temp file is already gone

@@ -23,10 +23,10 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from harness.cache import StageCache, digest_json
-from harness.cameras import Camera
-from harness.config import MethodVariant, RunConfig, SceneSpec
-from harness.toolkit import Toolkit, module_versions
+from harness.run.cache import StageCache, digest_json
+from harness.core.cameras import Camera
+from harness.run.config import MethodVariant, RunConfig, SceneSpec
+from harness.run.toolkit import Toolkit, module_versions
 
 
 @dataclass
@@ -168,7 +168,7 @@ def scene_views(item_spec: SceneSpec, scene, path: Path, protocol, cache: StageC
         cams = [c.resized(p.longest_side) for c in toolkit.load_cameras(str(cpath))]
         train, test = _select_test(cams, item_spec.cameras)
         if not test:
-            from harness.errors import InputError
+            from harness.core.errors import InputError
 
             raise InputError(cpath, f"none of the held-out views {list(item_spec.cameras.test)} is among its "
                                     f"{len(cams)} cameras ({', '.join(c.name for c in cams[:6])}, ...)")
@@ -201,7 +201,7 @@ def load_items(config: RunConfig, cache: StageCache, toolkit: Toolkit, versions:
     Scenes are loaded only when a stage needs them (a miss of ``load`` or ``views``), so a rerun
     with everything cached never reads a scene file.
     """
-    from harness.errors import InputError
+    from harness.core.errors import InputError
 
     items, skips = [], []
     for spec in config.scenes:

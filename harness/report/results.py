@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from harness.cache import atomic_write_with
+from harness.run.cache import atomic_write_with
 
 COLUMNS = [
     "run", "scene", "label", "kind", "frame", "method", "variant", "params", "ratio", "keep", "view",
@@ -56,7 +56,7 @@ def write_results(df: pd.DataFrame, out_dir: str | Path) -> tuple[Path, Path]:
 
 def read_results(run_dir: str | Path) -> pd.DataFrame:
     """Stored results of a run directory (parquet, else csv)."""
-    from harness.errors import InputError
+    from harness.core.errors import InputError
 
     run_dir = Path(run_dir)
     pq, csv = run_dir / "results.parquet", run_dir / "results.csv"

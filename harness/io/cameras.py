@@ -1,4 +1,4 @@
-"""Camera files -> ``list[Camera]`` (OpenCV axes, see :mod:`harness.cameras`), and writers.
+"""Camera files -> ``list[Camera]`` (OpenCV axes, see :mod:`harness.core.cameras`), and writers.
 
 Formats (:func:`load_cameras` dispatches on the path):
 
@@ -8,7 +8,7 @@ Formats (:func:`load_cameras` dispatches on the path):
   ``R_w2c = rotationᵀ`` and ``t = −R_w2c C``. The format has no principal point: 3DGS assumes the
   image centre, so ``cx = width/2, cy = height/2`` unless optional ``cx``/``cy`` keys are present
   (our writer adds them only when the principal point is off-centre; graphdeco ignores them).
-* **COLMAP** sparse model, text or binary: :mod:`harness.colmap_io`.
+* **COLMAP** sparse model, text or binary: :mod:`harness.io.colmap`.
 * **NeRF ``transforms.json``** (Blender synthetic, instant-ngp, nerfstudio): ``frames[i].transform_matrix``
   is camera-to-world in **OpenGL** axes (x right, y up, z backward); OpenCV axes are obtained by negating
   the y and z camera axes: ``c2w_cv = c2w_gl · diag(1, −1, −1, 1)``. Intrinsics per frame override the
@@ -19,7 +19,7 @@ Formats (:func:`load_cameras` dispatches on the path):
   defines one: each camera is one header line ``comment camera {JSON}`` whose JSON object is
   :meth:`Camera.to_dict` (``name, world_to_cam`` 4×4 row-major OpenCV world-to-camera, ``fx, fy, cx,
   cy, width, height``). :func:`ply_camera_comments` makes the comment texts for
-  ``harness.ply_io.write_ply(..., comments=...)``; :func:`read_ply_cameras` reads them back (other
+  ``harness.io.ply.write_ply(..., comments=...)``; :func:`read_ply_cameras` reads them back (other
   comments are ignored).
 
 Every reader validates: finite numbers, positive sizes and focal lengths, a proper rotation
@@ -34,9 +34,9 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.cameras import Camera
-from harness.colmap_io import find_colmap_model, read_colmap_model
-from harness.errors import InputError
+from harness.core.cameras import Camera
+from harness.io.colmap import find_colmap_model, read_colmap_model
+from harness.core.errors import InputError
 
 GL_TO_CV = np.diag([1.0, -1.0, -1.0, 1.0])
 PLY_CAMERA_TAG = "camera "  # the comment text after "comment "
@@ -127,7 +127,7 @@ def cameras_to_3dgs_json(cameras: list[Camera]) -> list[dict]:
 
 def write_3dgs_cameras(cameras: list[Camera], path: str | Path) -> None:
     """Write a graphdeco ``cameras.json`` atomically (temp file + rename)."""
-    from harness.ply_io import atomic_write
+    from harness.io.ply import atomic_write
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -195,14 +195,14 @@ def read_transforms_json(path: str | Path) -> list[Camera]:
 
 # ------------------------------------------------------------------------------ PLY header
 def ply_camera_comments(cameras: list[Camera]) -> list[str]:
-    """Comment texts ``camera {JSON}`` (one per camera) for :func:`harness.ply_io.write_ply`'s
+    """Comment texts ``camera {JSON}`` (one per camera) for :func:`harness.io.ply.write_ply`'s
     ``comments``, which writes each as a ``comment camera {JSON}`` header line."""
     return [PLY_CAMERA_TAG + json.dumps(c.to_dict(), separators=(",", ":")) for c in cameras]
 
 
 def read_ply_cameras(path: str | Path) -> list[Camera]:
     """Cameras stored as ``comment camera {JSON}`` lines in a PLY header (may be empty)."""
-    from harness.ply_io import read_ply_header  # header only, never the body
+    from harness.io.ply import read_ply_header  # header only, never the body
 
     path = Path(path)
     out = []

@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from harness.errors import InputError
+from harness.core.errors import InputError
 
 SCHEMA = 1
 DEFAULT_TOLERANCES = {"psnr": 0.5, "ssim": 0.005, "lpips": 0.005, "stage": 0.5, "min_stage_s": 1.0}
@@ -143,14 +143,14 @@ def summarize_stages(df: pd.DataFrame, run_json: dict) -> dict[str, float]:
 def _commit(run_json: dict) -> str:
     if run_json.get("commit"):
         return str(run_json["commit"])
-    from harness.report import git_commit
+    from harness.report.record import git_commit
 
     return git_commit() or "unknown"
 
 
 def read_run(run_dir: str | Path) -> tuple[pd.DataFrame, dict]:
     """(tidy results, run.json as a dict — empty when absent) of a run folder."""
-    from harness.results import read_results
+    from harness.report.results import read_results
 
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
@@ -175,7 +175,7 @@ def build_summary(df: pd.DataFrame, run_json: dict, calibration_s: float | None 
         calibration_s, source = time_calibration(), "track"
     machine = run_json.get("machine")
     if not machine:
-        from harness.report import machine as describe
+        from harness.report.record import machine as describe
 
         machine = describe()
     return {
@@ -279,7 +279,7 @@ def load_baseline(path: str | Path) -> dict:
 
 def write_baseline(path: str | Path, summary: dict, tolerances: dict | None = None) -> Path:
     """Write ``{"tolerances", "summary"}`` atomically (tolerances default to the module's)."""
-    from harness.cache import atomic_write_text
+    from harness.run.cache import atomic_write_text
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -14,7 +14,7 @@ the scene alone.
   window). In a captured room this is the detailed object the capture circled (bonsai); in an
   object scene it lies on the object.
 * ``up``: the world direction drawn upwards in images. Not derivable from splats reliably, so it is
-  given (per-scene table in :mod:`harness.rigs`) or defaults to −y, the usual orientation of
+  given (per-scene table in :mod:`harness.views.rigs`) or defaults to −y, the usual orientation of
   COLMAP-derived 3DGS scenes (the capture camera's y axis points down).
 * :func:`enclosure`: the fraction of view directions, from points between ``dense_center`` and the
   content's edge, in which content is seen. Measured: bonsai-7k (a room) 0.62; playbot (object on a
@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
-from harness.scene import GaussianScene, opacities
+from harness.core.scene import GaussianScene, opacities
 
 DEFAULT_UP = (0.0, -1.0, 0.0)
 SAMPLE_SIZE = 20000

@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.cameras import Camera
-from harness.errors import InputError
+from harness.core.cameras import Camera
+from harness.core.errors import InputError
 
 
 def _f_cxcy(p):  # params f, cx, cy, ...

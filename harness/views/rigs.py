@@ -6,7 +6,7 @@ evenly along the path (view ``⌊(j + ½)·n / n_test⌋`` for j < n_test, the a
 every-8th ``llffhold``), so ``train`` and ``test`` are disjoint and test views interleave with
 training views. Images are ``longest_side`` px on their long side (1024, the CTC setting) with
 ``aspect = width / height``; the principal point is the image centre; ``fov_deg`` is the field of view
-across the long side. Placement uses :mod:`harness.scene_frame` (opacity-weighted, floaters removed).
+across the long side. Placement uses :mod:`harness.views.placement` (opacity-weighted, floaters removed).
 
 **Distance fit** (every rig): a camera looking from direction ``u`` at ``target`` has the rotation
 of :meth:`Camera.look_at`, which does not depend on the distance ``d``. A point with camera-frame
@@ -30,7 +30,7 @@ keeps its distance: a view where the content looks compact is not turned into a 
   signed to point up (dot(F, up) ≥ 0), or along +x of the horizontal basis when perpendicular to up.
   View i looks along normalise(F + tan(aᵢ)·S + tan(bᵢ)·V), S = up × F, V = F × S; fill 0.85.
 * ``auto`` (a heuristic, measured on the five named scenes): ``room`` when the content both surrounds
-  a point inside it (:func:`harness.scene_frame.enclosure` ≥ 0.5: bonsai-7k 0.62, the object scenes
+  a point inside it (:func:`harness.views.placement.enclosure` ≥ 0.5: bonsai-7k 0.62, the object scenes
   ≤ 0.42) and spreads far beyond the dense core (90th / 10th percentile of the distance to the
   density peak ≥ 10: bonsai-7k 14.9, the object scenes 4.6–8.0; a solid cloud, which an eye inside
   also sees all around, stays near 3); else ``orbit``. Never ``forward``: a forward-facing capture
@@ -48,9 +48,9 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.cameras import Camera
-from harness.scene import GaussianScene
-from harness.scene_frame import SceneFrame, enclosure, scene_frame
+from harness.core.cameras import Camera
+from harness.core.scene import GaussianScene
+from harness.views.placement import SceneFrame, enclosure, scene_frame
 
 RIG_NAMES = ("orbit", "room", "forward", "auto")
 NEAR_MARGIN = 0.3  # keep content beyond the renderer's z > 0.2 cull

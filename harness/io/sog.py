@@ -40,8 +40,8 @@ from typing import Self
 
 import numpy as np
 
-from harness.errors import InputError
-from harness.scene import SH_REST_COUNT, GaussianScene
+from harness.core.errors import InputError
+from harness.core.scene import SH_REST_COUNT, GaussianScene
 
 _SQRT2 = np.sqrt(2.0)
 _OPACITY_EPS = 1e-6

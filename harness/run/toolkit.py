@@ -2,12 +2,12 @@
 
 :class:`Toolkit` bundles the callables the runner uses — scene loading, dataset name resolution,
 rigs, camera files, renderers, metrics. The default toolkit imports the real modules lazily
-(:mod:`harness.scene_io`, :mod:`harness.datasets`, :mod:`harness.rigs`, :mod:`harness.camera_io`,
+(:mod:`harness.io.scenes`, :mod:`harness.io.datasets`, :mod:`harness.views.rigs`, :mod:`harness.io.cameras`,
 :mod:`renderers`, :mod:`harness.metrics`). A toolkit travels to pool workers by pickling, so every
 callable in it must be a module-level function.
 
 Each entry also names the modules whose source is its "version" in cache keys
-(see :func:`harness.cache.code_digest`).
+(see :func:`harness.run.cache.code_digest`).
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from pathlib import Path
 
 
 def load_scene(path: str, lod: int | None = None):
-    from harness.scene_io import load_scene as _load
+    from harness.io.scenes import load_scene as _load
 
     return _load(path, lod=lod)
 
@@ -29,7 +29,7 @@ def resolve_dataset(name: str) -> Path | None:
     A named scene that is not fetched yet resolves to its expected path (which then does not exist);
     the runner reports it as absent with the hint to run ``harness fetch``.
     """
-    from harness import datasets
+    from harness.io import datasets
 
     return datasets.scene_path(name) if name in datasets.SCENES else None
 
@@ -38,11 +38,11 @@ def make_rig(rig: str, scene, *, kind: str, name: str, n_train: int, n_test: int
              aspect: float, seed: int):
     """(rig name, train, test) cameras from a synthetic rig.
 
-    ``rig='auto'``: the scene's entry in :data:`harness.rigs.SCENE_RIGS` when it has one (its own
+    ``rig='auto'``: the scene's entry in :data:`harness.views.rigs.SCENE_RIGS` when it has one (its own
     aspect, up axis and elevations win over the config's aspect), else ``forward`` for a
     forward-facing scene and the rigs module's ``auto`` choice (room or orbit) otherwise.
     """
-    from harness import rigs
+    from harness.views import rigs
 
     common = dict(n_train=n_train, n_test=n_test, longest_side=longest_side, seed=seed)
     if rig == "auto" and rigs.scene_key(name) in rigs.SCENE_RIGS:
@@ -55,7 +55,7 @@ def make_rig(rig: str, scene, *, kind: str, name: str, n_train: int, n_test: int
 
 
 def load_cameras(path: str):
-    from harness.camera_io import load_cameras as _load
+    from harness.io.cameras import load_cameras as _load
 
     return _load(path)
 
@@ -77,7 +77,7 @@ def make_metrics(names: tuple[str, ...], device: str):
 def check_metrics(names: tuple[str, ...]) -> None:
     """Fail before any work when a metric cannot run: LPIPS-VGG weights not fetched -> InputError."""
     if "lpips" in names:
-        from harness.errors import InputError
+        from harness.core.errors import InputError
         from harness.metrics.lpips_weights import FETCH_HINT, weights_path
 
         if not weights_path().is_file():
@@ -94,8 +94,8 @@ class Toolkit:
     make_metrics: Callable = make_metrics
     check_metrics: Callable = check_metrics
     #: module names whose source versions each stage (cache-key "code" component)
-    reader_modules: tuple[str, ...] = ("harness.scene_io", "harness.ply_io", "harness.splat_io", "harness.sog_io")
-    rig_modules: tuple[str, ...] = ("harness.rigs", "harness.cameras")
+    reader_modules: tuple[str, ...] = ("harness.io.scenes", "harness.io.ply", "harness.io.splat", "harness.io.sog")
+    rig_modules: tuple[str, ...] = ("harness.views.rigs", "harness.core.cameras")
     #: whole packages: renderers and metrics import their shared code lazily, inside functions, so a
     #: module-level import closure would miss it (over-invalidation is the safe side)
     renderer_modules: tuple[str, ...] = ("renderers",)
@@ -109,7 +109,7 @@ class Toolkit:
 
 def module_versions(names) -> str:
     """code_digest of the named modules that exist (a missing optional module is skipped)."""
-    from harness.cache import code_digest, module_file
+    from harness.run.cache import code_digest, module_file
 
     present = []
     for n in names:

@@ -28,9 +28,9 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.errors import InputError
-from harness.ply_io import atomic_write
-from harness.scene import SH_C0, GaussianScene, normalized_quats, sigmoid
+from harness.core.errors import InputError
+from harness.io.ply import atomic_write
+from harness.core.scene import SH_C0, GaussianScene, normalized_quats, sigmoid
 
 SPLAT_RECORD = np.dtype([("pos", "<f4", (3,)), ("scale", "<f4", (3,)), ("rgba", "u1", (4,)), ("rot", "u1", (4,))])
 assert SPLAT_RECORD.itemsize == 32
