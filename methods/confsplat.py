@@ -45,8 +45,9 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from harness.metrics.ssim import ssim_map
 from harness.core.scene import GaussianScene
+from harness.metrics.ssim import ssim_map
+from methods.registry import PruneContext, register_pruner
 from renderers.pixel_pairs import (
     PixelPairs,
     build_pairs,
@@ -54,7 +55,6 @@ from renderers.pixel_pairs import (
     render_pairs,
     torch_threads,
 )
-from methods.registry import PruneContext, register_pruner
 from renderers.projection import SplatTensors, project_gaussians
 
 log = logging.getLogger(__name__)

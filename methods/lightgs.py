@@ -35,8 +35,8 @@ import numpy as np
 import torch
 
 from harness.core.scene import GaussianScene
-from renderers.pixel_pairs import build_pairs, composite, torch_threads
 from methods.registry import PruneContext, register_pruner
+from renderers.pixel_pairs import build_pairs, composite, torch_threads
 from renderers.projection import SplatTensors, project_gaussians
 
 V_REF_FRACTION = 0.9

@@ -10,10 +10,10 @@ import sys
 import numpy as np
 import pytest
 
+from harness.io.files import atomic_write_with
 from harness.run.cache import (
     FileDigests,
     StageCache,
-    atomic_write_with,
     canonical_json,
     code_digest,
     digest_json,

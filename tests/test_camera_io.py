@@ -13,6 +13,8 @@ import struct
 import numpy as np
 import pytest
 
+from harness.core.cameras import Camera
+from harness.core.errors import InputError
 from harness.io.cameras import (
     load_cameras,
     ply_camera_comments,
@@ -20,9 +22,7 @@ from harness.io.cameras import (
     read_transforms_json,
     write_3dgs_cameras,
 )
-from harness.core.cameras import Camera
 from harness.io.colmap import MODEL_IDS, read_colmap_model
-from harness.core.errors import InputError
 
 
 def project(cam: Camera, p) -> tuple[float, float, float]:

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from harness.run.config import load_config, merge_ratios, parse_config
 from harness.core.errors import InputError
+from harness.run.config import load_config, merge_ratios, parse_config
 from methods.registry import register_pruner
 
 REPO = Path(__file__).resolve().parent.parent

@@ -9,9 +9,9 @@ import tarfile
 
 import pytest
 
-from harness.io import datasets
 from harness.cli import main
 from harness.core.errors import InputError
+from harness.io import datasets
 
 
 @pytest.fixture

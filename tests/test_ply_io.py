@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 from plyfile import PlyData, PlyElement
 
-from harness.io import datasets
-from harness.io.ply import atomic_write, read_ply, read_ply_header, write_ply
 from harness.core.scene import GaussianScene
+from harness.io import datasets
+from harness.io.files import atomic_write_chunks as atomic_write
+from harness.io.ply import read_ply, read_ply_header, write_ply
 from tests.scene_factory import random_scene
 
 CORE = ("means", "scales_log", "quats", "opacity_logit", "sh_dc", "sh_rest")

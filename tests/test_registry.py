@@ -10,7 +10,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from harness.cli import main
-from methods import PruneContext, get_pruner, list_pruners, register_pruner, select_by_keep, select_by_ratio
+from methods import (
+    PruneContext,
+    get_pruner,
+    list_pruners,
+    register_pruner,
+    select_by_keep,
+    select_by_ratio,
+)
 from methods.targeting import removal_count
 from tests.scene_factory import random_scene
 

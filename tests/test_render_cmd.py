@@ -7,8 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from harness.io.cameras import load_cameras, write_3dgs_cameras
 from harness.cli import main
+from harness.io.cameras import load_cameras, write_3dgs_cameras
 from harness.views.contact_sheet import coverage, to_uint8
 from tests.scene_factory import random_scene
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from harness.core.scene import GaussianScene
+from harness.views.placement import scene_frame
 from harness.views.rigs import (
     SCENE_RIGS,
     choose_rig,
@@ -14,8 +16,6 @@ from harness.views.rigs import (
     scene_key,
     scene_rig,
 )
-from harness.core.scene import GaussianScene
-from harness.views.placement import scene_frame
 from tests.scene_factory import random_scene
 
 RIGS = ("orbit", "room", "forward")

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.run.config import parse_config
-from harness.report.results import to_frame
-from harness.run.runner import Runner
 from harness.io.scenes import write_scene
+from harness.report.results import to_frame
+from harness.run.config import parse_config
+from harness.run.runner import Runner
 from tests import runner_fakes as fakes
 from tests.scene_factory import random_scene
 

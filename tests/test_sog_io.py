@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from harness.io import datasets
 from harness.cli import main
 from harness.core.errors import InputError
+from harness.io import datasets
 from harness.io.ply import read_ply, write_ply
 from harness.io.sog import lod_levels, read_sog
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from harness.core.scene import SH_C0, normalized_quats, sigmoid
 from harness.io import datasets
 from harness.io.ply import read_ply, write_ply
-from harness.core.scene import SH_C0, normalized_quats, sigmoid
 from harness.io.splat import SPLAT_RECORD, encode_splat, read_splat, write_splat
 from tests.scene_factory import random_scene
 

@@ -9,7 +9,8 @@ import pytest
 
 from harness.cli import main
 from harness.report.results import read_results, to_frame, write_results
-from harness.report.tables import build_tables, summarise, write_tables
+from harness.report.summary import summarise
+from harness.report.tables import build_tables, write_tables
 
 
 def _rows():

@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from harness.report import tracking
 from harness.cli import main
+from harness.report import tracking
 from harness.report.results import to_frame, write_results
 
 CALIB = 0.5

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
-import platform
 import resource
 import statistics
 import time
@@ -12,20 +10,8 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from harness.core.paths import results_dir
-
-
-def machine() -> dict:
-    """What the numbers were measured on."""
-    import torch
-
-    return {
-        "platform": platform.platform(),
-        "python": platform.python_version(),
-        "cpus": os.cpu_count(),
-        "torch": torch.__version__,
-        "torch_threads": torch.get_num_threads(),
-        "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
-    }
+from harness.io.files import atomic_write_text
+from harness.report.machine import describe_machine
 
 
 def peak_rss_mb() -> float:
@@ -57,11 +43,9 @@ def write_result(name: str, payload: dict, markdown: str | None = None) -> Path:
     """Write ``results/bench/<name>.json`` (with the machine description) and optional ``.md``."""
     out = results_dir() / "bench"
     out.mkdir(parents=True, exist_ok=True)
-    payload = {"benchmark": name, "when": time.strftime("%Y-%m-%dT%H:%M:%S"), "machine": machine(), **payload}
+    payload = {"benchmark": name, "when": time.strftime("%Y-%m-%dT%H:%M:%S"), "machine": describe_machine(), **payload}
     path = out / f"{name}.json"
-    tmp = path.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(payload, indent=2, default=float) + "\n")
-    tmp.replace(path)
+    atomic_write_text(path, json.dumps(payload, indent=2, default=float) + "\n")
     if markdown is not None:
-        (out / f"{name}.md").write_text(markdown.rstrip() + "\n")
+        atomic_write_text(out / f"{name}.md", markdown.rstrip() + "\n")
     return path

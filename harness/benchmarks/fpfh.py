@@ -59,9 +59,9 @@ def _first_call(empty_cache: bool) -> dict:
 def _voxel_cloud(scene_name: str, voxel_fraction: float):
     import numpy as np
 
-    from harness.io.datasets import resolve_scene
     from harness.core.errors import InputError
     from harness.core.scene import opacities
+    from harness.io.datasets import resolve_scene
     from harness.io.scenes import load_scene
     from methods.betadesc.normals import voxel_normals
     from methods.betadesc.voxel import voxel_downsample

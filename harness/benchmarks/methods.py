@@ -109,8 +109,8 @@ def _markdown(scene_name: str, n: int, n_train: int, timings: dict, quality: dic
 def run(args) -> int:
     from harness.benchmarks._common import write_result
     from harness.core.errors import InputError
-    from harness.views.rigs import default_rig
     from harness.io.scenes import load_scene
+    from harness.views.rigs import default_rig
     from methods import list_pruners
 
     logging.getLogger("methods").setLevel(logging.INFO)  # confsplat reports its iterations

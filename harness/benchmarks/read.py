@@ -35,8 +35,8 @@ def _peak_alloc_mb(fn) -> float:
 
 def run(args) -> int:
     from harness.benchmarks._common import median_time, peak_rss_mb, write_result
-    from harness.io.datasets import resolve_scene
     from harness.core.errors import InputError
+    from harness.io.datasets import resolve_scene
     from harness.io.scenes import load_scene, write_scene
 
     path = resolve_scene(args.scene)

@@ -34,8 +34,8 @@ def _measure(backend: str, scene_name: str, views: int, device) -> dict:
     import torch
 
     from harness.benchmarks._common import peak_rss_mb
-    from harness.views.rigs import default_rig
     from harness.io.scenes import load_scene
+    from harness.views.rigs import default_rig
 
     scene = load_scene(scene_name)
     cams = default_rig(scene_name, scene).test[:views]
@@ -80,8 +80,8 @@ def _measure(backend: str, scene_name: str, views: int, device) -> dict:
 
 def run(args) -> int:
     from harness.benchmarks._common import write_result
-    from harness.io.datasets import resolve_scene
     from harness.core.errors import InputError
+    from harness.io.datasets import resolve_scene
 
     backends = [b.strip() for b in args.backends.split(",") if b.strip()]
     unknown = sorted(set(backends) - set(BACKENDS))

@@ -108,13 +108,6 @@ def plot(path: Path, rows, flags) -> None:
 def run(args) -> int:
     import numpy as np
 
-    from harness.benchmarks._common import machine
-    from harness.core.errors import InputError
-    from harness.metrics.lpips_vgg import LpipsVGG
-    from harness.core.paths import results_dir
-    from harness.views.rigs import scene_rig
-    from harness.io.scenes import load_scene
-    from harness.report.tracking import time_calibration
     from harness.benchmarks._tradeoff_knobs import (
         PRUNE_FAMILIES,
         QUICK_PRUNE,
@@ -123,6 +116,13 @@ def run(args) -> int:
         pareto_front,
         prune_knobs,
     )
+    from harness.core.errors import InputError
+    from harness.core.paths import results_dir
+    from harness.io.scenes import load_scene
+    from harness.metrics.lpips_vgg import LpipsVGG
+    from harness.report.machine import describe_machine as machine
+    from harness.report.machine import time_calibration
+    from harness.views.rigs import scene_rig
     from methods.targeting import select_by_ratio
 
     if args.views < 1 or args.repeats < 1:

@@ -14,9 +14,8 @@ import time
 from contextlib import nullcontext
 from pathlib import Path
 
-import numpy as np
-
 from harness.core.errors import InputError
+from harness.io.files import atomic_write_npy
 
 NAME = "prune"
 HELP = "prune a splat scene to a ratio with BetaDescPrune (or any registered pruner) and write a .ply"
@@ -60,17 +59,6 @@ def _check_args(args) -> float:
         if path is not None and not Path(path).parent.is_dir():
             raise InputError(path, "output folder does not exist")
     return value if args.ratio is not None else 1.0 - value
-
-
-def _save_scores(path: str, scores: np.ndarray) -> None:
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp.npy")
-    try:
-        np.save(tmp, scores)
-        tmp.replace(path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
 
 
 def _ply_comments(source) -> list[str]:
@@ -126,7 +114,7 @@ def run(args) -> int:
     t0 = time.perf_counter()
     write_scene(scene.subset(selection.keep), args.output, comments=_ply_comments(args.input))
     if args.scores is not None:
-        _save_scores(args.scores, scores)
+        atomic_write_npy(args.scores, scores)
     seconds["write"] = time.perf_counter() - t0
 
     report = {"method": spec.name, "splats_in": len(scene), "splats_out": selection.kept,

@@ -18,13 +18,13 @@ views (default: as stored) and sets the rig resolution (default 1024).
 from __future__ import annotations
 
 import json
-import os
 import re
 from pathlib import Path
 
 import numpy as np
 
 from harness.core.errors import InputError
+from harness.io.files import atomic_write_npy, atomic_write_text, atomic_write_with
 
 NAME = "render"
 HELP = "render a scene from a camera file or a synthetic rig (images + contact sheet)"
@@ -99,35 +99,21 @@ def _safe(name: str) -> str:
     return stem[:80] or "view"
 
 
-def _atomic(path: Path, write) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-
-
 def _save_image(image: np.ndarray, path: Path, fmt: str) -> None:
     if fmt == "npy":
-        def write(t):
-            with open(t, "wb") as f:
-                np.save(f, np.asarray(image, np.float32))
-
-        _atomic(path, write)
+        atomic_write_npy(path, np.asarray(image, np.float32))
     else:
         from PIL import Image
 
         from harness.views.contact_sheet import to_uint8
 
-        _atomic(path, lambda t: Image.fromarray(to_uint8(image)).save(t, format="PNG"))
+        atomic_write_with(path, lambda t: Image.fromarray(to_uint8(image)).save(t, format="PNG"))
 
 
 def run(args) -> int:
     from harness.io.cameras import write_3dgs_cameras
-    from harness.views.contact_sheet import write_contact_sheet
     from harness.io.scenes import load_scene
+    from harness.views.contact_sheet import write_contact_sheet
 
     background = _background(args.background)
     out = Path(args.out)
@@ -155,7 +141,7 @@ def run(args) -> int:
     write_3dgs_cameras(cams, out / "cameras.json")
     record = [{"view": lab, "width": c.width, "height": c.height, "coverage": round(v, 4)}
               for lab, c, v in zip(labels, cams, covs)]
-    _atomic(out / "coverage.json", lambda t: Path(t).write_text(json.dumps(record, indent=1)))
+    atomic_write_text(out / "coverage.json", json.dumps(record, indent=1))
     for r in record:
         print(f"{r['view']:>24}  {r['width']}x{r['height']}  coverage {100 * r['coverage']:5.1f}%")
     print(f"wrote {len(cams)} views, contact_sheet.png, cameras.json and coverage.json to {out}")

@@ -28,10 +28,9 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     from rich.console import Console
 
-    from harness.run.config import load_config
     from harness.core.errors import InputError
     from harness.core.paths import cache_dir
-    from harness.run.progress import StageProgress
+    from harness.report.outputs import write_outputs
     from harness.report.record import (
         contact_sheets,
         copy_images,
@@ -39,8 +38,9 @@ def run(args) -> int:
         write_run_json,
     )
     from harness.report.results import to_frame, write_results
+    from harness.run.config import load_config
+    from harness.run.progress import StageProgress
     from harness.run.runner import Runner
-    from harness.report.tables import write_outputs
 
     config = load_config(args.config)
     workers = args.workers if args.workers is not None else config.workers

@@ -16,10 +16,10 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from harness.run.config import PLOTS, TABLES
     from harness.core.errors import InputError
+    from harness.report.outputs import write_outputs
     from harness.report.results import read_results
-    from harness.report.tables import write_outputs
+    from harness.run.config import PLOTS, TABLES
 
     run_dir = Path(args.run_dir)
     df = read_results(run_dir)

@@ -31,8 +31,8 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from harness.report import tracking
     from harness.core.errors import InputError
+    from harness.report import tracking
 
     history = Path(args.history) if args.history else results_dir() / "history"
     baseline_path = Path(args.baseline) if args.baseline else results_dir() / "history" / "baseline.json"

@@ -35,8 +35,8 @@ from pathlib import Path
 import numpy as np
 
 from harness.core.cameras import Camera
-from harness.io.colmap import find_colmap_model, read_colmap_model
 from harness.core.errors import InputError
+from harness.io.colmap import find_colmap_model, read_colmap_model
 
 GL_TO_CV = np.diag([1.0, -1.0, -1.0, 1.0])
 PLY_CAMERA_TAG = "camera "  # the comment text after "comment "
@@ -127,11 +127,11 @@ def cameras_to_3dgs_json(cameras: list[Camera]) -> list[dict]:
 
 def write_3dgs_cameras(cameras: list[Camera], path: str | Path) -> None:
     """Write a graphdeco ``cameras.json`` atomically (temp file + rename)."""
-    from harness.io.ply import atomic_write
+    from harness.io.files import atomic_write_text
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write(path, [json.dumps(cameras_to_3dgs_json(cameras), indent=1).encode("utf-8")])
+    atomic_write_text(path, json.dumps(cameras_to_3dgs_json(cameras), indent=1))
 
 
 # ------------------------------------------------------------------------------ NeRF transforms.json

@@ -30,7 +30,6 @@ Writing
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -38,6 +37,7 @@ import numpy as np
 
 from harness.core.errors import InputError
 from harness.core.scene import SH_REST_COUNT, GaussianScene
+from harness.io.files import atomic_write_chunks
 
 PLY_TYPES = {
     "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
@@ -318,23 +318,6 @@ def scene_to_table(scene: GaussianScene) -> np.ndarray:
     return table
 
 
-def atomic_write(path: str | Path, chunks) -> None:
-    """Write byte chunks / numpy arrays to ``path`` via a temporary file renamed into place."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        with open(tmp, "wb") as f:
-            for chunk in chunks:
-                if isinstance(chunk, np.ndarray):
-                    chunk.tofile(f)
-                else:
-                    f.write(chunk)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-
-
 def sibr_compatible(scene: GaussianScene) -> GaussianScene:
     """The scene in SIBR's fixed layout: normals (zero when absent), SH degree 3, no other extras."""
     n, k = len(scene), scene.sh_rest.shape[1]
@@ -350,4 +333,4 @@ def write_ply(scene: GaussianScene, path: str | Path, *, comments=(), sibr_layou
         scene = sibr_compatible(scene)
     table = scene_to_table(scene)
     header = ply_header_bytes(ply_layout(scene), len(scene), comments)
-    atomic_write(path, [header, table])
+    atomic_write_chunks(path, [header, table])

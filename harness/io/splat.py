@@ -29,8 +29,8 @@ from pathlib import Path
 import numpy as np
 
 from harness.core.errors import InputError
-from harness.io.ply import atomic_write
 from harness.core.scene import SH_C0, GaussianScene, normalized_quats, sigmoid
+from harness.io.files import atomic_write_chunks
 
 SPLAT_RECORD = np.dtype([("pos", "<f4", (3,)), ("scale", "<f4", (3,)), ("rgba", "u1", (4,)), ("rot", "u1", (4,))])
 assert SPLAT_RECORD.itemsize == 32
@@ -80,4 +80,4 @@ def encode_splat(scene: GaussianScene) -> np.ndarray:
 
 def write_splat(scene: GaussianScene, path: str | Path) -> None:
     """Write ``scene`` as an antimatter15 ``.splat`` file (atomically; lossy, see module docstring)."""
-    atomic_write(path, [encode_splat(scene)])
+    atomic_write_chunks(path, [encode_splat(scene)])

@@ -20,7 +20,12 @@ from pathlib import Path
 import numpy as np
 
 from harness.metrics.images import as_image, check_same_size, read_image
-from harness.metrics.lpips_vgg import LpipsFeatures, LpipsVGG, load_features, save_features
+from harness.metrics.lpips_vgg import (
+    LpipsFeatures,
+    LpipsVGG,
+    load_features,
+    save_features,
+)
 from harness.metrics.psnr import mse, psnr, psnr_from_mse, summarize_psnr, yuv_psnr
 from harness.metrics.ssim import ssim, ssim_batch
 

@@ -18,7 +18,8 @@ import numpy as np
 import pandas as pd
 
 from harness.report.record import _slug, image_name
-from harness.report.tables import NAMES, summarise
+from harness.report.summary import summarise
+from harness.report.tables import NAMES
 
 FIG1 = ("betadesc", "default", (0.1, 0.3, 0.5, 0.7))
 FIG3 = (("No Beta", "betadesc-nobeta", "default", 0.2), ("Beta", "betadesc", "default", 0.2))
@@ -34,7 +35,7 @@ def _plt():
 
 
 def _save(fig, path: Path) -> Path:
-    from harness.run.cache import atomic_write_with
+    from harness.io.files import atomic_write_with
 
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_with(path, lambda p: fig.savefig(p, dpi=110, bbox_inches="tight", format="png"))

@@ -17,16 +17,19 @@ so ``harness tables RUN_DIR`` can rebuild tables and plots from ``results.parque
 from __future__ import annotations
 
 import json
-import platform
 import shutil
-import subprocess
 import time
 from pathlib import Path
 
 import numpy as np
 
-from harness.run.cache import atomic_write_text
-from harness.core.paths import REPO_ROOT
+from harness.io.files import atomic_write_text
+from harness.report.machine import (
+    cpu_seconds,
+    describe_machine,
+    git_commit,
+    time_calibration,
+)
 
 
 def _slug(text: str) -> str:
@@ -70,55 +73,16 @@ def contact_sheets(items, cache, ref_key, out_dir: Path, background=(0.0, 0.0, 0
     return out
 
 
-def _git(*args) -> str:
-    try:
-        return subprocess.run(["git", *args], cwd=REPO_ROOT, capture_output=True, text=True, timeout=10,
-                              check=False).stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        return ""
-
-
-def git_commit() -> str:
-    """HEAD, with ``+dirty`` when tracked files differ from it (the numbers are then not reproducible
-    from the commit alone)."""
-    head = _git("rev-parse", "HEAD")
-    return f"{head}+dirty" if head and _git("status", "--porcelain", "--untracked-files=no") else head
-
-
-def machine() -> dict:
-    import os
-
-    import torch
-
-    return {"platform": platform.platform(), "python": platform.python_version(), "cpus": os.cpu_count(),
-            "torch": torch.__version__,
-            "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None}
-
-
-def cpu_seconds() -> float:
-    """User + system CPU seconds of this process and its finished children (the pool's workers):
-    the work done, independent of how many other processes shared the cores."""
-    import resource
-
-    total = 0.0
-    for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN):
-        r = resource.getrusage(who)
-        total += r.ru_utime + r.ru_stime
-    return total
-
-
 def write_run_json(out_dir: Path, config, result, *, workers: int, cache_root: Path, argv=None) -> Path:
     """run.json, with the calibration workload timed right after the run (``harness track`` divides
     stage times by it, so machine speed cancels out of the regression check)."""
-    from harness.report.tracking import time_calibration
-
     payload = {
         "name": config.name,
         "config_path": config.source_path,
         "config": config.raw,
         "when": time.strftime("%Y-%m-%dT%H:%M:%S"),
         "commit": git_commit(),
-        "machine": machine(),
+        "machine": describe_machine(),
         "workers": workers,
         "cache": str(cache_root),
         "stage_seconds": result.stage_s,

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from harness.run.cache import atomic_write_with
+from harness.io.files import atomic_write_with
 
 COLUMNS = [
     "run", "scene", "label", "kind", "frame", "method", "variant", "params", "ratio", "keep", "view",

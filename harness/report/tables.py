@@ -27,7 +27,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from harness.run.cache import atomic_write_text
+from harness.io.files import atomic_write_text
+from harness.report.summary import summarise
 
 NAMES = {"confsplat": "ConfSplatPrune", "lightgs": "LightGSPrune", "betadesc": "BetaDescPrune",
          "betadesc-nodesc": "BetaDesc (no desc.)", "betadesc-nobeta": "BetaDesc (no Beta)",
@@ -41,27 +42,6 @@ ABLATION = (("No Descriptors", "No Beta", "betadesc-nodesc-nobeta"), ("No Descri
             ("With Descriptors", "No Beta", "betadesc-nobeta"), ("With Descriptors", "Beta", "betadesc"))
 METRICS = (("psnr", "PSNR (↑)", 2), ("ssim", "SSIM (↑)", 3), ("lpips", "LPIPS (↓)", 3))
 _TOL = 1e-6
-
-
-# --------------------------------------------------------------------------- aggregation
-def summarise(df: pd.DataFrame) -> pd.DataFrame:
-    """Per (scene, label, method, variant, ratio): n pairs, n_inf, mean psnr (finite), ssim, lpips, score_s."""
-    ok = df[df["status"] == "ok"].copy()
-    cols = ["scene", "label", "method", "variant", "ratio"]
-    if ok.empty:
-        return pd.DataFrame(columns=cols + ["n", "n_inf", "psnr", "ssim", "lpips", "score_s", "splats_in"])
-    ok["psnr_f"] = ok["psnr"].where(np.isfinite(ok["psnr"]))
-    ok["is_inf"] = np.isinf(ok["psnr"])
-    g = ok.groupby(cols, sort=False, dropna=False)
-    out = pd.DataFrame({
-        "n": g.size(), "n_inf": g["is_inf"].sum().astype(int), "psnr": g["psnr_f"].mean(),
-        "ssim": g["ssim"].mean(), "lpips": g["lpips"].mean(),
-        "score_s": g["score_s"].mean(),  # repeated on every view row of a frame: = mean over frames
-        "splats_in": g["splats_in"].max(),
-    }).reset_index()
-    all_inf = (out["n_inf"] == out["n"]) & (out["n"] > 0)
-    out.loc[all_inf, "psnr"] = np.inf
-    return out
 
 
 def _cell(s: pd.DataFrame, scene, method, ratio, variant="default"):
@@ -267,10 +247,3 @@ def write_tables(df: pd.DataFrame, out_dir: str | Path, names) -> list[Path]:
             atomic_write_text(p, text)
             written.append(p)
     return written
-
-
-def write_outputs(run_dir: str | Path, df: pd.DataFrame, tables, plots) -> list[Path]:
-    """Tables and plots of a run folder from its results (no recomputation)."""
-    from harness.report.plots import write_plots
-
-    return write_tables(df, run_dir, tables) + write_plots(df, run_dir, plots)

@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import json
 import math
-import statistics
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -41,44 +40,11 @@ import numpy as np
 import pandas as pd
 
 from harness.core.errors import InputError
+from harness.report.machine import describe_machine, git_commit, time_calibration
 
 SCHEMA = 1
 DEFAULT_TOLERANCES = {"psnr": 0.5, "ssim": 0.005, "lpips": 0.005, "stage": 0.5, "min_stage_s": 1.0}
 _RUN_STAGES = ("load", "score", "prune", "render_metrics", "aggregate", "total")
-
-
-# --------------------------------------------------------------------------- calibration
-def calibration_workload(seed: int = 0) -> None:
-    """A fixed mix of the kernels the harness spends its time in: dense float32 matmul (LPIPS trunk
-    stand-in), a 3×3 convolution stack in torch, float64 sorting and gathers (ranking, neighbour
-    search), and elementwise exp/sqrt (rendering). Same work on every call; ~0.2 s on one modern core."""
-    import torch
-
-    rng = np.random.default_rng(seed)
-    a = rng.standard_normal((384, 384)).astype(np.float32)
-    for _ in range(4):
-        a = np.tanh(a @ a.T * (1.0 / 384.0))
-    x = rng.standard_normal(400_000)
-    order = np.argsort(x, kind="stable")
-    np.take(x, order).cumsum()
-    np.sqrt(np.exp(-0.5 * x * x) + 1.0).sum()
-    with torch.inference_mode():
-        g = torch.Generator().manual_seed(seed)
-        img = torch.randn(1, 16, 96, 96, generator=g)
-        w = torch.randn(16, 16, 3, 3, generator=g) * 0.1
-        for _ in range(6):
-            img = torch.relu(torch.nn.functional.conv2d(img, w, padding=1))
-
-
-def time_calibration(repeats: int = 5) -> float:
-    """Median wall seconds of :func:`calibration_workload` (one warm-up call first)."""
-    calibration_workload()
-    samples = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        calibration_workload()
-        samples.append(time.perf_counter() - t0)
-    return float(statistics.median(samples))
 
 
 # --------------------------------------------------------------------------- summary
@@ -143,7 +109,6 @@ def summarize_stages(df: pd.DataFrame, run_json: dict) -> dict[str, float]:
 def _commit(run_json: dict) -> str:
     if run_json.get("commit"):
         return str(run_json["commit"])
-    from harness.report.record import git_commit
 
     return git_commit() or "unknown"
 
@@ -175,9 +140,7 @@ def build_summary(df: pd.DataFrame, run_json: dict, calibration_s: float | None 
         calibration_s, source = time_calibration(), "track"
     machine = run_json.get("machine")
     if not machine:
-        from harness.report.record import machine as describe
-
-        machine = describe()
+        machine = describe_machine()
     return {
         "schema": SCHEMA,
         "run": run_json.get("name") or (str(df["run"].iloc[0]) if len(df) else ""),
@@ -279,7 +242,7 @@ def load_baseline(path: str | Path) -> dict:
 
 def write_baseline(path: str | Path, summary: dict, tolerances: dict | None = None) -> Path:
     """Write ``{"tolerances", "summary"}`` atomically (tolerances default to the module's)."""
-    from harness.run.cache import atomic_write_text
+    from harness.io.files import atomic_write_text
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

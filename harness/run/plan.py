@@ -23,8 +23,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from harness.run.cache import StageCache, digest_json
 from harness.core.cameras import Camera
+from harness.run.cache import StageCache, digest_json
 from harness.run.config import MethodVariant, RunConfig, SceneSpec
 from harness.run.toolkit import Toolkit, module_versions
 

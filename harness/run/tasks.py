@@ -19,8 +19,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from harness.run.cache import StageCache
 from harness.core.cameras import Camera
+from harness.run.cache import StageCache
 from harness.run.toolkit import Toolkit
 
 _STATE: dict = {}
@@ -98,7 +98,7 @@ def png_bytes(img: np.ndarray) -> bytes:
 
 
 def put_png(cache: StageCache, key: str, img: np.ndarray) -> None:
-    from harness.run.cache import atomic_write_bytes
+    from harness.io.files import atomic_write_bytes
 
     atomic_write_bytes(cache.path("images", key, "png"), png_bytes(img))
 

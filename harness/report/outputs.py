@@ -1,0 +1,15 @@
+"""Everything a run folder shows, rebuilt from its stored results: tables, then plots."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+
+from harness.report.plots import write_plots
+from harness.report.tables import write_tables
+
+
+def write_outputs(run_dir: str | Path, df: pd.DataFrame, tables, plots) -> list[Path]:
+    """Tables and plots of a run folder from its results (no recomputation)."""
+    return write_tables(df, run_dir, tables) + write_plots(df, run_dir, plots)
