@@ -1,56 +1,70 @@
-"""Pruner registry: ``@register_pruner`` (like timm's ``@register_model``) plus entry points.
+"""Pruner registry: ``@register_pruner`` (like timm's ``@register_model``) with the metadata every
+tool asks it for — parameters, needs, display label, table group and place in the paper's ablation.
 
-A pruner is a function ``score(scene, ctx) -> float64 (N,)``, higher = keep. It declares its
-parameters with defaults and what it needs from the context (``"cameras"``, ``"renderer"``);
-the harness skips a pruner whose needs a scene cannot meet and records why.
+A pruner is a function ``score(scene, ctx) -> float64 (N,)``, higher = keep. It declares
 
-Built-in pruners live in the modules listed in ``_BUILTIN_MODULES``; third-party packages add
-theirs through the ``harness.pruners`` entry-point group: each entry point names a module
-(``myname = "mypkg.pruners"``) whose import registers its pruners with :func:`register_pruner`.
+* ``params``: a :class:`harness.core.params.Params` dataclass (types, ranges, documentation). Configs,
+  ``harness prune`` flags and the runner all validate through it once, at load; the pruner receives
+  the resolved instance as ``ctx.params``.
+* ``needs``: what the context must hold (``"cameras"``: training views); a run skips a pruner whose
+  needs a scene cannot meet and records why.
+* ``label`` (table/plot name), ``group`` (one of :data:`GROUPS`, the comparison table's column
+  groups) and, for the paper's method and its ablations, ``ablation``: its cell of the
+  descriptors × Beta grid (Table 2).
+
+Built-in pruners live in :data:`BUILTIN_MODULES` (cheap to import: heavy libraries are imported
+inside the score functions); third-party packages add theirs through the ``harness.pruners``
+entry-point group (see :mod:`harness.core.registry`).
 """
 
 from __future__ import annotations
 
-import importlib
 from dataclasses import dataclass, field
-from importlib.metadata import entry_points
 from typing import Any, Callable, Mapping
 
 import numpy as np
 
-ENTRY_POINT_GROUP = "harness.pruners"
-#: built-in pruner name -> module registering it. ``get_pruner`` imports only the module it needs,
-#: so `harness prune --method betadesc` never pays for torch (imported by the camera-aware families).
-_BUILTIN_PRUNERS = {
-    "opacity": "methods.simple",
-    "volume": "methods.simple",
-    "random": "methods.simple",
-    "betadesc": "methods.betadesc",
-    "betadesc-nodesc": "methods.betadesc",
-    "betadesc-nobeta": "methods.betadesc",
-    "betadesc-nodesc-nobeta": "methods.betadesc",
-    "lightgs": "methods.lightgs",
-    "confsplat": "methods.confsplat",
-}
-KNOWN_NEEDS = frozenset({"cameras", "renderer"})
+from harness.core.params import Params
+from harness.core.registry import Registry
 
-_REGISTRY: dict[str, "PrunerSpec"] = {}
-_loaded = False
+ENTRY_POINT_GROUP = "harness.pruners"
+#: registration order is display order within a group (tables, plots, `harness methods`)
+BUILTIN_MODULES = ("methods.confsplat", "methods.lightgs", "methods.simple", "methods.betadesc")
+KNOWN_NEEDS = frozenset({"cameras"})
+#: comparison-table groups, in column order, with their titles
+GROUPS = {"camera-aware": "Camera-Aware Methods", "baseline": "Simple Baselines", "ours": "Our Method",
+          "ablation": "Ablations", "other": "Other Methods"}
+
+
+@dataclass(frozen=True)
+class Ablation:
+    """A cell of the paper's ablation grid (Table 2): neighbourhood descriptors on/off × Beta on/off."""
+
+    descriptors: bool
+    beta: bool
+
+    @property
+    def labels(self) -> tuple[str, str]:
+        return ("With Descriptors" if self.descriptors else "No Descriptors", "Beta" if self.beta else "No Beta")
+
+
+@dataclass(frozen=True)
+class NoParams(Params):
+    """Parameters of a pruner that has none."""
 
 
 @dataclass
 class PruneContext:
     """What a pruner may use besides the scene.
 
-    ``params`` are the pruner's parameters merged over its declared defaults. ``cameras`` (training
-    views) and ``renderer`` are present only for camera-aware runs; ``device`` is the torch device
-    name to compute on ("cpu" or "cuda").
+    ``params`` is the pruner's resolved :class:`Params` instance; ``cameras`` (training views) is
+    present only when the run or the command has cameras; ``device`` is the torch device name to
+    compute on ("cpu" or "cuda").
     """
 
-    params: dict[str, Any] = field(default_factory=dict)
+    params: Params | None = None
     seed: int = 0
     cameras: list | None = None
-    renderer: Any = None
     device: str = "cpu"
 
 
@@ -58,27 +72,33 @@ class PruneContext:
 class PrunerSpec:
     name: str
     fn: Callable[..., np.ndarray]
+    params: type[Params]
     needs: frozenset[str]
-    params: Mapping[str, Any]
+    label: str
+    group: str
+    ablation: Ablation | None
     summary: str
+    #: parameters with which the pruner uses cameras when they are given (e.g. betadesc's view_weight
+    #: > 0): the runner then hands it the rig's training views although it does not need them
+    uses_cameras: Callable[[Params], bool] = field(default=lambda p: False)
+
+    def parse_params(self, values: Mapping[str, Any] | Params | None = None) -> Params:
+        """The resolved parameters (``ParamError`` naming the key for a bad one)."""
+        return values if isinstance(values, self.params) else self.params.parse(values)
+
+    def wants_cameras(self, params: Params) -> bool:
+        """Does a run hand this pruner training cameras (it needs them, or these params use them)?"""
+        return "cameras" in self.needs or bool(self.uses_cameras(params))
 
     def missing_needs(self, ctx: PruneContext) -> list[str]:
         """Needs the context cannot meet (empty list = runnable)."""
-        have = {"cameras": bool(ctx.cameras), "renderer": ctx.renderer is not None}
+        have = {"cameras": bool(ctx.cameras)}
         return sorted(n for n in self.needs if not have[n])
 
-    def resolve_params(self, params: Mapping[str, Any] | None) -> dict[str, Any]:
-        """Defaults overlaid with ``params``; unknown names are an error."""
-        params = dict(params or {})
-        unknown = sorted(set(params) - set(self.params))
-        if unknown:
-            raise KeyError(f"pruner {self.name!r} has no parameter(s) {', '.join(unknown)}; "
-                           f"known: {', '.join(sorted(self.params)) or 'none'}")
-        return {**self.params, **params}
-
     def score(self, scene, ctx: PruneContext) -> np.ndarray:
-        """Run the pruner with resolved params; checks the output contract."""
-        ctx = PruneContext(**{**ctx.__dict__, "params": self.resolve_params(ctx.params)})
+        """Run the pruner (parameters resolved if the context holds a mapping); checks the output."""
+        ctx = PruneContext(params=self.parse_params(ctx.params), seed=ctx.seed, cameras=ctx.cameras,
+                           device=ctx.device)
         missing = self.missing_needs(ctx)
         if missing:
             raise RuntimeError(f"pruner {self.name!r} needs {', '.join(missing)}")
@@ -90,60 +110,50 @@ class PrunerSpec:
         return scores
 
 
-def register_pruner(
-    name: str,
-    *,
-    needs: tuple[str, ...] | frozenset[str] = (),
-    params: Mapping[str, Any] | None = None,
-    summary: str | None = None,
-):
-    """Decorator registering ``fn(scene, ctx) -> scores`` under ``name``.
+PRUNERS: Registry[PrunerSpec] = Registry("pruner", modules=BUILTIN_MODULES, group=ENTRY_POINT_GROUP)
 
-    ``summary`` defaults to the first line of the function's docstring.
+
+def register_pruner(name: str, *, params: type[Params] = NoParams, needs=(), label: str | None = None,
+                    group: str = "other", ablation: Ablation | None = None, summary: str | None = None,
+                    uses_cameras: Callable[[Params], bool] | None = None):
+    """Decorator registering ``fn(scene, ctx) -> scores`` under ``name`` with its metadata.
+
+    ``summary`` defaults to the first line of the function's docstring, ``label`` to ``name``.
     """
     bad = set(needs) - KNOWN_NEEDS
     if bad:
         raise ValueError(f"unknown needs {sorted(bad)}; known: {sorted(KNOWN_NEEDS)}")
+    if group not in GROUPS:
+        raise ValueError(f"unknown group {group!r}; known: {', '.join(GROUPS)}")
+    if not (isinstance(params, type) and issubclass(params, Params)):
+        raise TypeError(f"pruner {name!r}: params must be a Params dataclass, got {params!r}")
 
     def deco(fn):
         doc = (fn.__doc__ or "").strip().splitlines()
-        spec = PrunerSpec(
-            name=name,
-            fn=fn,
-            needs=frozenset(needs),
-            params=dict(params or {}),
-            summary=summary or (doc[0] if doc else name),
-        )
-        if name in _REGISTRY and _REGISTRY[name].fn is not fn:
-            raise ValueError(f"pruner {name!r} is already registered by {_REGISTRY[name].fn.__module__}")
-        _REGISTRY[name] = spec
+        spec = PrunerSpec(name=name, fn=fn, params=params, needs=frozenset(needs), label=label or name,
+                          group=group, ablation=ablation, summary=summary or (doc[0] if doc else name),
+                          uses_cameras=uses_cameras or (lambda p: False))
+        PRUNERS.add(name, spec, same=lambda old, new: old.fn.__qualname__ == new.fn.__qualname__
+                    and old.fn.__module__ == new.fn.__module__)
         return fn
 
     return deco
 
 
-def _load_all() -> None:
-    global _loaded
-    if _loaded:
-        return
-    _loaded = True
-    for mod in dict.fromkeys(_BUILTIN_PRUNERS.values()):
-        importlib.import_module(mod)
-    for ep in entry_points(group=ENTRY_POINT_GROUP):
-        ep.load()  # importing the named module runs its @register_pruner decorators
+def get_pruner(name: str) -> PrunerSpec:
+    return PRUNERS.get(name)
 
 
 def list_pruners() -> list[PrunerSpec]:
-    _load_all()
-    return [_REGISTRY[k] for k in sorted(_REGISTRY)]
+    """Every registered pruner, built-ins first, in registration order."""
+    return list(PRUNERS)
 
 
-def get_pruner(name: str) -> PrunerSpec:
-    if name in _BUILTIN_PRUNERS:
-        importlib.import_module(_BUILTIN_PRUNERS[name])
-    if name not in _REGISTRY:
-        _load_all()
-    try:
-        return _REGISTRY[name]
-    except KeyError:
-        raise KeyError(f"unknown pruner {name!r}; known: {', '.join(sorted(_REGISTRY))}") from None
+def ablation_grid() -> dict[tuple[bool, bool], PrunerSpec]:
+    """(descriptors, beta) -> the pruner in that cell of the paper's ablation grid."""
+    return {(s.ablation.descriptors, s.ablation.beta): s for s in PRUNERS if s.ablation is not None}
+
+
+def proposed() -> PrunerSpec | None:
+    """The paper's method: the full cell of the ablation grid."""
+    return ablation_grid().get((True, True))

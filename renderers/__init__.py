@@ -6,21 +6,51 @@
 ``reference`` is the tile-based torch rasterizer (CPU or CUDA, differentiable, per-splat statistics);
 ``gl`` is the moderngl/EGL renderer (Mesa llvmpipe on the CPU, the GPU when present). Both implement
 the classic 3DGS math described in DESIGN.md and must agree to ≥ 45 dB PSNR.
+
+Renderers are registered lazily (``"module:Class"``: nothing heavy is imported until one is made);
+third parties add theirs through the ``harness.renderers`` entry-point group, whose modules call
+:func:`register_renderer`.
 """
 
 from __future__ import annotations
 
-RENDERERS = ("gl", "reference")
+import importlib
+from dataclasses import dataclass
+
+from harness.core.registry import Registry
+
+
+@dataclass(frozen=True)
+class RendererSpec:
+    name: str
+    factory: str          # "module:Class"; Class(device=...) -> renderer
+    label: str
+    uses_device: bool     # honours a torch device (the GL renderer picks its own)
+    differentiable: bool = False
+
+    def make(self, device: str | None = None):
+        module, _, attr = self.factory.partition(":")
+        cls = getattr(importlib.import_module(module), attr)
+        return cls(device=device) if self.uses_device else cls()
+
+
+RENDERERS: Registry[RendererSpec] = Registry("renderer", group="harness.renderers")
+
+
+def register_renderer(spec: RendererSpec) -> RendererSpec:
+    RENDERERS.add(spec.name, spec, same=lambda a, b: a == b)
+    return spec
 
 
 def get_renderer(name: str, device: str | None = None):
     """A renderer object with ``.name``, ``.render(scene, camera, background)`` and ``.close()``."""
-    if name == "reference":
-        from renderers.reference import ReferenceRenderer
+    try:
+        spec = RENDERERS.get(name)
+    except KeyError as err:
+        raise ValueError(err.args[0]) from None
+    return spec.make(device)
 
-        return ReferenceRenderer(device=device)
-    if name == "gl":
-        from renderers.gl import GLRenderer
 
-        return GLRenderer()
-    raise ValueError(f"unknown renderer {name!r}; known: {', '.join(RENDERERS)}")
+register_renderer(RendererSpec("gl", "renderers.gl:GLRenderer", "moderngl/EGL", uses_device=False))
+register_renderer(RendererSpec("reference", "renderers.reference:ReferenceRenderer", "torch tile rasterizer",
+                               uses_device=True, differentiable=True))

@@ -2,7 +2,7 @@
 
 Importing this module registers the pruners ``fake-norm`` (camera-agnostic, score = −‖mean‖; its
 ``unused`` parameter does not change the scores, so two variants give identical keep masks),
-``fake-aware`` (needs cameras and a renderer) and ``fake-broken`` (always raises). Call counters
+``fake-aware`` (needs cameras) and ``fake-broken`` (always raises). Call counters
 live in :data:`CALLS` (meaningful for in-process runs).
 """
 
@@ -10,10 +10,12 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from dataclasses import dataclass
 
 import numpy as np
 
 from harness.core.cameras import Camera
+from harness.core.params import Params, param
 from harness.core.scene import base_colors, opacities
 from harness.run.toolkit import Toolkit
 from methods.registry import register_pruner
@@ -21,14 +23,19 @@ from methods.registry import register_pruner
 CALLS: Counter = Counter()
 
 
-@register_pruner("fake-norm", params={"unused": 0})
+@dataclass(frozen=True)
+class FakeParams(Params):
+    unused: int = param(0, doc="changes nothing")
+
+
+@register_pruner("fake-norm", params=FakeParams)
 def fake_norm(scene, ctx):
     """Keep splats near the origin: score = −‖mean‖."""
     CALLS["score:fake-norm"] += 1
     return -np.linalg.norm(scene.means.astype(np.float64), axis=1)
 
 
-@register_pruner("fake-aware", needs=("cameras", "renderer"))
+@register_pruner("fake-aware", needs=("cameras",))
 def fake_aware(scene, ctx):
     """Camera-aware stand-in: opacity."""
     CALLS["score:fake-aware"] += 1

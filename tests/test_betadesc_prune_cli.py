@@ -82,11 +82,17 @@ def test_options_reach_the_pruner_and_text_report(scene_file, tmp_path, capsys):
     (["--keep", "-0.1"], "--keep"),
     (["--ratio", "nan"], "--ratio"),
     (["--ratio", "0.3", "--method", "nosuch"], "unknown pruner"),
-    (["--ratio", "0.3", "--method", "random", "--preset", "flat"], "no parameter"),
-    (["--ratio", "0.3", "--score", "mean"], "unknown score"),
-    (["--ratio", "0.3", "--preset", "heavy"], "unknown coefficient preset"),
-    (["--ratio", "0.3", "--voxel", "0"], "voxel"),
+    (["--ratio", "0.3", "--method", "random", "--preset", "flat"], "--preset: method 'random': no such parameter"),
+    (["--ratio", "0.3", "--score", "mean"], "--score: method 'betadesc': 'mean' is not one of ucb, lcb"),
+    (["--ratio", "0.3", "--preset", "heavy"], "'heavy' is not one of baseline, flat"),
+    (["--ratio", "0.3", "--voxel", "0"], "--voxel: method 'betadesc': 0.0 is not > 0"),
     (["--ratio", "0.3", "--voxel", "-0.5"], "voxel"),
+    (["--ratio", "0.3", "--voxel", "inf"], "--voxel: method 'betadesc': expected a finite number"),
+    (["--ratio", "0.3", "--gamma", "nan"], "--gamma: method 'betadesc': expected a finite number"),
+    (["--ratio", "0.3", "--param", "gamma"], "--param: expected NAME=VALUE"),
+    (["--ratio", "0.3", "--param", "nope=1"], "--param nope: method 'betadesc': no such parameter"),
+    (["--ratio", "0.3", "--max-nn", "2.5"], "--max-nn: method 'betadesc': expected int >= 1, got '2.5'"),
+    (["--ratio", "0.3", "--method", "lightgs"], "'lightgs' needs training cameras; give them with --cameras"),
 ])
 def test_bad_arguments_exit_2_without_output(scene_file, tmp_path, capsys, argv, message):
     out = tmp_path / "bad.ply"

@@ -26,7 +26,7 @@ SMALL = {"voxel": 0.05, "radius_voxels": 3.0, "max_nn": 40}
 
 def _score(name: str, scene: GaussianScene, **params) -> np.ndarray:
     spec = get_pruner(name)
-    if "voxel" in spec.params:
+    if "voxel" in spec.params.names():
         params = {**SMALL, **params}
     return spec.score(scene, PruneContext(params=params))
 
@@ -41,11 +41,13 @@ def test_registered_with_documented_params():
     for name in NAMES:
         spec = get_pruner(name)
         assert not spec.needs and spec.summary != name
-        assert "preset" in spec.params and "view_weight" in spec.params
-    full = get_pruner("betadesc").params
-    assert 0.01 <= full["voxel"] <= 0.02 and full["gamma"] == 0.25 and full["score"] == "ucb"
-    assert "score" not in get_pruner("betadesc-nobeta").params
-    assert "voxel" not in get_pruner("betadesc-nodesc").params
+        assert {"preset", "view_weight"} <= set(spec.params.names())
+        assert all(p.doc for p in spec.params.specs())
+    full = get_pruner("betadesc").parse_params()
+    assert 0.01 <= full.voxel <= 0.02 and full.gamma == 0.25 and full.score == "ucb"
+    assert full.view_weight == 0.0  # camera-agnostic unless asked
+    assert "score" not in get_pruner("betadesc-nobeta").params.names()
+    assert "voxel" not in get_pruner("betadesc-nodesc").params.names()
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -179,10 +181,10 @@ def test_view_aware_edge_evidence_only_with_cameras():
     plain = spec.score(scene, PruneContext(params=SMALL))
     cams = [Camera.look_at((4 * np.cos(a), 0.5, 4 * np.sin(a)), (0, 0, 0), width=64, height=48)
             for a in np.linspace(0, 2 * np.pi, 6, endpoint=False)]
-    with_cams = spec.score(scene, PruneContext(params=SMALL, cameras=cams))
+    with_cams = spec.score(scene, PruneContext(params={**SMALL, "view_weight": 0.25}, cameras=cams))
     assert not np.array_equal(plain, with_cams)
     assert (with_cams >= plain - 1e-12).sum() > 0.5 * len(scene)  # extra evidence is for retention
-    off = spec.score(scene, PruneContext(params={**SMALL, "view_weight": 0.0}, cameras=cams))
+    off = spec.score(scene, PruneContext(params=SMALL, cameras=cams))  # view_weight 0: the default
     np.testing.assert_array_equal(off, plain)
 
 

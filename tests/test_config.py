@@ -2,18 +2,27 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 
 from harness.core.errors import InputError
+from harness.core.params import Params, param
 from harness.run.config import load_config, merge_ratios, parse_config
 from methods.registry import register_pruner
 
 REPO = Path(__file__).resolve().parent.parent
 
 
-@register_pruner("fake-config", params={"a": 1, "b": "x", "voxel": 0.01})
+@dataclass(frozen=True)
+class FakeConfigParams(Params):
+    a: int = param(1, doc="an integer")
+    b: str = param("x", doc="a string")
+    voxel: float = param(0.01, gt=0, doc="a positive number")
+
+
+@register_pruner("fake-config", params=FakeConfigParams)
 def _fake(scene, ctx):
     """Config test pruner (never run)."""
     raise AssertionError("not called")
@@ -37,7 +46,7 @@ def test_defaults_and_ratio_merge():
     assert cfg.protocol.longest_side == 1024 and cfg.protocol.metrics == ("psnr", "ssim", "lpips")
     assert cfg.scenes[0].source == "luigi" and cfg.scenes[0].label == "luigi"
     (m,) = cfg.methods
-    assert (m.method, m.variant, m.params) == ("fake-config", "default", {})
+    assert (m.method, m.variant, m.params) == ("fake-config", "default", FakeConfigParams())
     assert m.ratios == (0.1, 0.2, 0.3, 0.5)  # keep 0.7 -> ratio 0.3, merged and sorted
     assert merge_ratios([0.3], [0.7]) == (0.3,)
 
@@ -49,8 +58,8 @@ def test_sweeps_expand_to_stable_variant_names():
     ]), "c.yaml")
     names = [m.variant for m in cfg.methods]
     assert names == ["b=p,a=1", "b=p,a=2", "b=q,a=1", "b=q,a=2", "v:voxel=0.02"]
-    assert cfg.methods[1].params == {"b": "p", "a": 2}
-    assert cfg.methods[4].params == {"a": 3, "voxel": 0.02} and cfg.methods[4].ratios == (0.3,)
+    assert cfg.methods[1].params == FakeConfigParams(b="p", a=2)
+    assert cfg.methods[4].params == FakeConfigParams(a=3, voxel=0.02) and cfg.methods[4].ratios == (0.3,)
 
 
 def test_env_expansion_in_paths(monkeypatch):
@@ -65,7 +74,20 @@ def test_env_expansion_in_paths(monkeypatch):
     ({"bogus": 1}, "top level: unknown key(s) bogus"),
     ({"methods": ["no-such-pruner"]}, "methods[0].name: unknown pruner 'no-such-pruner'"),
     ({"methods": [{"name": "fake-config", "params": {"c": 1}}]},
-     "methods[0].params.c: pruner 'fake-config' has no parameter 'c'; known: a, b, voxel"),
+     "methods[0].params.c: method 'fake-config': no such parameter; known: a, b, voxel"),
+    ({"methods": [{"name": "fake-config", "params": {"voxel": -1}}]},
+     "methods[0].params.voxel: method 'fake-config': -1.0 is not > 0"),
+    ({"methods": [{"name": "fake-config", "sweep": {"a": [1, "abc"]}}]},
+     "methods[0].sweep.a: method 'fake-config': expected an integer, got 'abc'"),
+    ({"methods": [{"name": "betadesc", "params": {"gamma": "abc"}}]},
+     "methods[0].params.gamma: method 'betadesc': expected a number, got 'abc'"),
+    ({"methods": [{"name": "betadesc", "params": {"score": "nonsense"}}]},
+     "methods[0].params.score: method 'betadesc': 'nonsense' is not one of ucb, lcb, quantile, literal"),
+    ({"methods": [{"name": "betadesc", "params": {"voxel": -1}}]},
+     "methods[0].params.voxel: method 'betadesc': -1.0 is not > 0"),
+    ({"methods": [{"name": "betadesc", "params": {"max_nn": 2.5}}]},
+     "methods[0].params.max_nn: method 'betadesc': expected an integer, got 2.5"),
+    ({"methods": [{"name": "fake-config", "params": [1]}]}, "methods[0].params: expected a mapping"),
     ({"methods": [{"name": "fake-config", "sweep": {"a": 3}}]}, "methods[0].sweep.a: expected a non-empty list"),
     ({"methods": [{"name": "fake-config", "params": {"a": 1}, "sweep": {"a": [2]}}]},
      "methods[0].sweep.a: also set in params"),

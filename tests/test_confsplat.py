@@ -9,8 +9,13 @@ import torch
 
 from harness.core.cameras import Camera
 from methods import PruneContext, get_pruner
-from methods.confsplat import beta_gate, image_loss, optimise_confidence, prepare_views
-from methods.lightgs import significance
+from methods.confsplat.train import (
+    beta_gate,
+    image_loss,
+    optimise_confidence,
+    prepare_views,
+)
+from methods.lightgs.significance import significance
 from renderers.pixel_pairs import render_pairs
 from tests.scene_factory import random_scene
 
@@ -44,7 +49,7 @@ def _mean_image_loss(scene, cams, confidence):
 
 def test_gated_render_moves_towards_the_unpruned_render():
     scene, cams = _scene(), _cams()
-    res = optimise_confidence(scene, cams, {"longest_side": 0, "iterations": 40, "lr": 1e-2}, seed=0)
+    res = optimise_confidence(scene, cams, {"train_longest_side": 0, "iterations": 40, "lr": 1e-2}, seed=0)
     assert res.iterations == 40 and len(res.losses) == 40
     before = _mean_image_loss(scene, cams, np.full(len(scene), 0.5))
     after = _mean_image_loss(scene, cams, res.confidence)
@@ -71,7 +76,7 @@ def _regulariser_only(iterations, n, lr, lam_s=2e-3, lam_e=2e-3):
 
 def test_invisible_splats_are_moved_only_by_the_regularisers():
     scene, cams = _scene(), _cams()
-    params = {"longest_side": 0, "iterations": 60}
+    params = {"train_longest_side": 0, "iterations": 60}
     res = optimise_confidence(scene, cams, params, seed=1)
     c = res.confidence
     sig = significance(scene, cams, longest_side=0, early_stop=False)
@@ -89,7 +94,7 @@ def test_invisible_splats_are_moved_only_by_the_regularisers():
 
 def test_deterministic_in_the_seed():
     scene, cams = _scene(80), _cams()
-    params = {"longest_side": 24, "iterations": 12}
+    params = {"train_longest_side": 24, "iterations": 12}
     spec = get_pruner("confsplat")
     a = spec.score(scene, PruneContext(params=params, seed=3, cameras=cams))
     b = spec.score(scene, PruneContext(params=params, seed=3, cameras=cams))
@@ -111,7 +116,7 @@ def test_bad_parameters_and_missing_cameras():
 
 def test_matmul_blur_equals_the_metric_blur():
     from harness.metrics.ssim import blur_torch, gaussian_taps
-    from methods.confsplat import blur_matmul
+    from methods.confsplat.train import blur_matmul
 
     x = torch.rand(1, 5, 23, 41, generator=torch.Generator().manual_seed(0), dtype=torch.float64)
     np.testing.assert_allclose(blur_matmul(x, gaussian_taps()).numpy(), blur_torch(x, gaussian_taps()).numpy(),

@@ -8,7 +8,7 @@ import torch
 
 from harness.core.cameras import Camera
 from methods import PruneContext, get_pruner
-from methods.lightgs import volume_factor
+from methods.lightgs.significance import volume_factor
 from renderers.projection import project_gaussians
 from tests.scene_factory import random_scene
 
@@ -62,7 +62,7 @@ def test_matches_dense_computation(early_stop):
     vol = scales.prod(1)
     v_ref = np.sort(vol)[::-1][int(0.9 * len(vol))]
     expect = dense_significance(scene, cams, early_stop) * (vol / v_ref) ** 0.1
-    ctx = PruneContext(params={"longest_side": 0, "early_stop": early_stop}, cameras=cams)
+    ctx = PruneContext(params={"train_longest_side": 0, "early_stop": early_stop}, cameras=cams)
     got = get_pruner("lightgs").score(scene, ctx)
     assert (expect > 0).sum() > 60 and (expect == 0).sum() > 0  # visible and invisible splats both present
     np.testing.assert_allclose(got, expect, rtol=2e-5, atol=1e-6)
@@ -78,8 +78,8 @@ def test_volume_reference_is_ninety_percent_down_the_descending_sort():
 def test_resolution_parameter_resizes_the_views():
     scene, cams = _scene(60), _cams()
     spec = get_pruner("lightgs")
-    full = spec.score(scene, PruneContext(params={"longest_side": 0}, cameras=cams))
-    half = spec.score(scene, PruneContext(params={"longest_side": 32}, cameras=cams))
+    full = spec.score(scene, PruneContext(params={"train_longest_side": 0}, cameras=cams))
+    half = spec.score(scene, PruneContext(params={"train_longest_side": 32}, cameras=cams))
     # Σ over pixels scales with the pixel count: about 4× fewer pixels at half the side
     ratio = half[full > 0].sum() / full[full > 0].sum()
     assert 0.15 < ratio < 0.4

@@ -7,11 +7,11 @@ import pytest
 from skimage import data
 
 from harness.core.errors import InputError
-from harness.metrics import MetricSuite, compare_images
 from harness.metrics import lpips_weights as lw
 from harness.metrics.lpips_vgg import LpipsVGG
 from harness.metrics.psnr import psnr
 from harness.metrics.ssim import ssim
+from harness.metrics.suite import MetricSuite, compare_images
 
 pytestmark = pytest.mark.weights
 

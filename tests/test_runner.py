@@ -80,10 +80,10 @@ def test_identical_keep_masks_are_rendered_once(scenes, tmp_path):
 
 
 def test_changing_params_recomputes_only_that_method(scenes, tmp_path):
-    _run(_config(scenes, ["fake-norm", {"name": "random", "params": {"seed": 1}}]), tmp_path)
+    _run(_config(scenes, ["opacity", {"name": "fake-norm", "params": {"unused": 1}}]), tmp_path)
     fakes.CALLS.clear()
-    res, _ = _run(_config(scenes, ["fake-norm", {"name": "random", "params": {"seed": 2}}]), tmp_path)
-    assert fakes.CALLS["score:fake-norm"] == 0
+    res, _ = _run(_config(scenes, ["opacity", {"name": "fake-norm", "params": {"unused": 2}}]), tmp_path)
+    assert fakes.CALLS["score:fake-norm"] == 2  # one per scene; opacity's scores are reused
     assert res.counts["score"] == {"hits": 2, "misses": 2}
     assert res.counts["render_ref"]["misses"] == 0  # reference renders are shared by every method
 
@@ -94,7 +94,7 @@ def test_camera_aware_without_cameras_is_skipped_with_reason(scenes, tmp_path):
     _, df = _run(cfg, tmp_path)
     skipped = df[df["method"] == "fake-aware"]
     assert len(skipped) == 1 and skipped.iloc[0]["status"] == "skipped"
-    assert "needs cameras, renderer" in skipped.iloc[0]["reason"]
+    assert "fake-aware needs cameras" in skipped.iloc[0]["reason"]
     assert (df[df["method"] == "opacity"]["status"] == "ok").all()
 
 

@@ -94,7 +94,7 @@ def prune_knobs(scene, families: dict, repeats: int = 1) -> tuple[list[Row], np.
             rho = 1.0 if same else float(spearmanr(scores[v], scores[ref]).statistic)
             rows.append(Row(family, f"{param}={v:g}", v == ref, *times[v],
                             {"1-spearman": 1.0 - rho, "1-jaccard@0.3": 1.0 - removed_jaccard(scores[v], scores[ref])}))
-            if family == "voxel" and v == spec.params["voxel"]:
+            if family == "voxel" and v == spec.parse_params().voxel:
                 default_scores = scores[v]
     if default_scores is None:
         default_scores = spec.score(scene, PruneContext())
@@ -150,7 +150,8 @@ class Evaluator:
             return rasterize(st, cam).image.to(torch.float32).numpy()
 
     def metrics(self, ref_img, img, precision="float32", lpips_side=None) -> dict:
-        from harness.metrics import psnr, ssim
+        from harness.metrics.psnr import psnr
+        from harness.metrics.ssim import ssim
 
         a = downsample(ref_img, lpips_side) if lpips_side else ref_img
         b = downsample(img, lpips_side) if lpips_side else img

@@ -36,18 +36,16 @@ def add_arguments(parser) -> None:
 
 def _score_all(scene, rig, names: list[str], seed: int) -> tuple[dict, dict]:
     from methods import PruneContext, get_pruner
-    from renderers import get_renderer
 
     timings, scores = {}, {}
     for name in names:
         spec = get_pruner(name)
-        renderer = get_renderer("reference") if "renderer" in spec.needs else None
-        ctx = PruneContext(seed=seed, cameras=rig.train if "cameras" in spec.needs else None, renderer=renderer)
+        ctx = PruneContext(seed=seed, cameras=rig.train if "cameras" in spec.needs else None)
         load = os.getloadavg()[0]
         t0, c0 = time.perf_counter(), time.process_time()
         scores[name] = spec.score(scene, ctx)
         timings[name] = {"wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0,
-                         "needs": sorted(spec.needs), "params": spec.resolve_params(None), "load_before": load}
+                         "needs": sorted(spec.needs), "params": spec.parse_params().to_dict(), "load_before": load}
         print(f"{name}: {timings[name]['wall_s']:.2f} s wall, {timings[name]['cpu_s']:.2f} s CPU", flush=True)
     return timings, scores
 

@@ -86,9 +86,9 @@ def _end_to_end(scene: str, ratio: float, repeats: int) -> dict:
 def _cpu_stages(scene_name: str, ratio: float, repeats: int) -> dict:
     """CPU seconds (all threads) per stage in this process, median of ``repeats`` after a warm-up:
     on a shared machine CPU time is what the code costs, wall time also measures the neighbours."""
+    from harness.core.timing import record_stages
     from harness.io.scenes import load_scene, write_scene
     from methods import PruneContext, get_pruner, select_by_ratio
-    from methods.betadesc.pipeline import record_stages
 
     samples = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -121,10 +121,10 @@ def _fpfh_vs_open3d(scene_name: str, repeats: int) -> dict:
     from methods.betadesc import backend
     from methods.betadesc.grid import build_grid
 
-    params = get_pruner("betadesc").params
+    params = get_pruner("betadesc").parse_params()
     scene = load_scene(scene_name)
-    grid = build_grid(scene.means, params["voxel"])
-    radius, max_nn = float(params["radius_voxels"]), int(params["max_nn"])
+    grid = build_grid(scene.means, params.voxel)
+    radius, max_nn = params.radius_voxels, params.max_nn
     normals = backend.voxel_normals(grid, scene.quats, scene.scales_log, radius)
 
     def ours_fpfh():  # search + FPFH, as the pipeline runs them

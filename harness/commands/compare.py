@@ -39,9 +39,9 @@ def run(args) -> int:
     import torch
 
     from harness.core.errors import InputError
-    from harness.metrics import compare_images
     from harness.metrics.images import check_same_size, read_image
     from harness.metrics.lpips_vgg import LpipsVGG
+    from harness.metrics.suite import compare_images
 
     a, b = read_image(args.a), read_image(args.b)
     check_same_size(a, b, args.a, args.b)

@@ -1,25 +1,31 @@
-"""`harness methods [--json]`: the registered pruners, what they need and their parameters."""
+"""`harness methods [--json]`: the registered pruners, what they need and their typed parameters."""
 
 from __future__ import annotations
 
 import json
 
 NAME = "methods"
-HELP = "list the registered pruners (name, needs, parameters, summary)"
+HELP = "list the registered pruners (name, label, group, needs, parameters with types and ranges)"
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("--json", action="store_true", help="print one JSON list")
 
 
-def run(args) -> int:
+def describe() -> list[dict]:
     from methods import list_pruners
 
-    specs = list_pruners()
-    rows = [
-        {"name": s.name, "needs": sorted(s.needs), "params": dict(s.params), "summary": s.summary}
-        for s in specs
-    ]
+    return [{"name": s.name, "label": s.label, "group": s.group, "needs": sorted(s.needs),
+             "ablation": None if s.ablation is None else {"descriptors": s.ablation.descriptors,
+                                                          "beta": s.ablation.beta},
+             "summary": s.summary,
+             "params": {p.name: {"type": p.describe(), "default": p.default, "doc": p.doc}
+                        for p in s.params.specs()}}
+            for s in list_pruners()]
+
+
+def run(args) -> int:
+    rows = describe()
     if args.json:
         print(json.dumps(rows, indent=2, default=str))
         return 0
@@ -27,10 +33,11 @@ def run(args) -> int:
     from rich.table import Table
 
     table = Table(title="registered pruners")
-    for col in ("name", "needs", "parameters", "summary"):
+    for col in ("name", "group", "needs", "parameters", "summary"):
         table.add_column(col, overflow="fold")
     for r in rows:
-        params = ", ".join(f"{k}={v!r}" for k, v in r["params"].items()) or "-"
-        table.add_row(r["name"], ", ".join(r["needs"]) or "-", params, r["summary"])
+        params = "\n".join(f"{k} = {v['default']!r}  ({v['type']})" for k, v in r["params"].items()) or "-"
+        table.add_row(f"{r['name']}\n[dim]{r['label']}[/]", r["group"], ", ".join(r["needs"]) or "-", params,
+                      r["summary"])
     Console(width=160).print(table)
     return 0

@@ -2,10 +2,11 @@
 
 * ``curves``: per scene, PSNR and LPIPS vs pruning ratio, one line per method's default variant
   (PSNR means exclude +inf pairs); ``plots/curves_<scene>.png``.
-* ``figure1`` (paper Fig. 1): per scene, the unpruned render and betadesc at τ-quantile
-  0.1/0.3/0.5/0.7 (ratio = removed fraction), first held-out view; ``plots/figure1.png``.
-* ``figure3`` (paper Fig. 3): per scene, input, betadesc-nobeta ("No Beta") and betadesc ("Beta")
-  at 20 %; ``plots/figure3.png``.
+* ``figure1`` (paper Fig. 1): per scene, the unpruned render and the paper's method (the full cell
+  of the registry's ablation grid) at τ-quantile 0.1/0.3/0.5/0.7 (ratio = removed fraction), first
+  held-out view; ``plots/figure1.png``.
+* ``figure3`` (paper Fig. 3): per scene, input, the method without Beta ("No Beta") and with it
+  ("Beta") at 20 %; ``plots/figure3.png``.
 
 Image grids read the renders the run stored under ``<run>/images/`` (no rendering here).
 """
@@ -17,12 +18,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from harness.report import catalog
 from harness.report.record import _slug, image_name
 from harness.report.summary import summarise
-from harness.report.tables import NAMES
 
-FIG1 = ("betadesc", "default", (0.1, 0.3, 0.5, 0.7))
-FIG3 = (("No Beta", "betadesc-nobeta", "default", 0.2), ("Beta", "betadesc", "default", 0.2))
+FIG1_RATIOS = (0.1, 0.3, 0.5, 0.7)
+FIG3_RATIO = 0.2
 
 
 def _plt():
@@ -53,7 +54,7 @@ def plot_curves(df: pd.DataFrame, out: Path) -> list[Path]:
             m = m.sort_values("ratio")
             for ax, key in zip(axes, ("psnr", "lpips")):
                 y = m[key].replace(np.inf, np.nan)
-                ax.plot(100 * m["ratio"], y, marker="o", label=NAMES.get(method, method))
+                ax.plot(100 * m["ratio"], y, marker="o", label=catalog.method_label(method))
         for ax, name in zip(axes, ("PSNR (dB, ↑)", "LPIPS-VGG (↓)")):
             ax.set_xlabel("pruning ratio (%)")
             ax.set_ylabel(name)
@@ -117,11 +118,15 @@ def write_plots(df: pd.DataFrame, run_dir: str | Path, names) -> list[Path]:
     written: list[Path] = []
     if "curves" in names:
         written += plot_curves(df, out)
-    if "figure1" in names:
-        m, v, rs = FIG1
-        cols = [("unpruned", "input", "", 0.0)] + [(f"τ ≈ {r:g} ({100 * r:.0f} % pruned)", m, v, r) for r in rs]
-        written += _grid(df, images, cols, "BetaDescPrune at increasing pruning (paper Fig. 1)", out / "figure1.png")
-    if "figure3" in names:
-        cols = [("input", "input", "", 0.0)] + list(FIG3)
+    proposed = catalog.proposed_method()
+    if "figure1" in names and proposed:
+        cols = [("unpruned", "input", "", 0.0)] + [(f"τ ≈ {r:g} ({100 * r:.0f} % pruned)", proposed, "default", r)
+                                                   for r in FIG1_RATIOS]
+        title = f"{catalog.method_label(proposed)} at increasing pruning (paper Fig. 1)"
+        written += _grid(df, images, cols, title, out / "figure1.png")
+    pair = catalog.beta_pair()
+    if "figure3" in names and pair:
+        cols = [("input", "input", "", 0.0), ("No Beta", pair[0], "default", FIG3_RATIO),
+                ("Beta", pair[1], "default", FIG3_RATIO)]
         written += _grid(df, images, cols, "No Beta vs Beta at 20 % pruning (paper Fig. 3)", out / "figure3.png")
     return written

@@ -5,10 +5,14 @@ Means are over all measured image pairs of a cell (every view of every frame of 
 ``n_inf`` (``summary.csv``; a note under each table); a cell whose pairs are all identical shows
 ``inf``. Only ``status == ok`` rows enter.
 
+Which methods go where is asked of the pruner registry (:mod:`harness.report.catalog`): labels,
+comparison groups, and each method's cell of the paper's ablation grid.
+
 * ``comparison`` (Table 1): per scene × metric, each method's default variant at Low/Mid/High =
-  10/20/30 % pruning; camera-aware methods, simple baselines, then BetaDescPrune.
-* ``ablation`` (Table 2): at 20 %, No/With Descriptors × No Beta/Beta =
-  betadesc-nodesc-nobeta, betadesc-nodesc, betadesc-nobeta, betadesc. Bold: best per row.
+  10/20/30 % pruning, grouped as the registry groups them (camera-aware methods, simple baselines,
+  the paper's method, other registered methods).
+* ``ablation`` (Table 2): at 20 %, No/With Descriptors × No Beta/Beta (betadesc-nodesc-nobeta,
+  betadesc-nodesc, betadesc-nobeta, betadesc). Bold: best per row.
 * ``keep`` (Table 3): keep 0.7/0.5/0.3 (prune 30/50/70 %), pooled over scenes, betadesc-nodesc
   vs betadesc, and ΔPSNR = PSNR(no descriptors) − PSNR(with descriptors) — the paper's sign
   (negative when descriptors help).
@@ -28,19 +32,19 @@ import numpy as np
 import pandas as pd
 
 from harness.io.files import atomic_write_text
+from harness.report import catalog
 from harness.report.summary import summarise
 
-NAMES = {"confsplat": "ConfSplatPrune", "lightgs": "LightGSPrune", "betadesc": "BetaDescPrune",
-         "betadesc-nodesc": "BetaDesc (no desc.)", "betadesc-nobeta": "BetaDesc (no Beta)",
-         "betadesc-nodesc-nobeta": "BetaDesc (neither)", "opacity": "Opacity", "volume": "Volume",
-         "random": "Random"}
-GROUPS = (("Camera-Aware Methods", ("confsplat", "lightgs")), ("Simple Baselines", ("opacity", "volume", "random")),
-          ("Our Method", ("betadesc",)))
 LEVELS = (("Low", 0.1), ("Mid", 0.2), ("High", 0.3))
 KEEPS = (0.7, 0.5, 0.3)
-ABLATION = (("No Descriptors", "No Beta", "betadesc-nodesc-nobeta"), ("No Descriptors", "Beta", "betadesc-nodesc"),
-            ("With Descriptors", "No Beta", "betadesc-nobeta"), ("With Descriptors", "Beta", "betadesc"))
-METRICS = (("psnr", "PSNR (↑)", 2), ("ssim", "SSIM (↑)", 3), ("lpips", "LPIPS (↓)", 3))
+#: the paper's sensitivity knobs (Table 4): swept parameter -> row group
+SENSITIVITY_KNOBS = {"preset": "coefficients", "voxel": "voxel size"}
+
+
+def _metrics() -> list[tuple[str, str, int]]:
+    return catalog.metric_columns(("psnr", "ssim", "lpips"))
+
+
 _TOL = 1e-6
 
 
@@ -65,13 +69,13 @@ def _inf_note(s: pd.DataFrame) -> list[str]:
 
 # --------------------------------------------------------------------------- tables
 def table_comparison(s: pd.DataFrame):
-    present = set(s["method"])
-    cols = [(grp, NAMES.get(m, m), lvl, m, r) for grp, ms in GROUPS for m in ms if m in present for lvl, r in LEVELS]
+    cols = [(grp, catalog.method_label(m), lvl, m, r) for grp, m in catalog.comparison_methods(s["method"])
+            for lvl, r in LEVELS]
     if not cols:
         return None
     idx, num, disp = [], [], []
     for scene in dict.fromkeys(s["label"]):
-        for key, name, digits in METRICS:
+        for key, name, digits in _metrics():
             cells = [_cell(s, scene, m, r) for *_, m, r in cols]
             vals = [np.nan if c is None else c[key] for c in cells]
             idx.append((scene, name))
@@ -83,15 +87,16 @@ def table_comparison(s: pd.DataFrame):
 
 
 def table_ablation(s: pd.DataFrame, ratio: float = 0.2):
-    present = [a for a in ABLATION if not s[(s["method"] == a[2]) & (np.abs(s["ratio"] - ratio) < _TOL)].empty]
+    present = [a for a in catalog.ablation_cells()
+               if not s[(s["method"] == a[2]) & (np.abs(s["ratio"] - ratio) < _TOL)].empty]
     if not present:
         return None
     idx, num, disp = [], [], []
     for scene in dict.fromkeys(s["label"]):
-        for key, name, digits in METRICS:
+        for key, name, digits in _metrics():
             vals = [np.nan if (c := _cell(s, scene, m, ratio)) is None else c[key] for *_, m in present]
             finite = [v for v in vals if np.isfinite(v)]
-            best = (min(finite) if key == "lpips" else max(finite)) if finite else None
+            best = (max(finite) if catalog.higher_is_better(key) else min(finite)) if finite else None
             idx.append((scene, name))
             num.append(vals)
             disp.append([f"**{_fmt(v, digits)}**" if best is not None and v == best else _fmt(v, digits)
@@ -123,11 +128,15 @@ def _common(df: pd.DataFrame, cells) -> tuple[pd.DataFrame, list[str]]:
 
 
 def table_keep(df: pd.DataFrame):
+    pair = catalog.descriptor_pair()
+    if pair is None:
+        return None
+    without, full = pair
     rows, idx = [], []
     for k in KEEPS:
         r = round(1 - k, 9)
-        sub, _ = _common(df, [("betadesc-nodesc", "default", r), ("betadesc", "default", r)])
-        a, b = _pooled(sub, "betadesc-nodesc", r), _pooled(sub, "betadesc", r)
+        sub, _ = _common(df, [(without, "default", r), (full, "default", r)])
+        a, b = _pooled(sub, without, r), _pooled(sub, full, r)
         if a["n"] == 0 and b["n"] == 0:
             continue
         idx.append(f"{round(100 * r)}%")
@@ -136,7 +145,7 @@ def table_keep(df: pd.DataFrame):
     if not rows:
         return None
     mi = pd.MultiIndex.from_tuples(
-        [("No Descriptors", m) for _, m, _ in METRICS] + [("With Descriptors", m) for _, m, _ in METRICS]
+        [("No Descriptors", m) for _, m, _ in _metrics()] + [("With Descriptors", m) for _, m, _ in _metrics()]
         + [("ΔPSNR", "(dB)"), ("pairs", "no desc."), ("pairs", "with desc.")])
     num = pd.DataFrame(rows, pd.Index(idx, name="Prune %"), mi)
     digits = [2, 3, 3, 2, 3, 3, 2, 0, 0]
@@ -145,24 +154,30 @@ def table_keep(df: pd.DataFrame):
         disp.iloc[:, j] = [(_fmt(v, d) if d else str(int(v))) for v in num.iloc[:, j]]
     notes = ["pooled over every pair of the scenes both were measured on; "
              "ΔPSNR = no-desc − with-desc (paper's sign)"]
-    sub = df[(df["status"] == "ok") & df["method"].isin(["betadesc", "betadesc-nodesc"])]
+    sub = df[(df["status"] == "ok") & df["method"].isin([full, without])]
     k_inf = int(np.isinf(sub["psnr"]).sum())
     return num, disp, notes + ([f"{k_inf} identical pair(s) (PSNR = inf) excluded from PSNR means"] if k_inf else [])
 
 
 def table_sensitivity(df: pd.DataFrame, keep: float = 0.7):
+    method = catalog.proposed_method()
     r = round(1 - keep, 9)
-    sub = df[(df["method"] == "betadesc") & ((df["ratio"] - r).abs() < _TOL)]
-    variants = [v for v in dict.fromkeys(sub["variant"]) if v == "default" or "preset=" in v or "voxel=" in v]
+    sub = df[(df["method"] == method) & ((df["ratio"] - r).abs() < _TOL)]
+    knobs = list(SENSITIVITY_KNOBS)
+
+    def knob(v: str) -> str | None:  # sweep variants are named "<param>=<value>"
+        return next((k for k in knobs if v.startswith(f"{k}=")), None)
+
+    variants = [v for v in dict.fromkeys(sub["variant"]) if v == "default" or knob(v)]
     if len(variants) < 2:
         return None
-    variants = sorted(variants, key=lambda v: (v != "default", "voxel=" in v, v))
-    df, common = _common(df, [("betadesc", v, r) for v in variants])
+    variants = sorted(variants, key=lambda v: (v != "default", knobs.index(knob(v)) if knob(v) else -1, v))
+    df, common = _common(df, [(method, v, r) for v in variants])
     idx, rows = [], []
     for v in variants:
-        p = _pooled(df, "betadesc", r, v)
-        knob = "baseline" if v == "default" else ("voxel size" if "voxel=" in v else "coefficients")
-        idx.append((knob, v))
+        p = _pooled(df, method, r, v)
+        knob_label = "baseline" if v == "default" else SENSITIVITY_KNOBS[knob(v)]
+        idx.append((knob_label, v))
         rows.append([p["psnr"], p["ssim"], p["lpips"], p["n"], p["n_inf"]])
     num = pd.DataFrame(rows, pd.MultiIndex.from_tuples(idx, names=["knob", "variant"]),
                        ["PSNR (↑)", "SSIM (↑)", "LPIPS (↓)", "pairs", "inf"])
@@ -170,7 +185,7 @@ def table_sensitivity(df: pd.DataFrame, keep: float = 0.7):
     for j, d in enumerate([2, 4, 4, 0, 0]):
         disp.iloc[:, j] = [(_fmt(v, d) if d else str(int(v))) for v in num.iloc[:, j]]
     spread = num["PSNR (↑)"].replace(np.inf, np.nan)
-    return num, disp, [f"betadesc at keep {keep} on the scenes every variant ran on ({', '.join(common)}); "
+    return num, disp, [f"{method} at keep {keep} on the scenes every variant ran on ({', '.join(common)}); "
                        f"PSNR spread across variants {spread.max() - spread.min():.2f} dB"]
 
 
@@ -179,14 +194,15 @@ def table_runtime(s: pd.DataFrame):
     if d.empty:
         return None
     wide = d.pivot(index="label", columns="method", values="score_s")
-    order = [m for _, ms in GROUPS for m in ms if m in wide] + sorted(set(wide) - {m for _, ms in GROUPS for m in ms})
-    wide = wide[order]
+    wide = wide[catalog.method_order(wide.columns)]
     wide.insert(0, "splats", d.drop_duplicates("label").set_index("label")["splats_in"].reindex(wide.index))
-    if "betadesc" in wide and "betadesc-nodesc" in wide:
-        wide["desc. overhead (s)"] = wide["betadesc"] - wide["betadesc-nodesc"]
-        wide["desc. overhead (%)"] = 100 * wide["desc. overhead (s)"] / wide["betadesc-nodesc"]
+    pair = catalog.descriptor_pair()
+    if pair is not None and pair[0] in wide and pair[1] in wide:
+        without, full = pair
+        wide["desc. overhead (s)"] = wide[full] - wide[without]
+        wide["desc. overhead (%)"] = 100 * wide["desc. overhead (s)"] / wide[without]
     wide.index.name = "scene"
-    wide.columns = [NAMES.get(c, c) + (" (s)" if c in d["method"].values else "") for c in wide.columns]
+    wide.columns = [catalog.method_label(c) + (" (s)" if c in d["method"].values else "") for c in wide.columns]
     disp = wide.copy().astype(object)
     for c in wide.columns:
         disp[c] = [str(int(v)) if c == "splats" and np.isfinite(v) else _fmt(v, 1 if "%" in c else 2) for v in wide[c]]
@@ -194,11 +210,15 @@ def table_runtime(s: pd.DataFrame):
 
 
 def table_per_scene(s: pd.DataFrame):
+    pair = catalog.descriptor_pair()
+    if pair is None:
+        return None
+    without, full = pair
     rows, idx = [], []
     for scene in dict.fromkeys(s["label"]):
         gains = []
         for k in KEEPS:
-            a, b = _cell(s, scene, "betadesc-nodesc", round(1 - k, 9)), _cell(s, scene, "betadesc", round(1 - k, 9))
+            a, b = _cell(s, scene, without, round(1 - k, 9)), _cell(s, scene, full, round(1 - k, 9))
             gains.append(np.nan if a is None or b is None else b["psnr"] - a["psnr"])
         if not all(np.isnan(g) for g in gains):
             idx.append(scene)
@@ -207,7 +227,7 @@ def table_per_scene(s: pd.DataFrame):
         return None
     num = pd.DataFrame(rows, pd.Index(idx, name="scene"), [f"prune {round(100 * (1 - k))}%" for k in KEEPS])
     disp = num.map(lambda v: "–" if np.isnan(v) else f"{v:+.2f}")
-    return num, disp, ["descriptor gain in dB: PSNR(betadesc) − PSNR(betadesc-nodesc); positive = descriptors help"]
+    return num, disp, [f"descriptor gain in dB: PSNR({full}) − PSNR({without}); positive = descriptors help"]
 
 
 BUILDERS = {"comparison": table_comparison, "ablation": table_ablation, "keep": table_keep,

@@ -55,10 +55,11 @@ from typing import Any
 import yaml
 
 from harness.core.errors import InputError
+from harness.core.params import Params
+from harness.metrics.registry import METRICS, expand
+from renderers import RENDERERS
 
 KINDS = ("forward-facing", "object-centric")
-RENDERERS = ("gl", "reference")
-METRICS = ("psnr", "ssim", "lpips")
 TABLES = ("comparison", "ablation", "keep", "sensitivity", "runtime", "per_scene")
 PLOTS = ("curves", "figure1", "figure3")
 
@@ -77,7 +78,7 @@ class Protocol:
     background: tuple[float, float, float] = (0.0, 0.0, 0.0)
     renderer: str = "gl"
     device: str = "cpu"
-    metrics: tuple[str, ...] = METRICS
+    metrics: tuple[str, ...] = ("psnr", "ssim", "lpips")
     seed: int = 0
     n_train: int = 24
     n_test: int = 3
@@ -109,11 +110,11 @@ class SceneSpec:
 
 @dataclass(frozen=True)
 class MethodVariant:
-    """One (pruner, parameter set) to evaluate at ``ratios`` on ``scenes`` (None = all)."""
+    """One (pruner, resolved parameters) to evaluate at ``ratios`` on ``scenes`` (None = all)."""
 
     method: str
     variant: str
-    params: dict
+    params: Params
     ratios: tuple[float, ...]
     scenes: tuple[str, ...] | None = None
 
@@ -205,11 +206,14 @@ def _protocol(d, src) -> Protocol:
             raise InputError(src, "protocol.background: expected three numbers in [0, 1]")
         kw["background"] = tuple(float(_num(x, f"protocol.background[{i}]", src, lo=0, hi=1)) for i, x in enumerate(bg))
     if "renderer" in d:
-        kw["renderer"] = _choice(d["renderer"], RENDERERS, "protocol.renderer", src)
+        kw["renderer"] = _choice(d["renderer"], RENDERERS.names(), "protocol.renderer", src)
     if "device" in d:
         kw["device"] = _str(d["device"], "protocol.device", src)
     if "metrics" in d:
-        kw["metrics"] = _names(d["metrics"], METRICS, "protocol.metrics", src)
+        if not isinstance(d["metrics"], list) or not d["metrics"]:
+            raise InputError(src, "protocol.metrics: expected a non-empty list of metric or metric-set names")
+        known = METRICS.names() + sorted({m.family for m in METRICS})
+        kw["metrics"] = expand(_names(d["metrics"], known, "protocol.metrics", src))
     if "seed" in d:
         kw["seed"] = _num(d["seed"], "protocol.seed", src, lo=0, integer=True)
     for k in ("n_train", "n_test"):
@@ -272,7 +276,9 @@ def _fmt(v) -> str:
 
 
 def _method(d, i, default_ratios, scene_names, src) -> list[MethodVariant]:
-    """Expand one methods[] entry into its variants, validating params against the pruner."""
+    """Expand one methods[] entry into its variants, each with its parameters resolved and checked
+    (through the pruner's :class:`Params`) here, once."""
+    from harness.core.params import ParamError
     from methods.registry import get_pruner
 
     where = f"methods[{i}]"
@@ -292,11 +298,6 @@ def _method(d, i, default_ratios, scene_names, src) -> list[MethodVariant]:
             raise InputError(src, f"{where}.sweep.{k}: expected a non-empty list of values")
         if k in params:
             raise InputError(src, f"{where}.sweep.{k}: also set in params; give it in one place")
-    for k in list(params) + list(sweep):
-        if k not in spec.params:
-            known = ", ".join(sorted(spec.params)) or "none"
-            section = "params" if k in params else "sweep"
-            raise InputError(src, f"{where}.{section}.{k}: pruner {name!r} has no parameter {k!r}; known: {known}")
     if "ratios" in d or "keep" in d:
         ratios = merge_ratios(_fractions(d["ratios"], f"{where}.ratios", src) if "ratios" in d else (),
                               _fractions(d["keep"], f"{where}.keep", src) if "keep" in d else ())
@@ -318,15 +319,16 @@ def _method(d, i, default_ratios, scene_names, src) -> list[MethodVariant]:
         base = _str(base, f"{where}.variant", src)
     out = []
     keys = list(sweep)
-    for combo in itertools.product(*(sweep[k] for k in keys)) if keys else [()]:
-        p = {**params, **dict(zip(keys, combo))}
+    for j, combo in enumerate(itertools.product(*(sweep[k] for k in keys)) if keys else [()]):
         label = ",".join(f"{k}={_fmt(v)}" for k, v in zip(keys, combo))
         variant = ":".join(x for x in (base, label) if x) or "default"
         try:
-            spec.resolve_params(p)
-        except KeyError as err:
-            raise InputError(src, f"{where}: {err.args[0]}") from None
-        out.append(MethodVariant(method=name, variant=variant, params=p, ratios=ratios, scenes=scenes))
+            resolved = spec.parse_params({**params, **dict(zip(keys, combo))})
+        except ParamError as err:
+            section = "sweep" if err.key in sweep else "params"
+            key = f".{section}.{err.key}" if err.key is not None else f".{section}"
+            raise InputError(src, f"{where}{key}: method {name!r}: {err.problem}") from None
+        out.append(MethodVariant(method=name, variant=variant, params=resolved, ratios=ratios, scenes=scenes))
     return out
 
 

@@ -54,16 +54,6 @@ class RunResult:
     images: dict = field(default_factory=dict)  # (scene, method, variant, ratio) -> cache png path
 
 
-def _wants_png(method: str, variant: str, ratio: float) -> bool:
-    """Is this pruned render an input of the paper-style image grids (first held-out view only)?"""
-    from harness.report.plots import FIG1, FIG3
-
-    m, v, rs = FIG1
-    if method == m and variant == v and any(abs(ratio - r) < 1e-9 for r in rs):
-        return True
-    return any(method == m and variant == v and abs(ratio - r) < 1e-9 for _, m, v, r in FIG3)
-
-
 class Runner:
     def __init__(self, config: RunConfig, *, out_dir: Path, cache_root: Path, workers: int = 1,
                  force: bool = False, toolkit: Toolkit | None = None, progress=None, log=print,
@@ -144,13 +134,11 @@ class Runner:
         return RunResult(self.out_dir, rows, skips, self.errors, self.stage_s, self.cache.counts(), images)
 
     def _score_key(self, item: SceneItem, mv, spec) -> str:
-        params = spec.resolve_params(mv.params)
-        aware = bool(spec.needs)
+        aware = spec.wants_cameras(mv.params)
         return self.cache.key(
-            "score", scene=item.digest, method=mv.method, params=params, seed=self.config.protocol.seed,
-            code=self.versions.pruner(mv.method),
+            "score", scene=item.digest, method=mv.method, params=mv.params.to_dict(),
+            seed=self.config.protocol.seed, code=self.versions.pruner(mv.method),
             cameras=item.train_digest if aware else None,
-            renderer=self.versions.renderer if "renderer" in spec.needs else None,
             device=self.config.protocol.device if aware else None,
         )
 
@@ -161,7 +149,7 @@ class Runner:
         for i, item in enumerate(items):
             for mv in variants_for(item, self.config.methods):
                 spec = get_pruner(mv.method)
-                if spec.needs and not item.train:
+                if "cameras" in spec.needs and not item.train:
                     skips.append(Skip(item.spec.name, item.frame, mv.method, mv.variant,
                                       f"{mv.method} needs {', '.join(sorted(spec.needs))}: the scene has no "
                                       "training cameras (give a rig or a cameras file with training views)"))
@@ -175,8 +163,8 @@ class Runner:
                     pending[key] = []
                     tasks.append(ScoreTask(
                         str(self.cache.root), key, item.path, item.spec.lod, item.digest, mv.method,
-                        spec.resolve_params(mv.params), p.seed,
-                        [c.to_dict() for c in item.train] if spec.needs else None, p.device, self.toolkit))
+                        mv.params, p.seed, [c.to_dict() for c in item.train] if spec.wants_cameras(mv.params) else None,
+                        p.device, self.toolkit))
                 pending[key].append((i, mv.key))
         if self.workers > 1:  # camera-aware (rendering) and big scenes first, so the pool ends together
             cost = {k: items[ik[0][0]].n_splats * (10 if t.train else 1) for t, (k, ik) in zip(tasks, pending.items())}
@@ -239,19 +227,17 @@ class Runner:
         p = self.config.protocol
         refs, chunks = [], []
         for i, item in enumerate(items):
-            masks: dict[str, bool] = {}
-            for mv in variants_for(item, self.config.methods):
-                for r in mv.ratios:
-                    rec = prunes.get((i, mv.key, r))
-                    if rec is not None:
-                        masks[rec["mask"]] = masks.get(rec["mask"], False) or _wants_png(mv.method, mv.variant, r)
+            masks = list(dict.fromkeys(rec["mask"] for mv in variants_for(item, self.config.methods)
+                                       for r in mv.ratios if (rec := prunes.get((i, mv.key, r))) is not None))
             for v, cam in enumerate(item.test):
                 ref_key = self._ref_key(item, cam)
                 jobs = []
-                for mask, png in masks.items():
+                for mask in masks:
                     mkey = self._metrics_key(ref_key, mask)
-                    if self.cache.get_json("metrics", mkey) is None:
-                        jobs.append(MaskJob(mkey, mask, png and v == 0))
+                    # the first view's pruned render is kept as an image (figures, report page)
+                    measured = self.cache.get_json("metrics", mkey) is not None
+                    if not measured or (v == 0 and not self.cache.has("images", mkey, "png")):
+                        jobs.append(MaskJob(mkey, mask, v == 0))
                 have_ref = self.cache.get_json("render_ref", ref_key) is not None
 
                 def task(jobs_, render_ref=False, ref_png=False, ref_key=ref_key, item=item, cam=cam):
@@ -276,7 +262,6 @@ class Runner:
     # ------------------------------------------------------------------ aggregate
     def _rows(self, items, scores, prunes, skips):
         from harness.run.cache import canonical_json
-        from methods.registry import get_pruner
 
         p = self.config.protocol
         rows, images = [], {}
@@ -297,7 +282,7 @@ class Runner:
                 srec = scores[(i, mv.key)][1]
                 ident = {**base, "scene": item.spec.name, "label": item.spec.label, "kind": item.spec.kind,
                          "frame": item.frame, "method": mv.method, "variant": mv.variant,
-                         "params": canonical_json(get_pruner(mv.method).resolve_params(mv.params)),
+                         "params": canonical_json(mv.params.to_dict()),
                          "splats_in": item.n_splats}
                 for r in mv.ratios:
                     row0 = {**ident, "ratio": r, "keep": round(1.0 - r, 9)}
@@ -317,7 +302,7 @@ class Runner:
                         else:
                             row.update(status="ok", render_s=m["render_s"], metrics_s=m["metrics_s"],
                                        **{k: m[k] for k in p.metrics})
-                            if v == 0 and _wants_png(mv.method, mv.variant, r):
+                            if v == 0:
                                 images[(item.spec.name, item.frame, mv.method, mv.variant, r)] = \
                                     self.cache.path("images", mkey, "png")
                         rows.append(row)

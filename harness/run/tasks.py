@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from harness.core.cameras import Camera
+from harness.core.params import Params
 from harness.run.cache import StageCache
 from harness.run.toolkit import Toolkit
 
@@ -112,13 +113,11 @@ class ScoreTask:
     lod: int | None
     scene_digest: str
     method: str
-    params: dict
+    params: Params  # resolved when the config was loaded
     seed: int
-    train: list[dict] | None  # camera dicts, only for camera-aware pruners
+    train: list[dict] | None  # camera dicts, for the pruners that use cameras
     device: str
     toolkit: Toolkit = field(default_factory=Toolkit)
-    #: handed to camera-aware pruners: the differentiable reference rasterizer with per-splat statistics
-    pruner_renderer: str = "reference"
 
     def failed(self, message: str) -> dict:
         return {"key": self.key, "error": message, "seconds": 0.0}
@@ -134,9 +133,7 @@ def run_score(task: ScoreTask) -> dict:
         scene = _scene(task.toolkit, task.path, task.lod, task.scene_digest)
         spec = get_pruner(task.method)
         cams = [Camera.from_dict(c) for c in task.train] if task.train else None
-        renderer = _renderer(task.toolkit, task.pruner_renderer, task.device) if "renderer" in spec.needs else None
-        ctx = PruneContext(params=dict(task.params), seed=task.seed, cameras=cams, renderer=renderer,
-                           device=task.device)
+        ctx = PruneContext(params=task.params, seed=task.seed, cameras=cams, device=task.device)
         t0 = time.perf_counter()
         scores = spec.score(scene, ctx)
         seconds = time.perf_counter() - t0

@@ -69,7 +69,7 @@ def make_renderer(name: str, device: str):
 def make_metrics(names: tuple[str, ...], device: str):
     """A metric suite with ``reference(key, img)`` and ``score(key, img) -> dict``; one view's
     features in memory at a time (a view task measures all its pruned sets before the next view)."""
-    from harness.metrics import MetricSuite
+    from harness.metrics.suite import MetricSuite
 
     return MetricSuite(names=names, device=device, max_in_memory=1)
 

@@ -18,33 +18,50 @@ Camera-agnostic: when the context holds cameras (and ``view_weight`` > 0) the ed
 
 from __future__ import annotations
 
-from methods.betadesc import pipeline
-from methods.registry import PruneContext, register_pruner
+from methods.betadesc.params import (
+    BetaDescParams,
+    EvidenceOnlyParams,
+    NoBetaParams,
+    NoDescParams,
+)
+from methods.registry import Ablation, PruneContext, register_pruner
 
-_DESCRIPTOR_PARAMS = {"voxel": 0.01, "radius_voxels": 5.0, "max_nn": 100, "colour_bins": 8}
-_EVIDENCE_PARAMS = {"preset": "baseline", "view_weight": 0.25}
-_BETA_PARAMS = {"prior": 1.0, "score": "ucb", "gamma": 0.25, "z": 1.0, "q": 0.1}
+
+def _run(scene, ctx: PruneContext, *, descriptors: bool, beta: bool):
+    from methods.betadesc import (
+        pipeline,  # numba kernels: loaded when a betadesc variant runs
+    )
+
+    return pipeline.run(scene, ctx.params, ctx.cameras, descriptors=descriptors, beta=beta)
 
 
-@register_pruner("betadesc", params={**_DESCRIPTOR_PARAMS, **_EVIDENCE_PARAMS, **_BETA_PARAMS})
+def _views_on(params) -> bool:
+    return params.view_weight > 0
+
+
+@register_pruner("betadesc", params=BetaDescParams, label="BetaDescPrune", group="ours",
+                 ablation=Ablation(descriptors=True, beta=True), uses_cameras=_views_on)
 def betadesc(scene, ctx: PruneContext):
     """BetaDescPrune: HSFH descriptor statistics → Beta evidence → retention confidence μ + γσ."""
-    return pipeline.run(scene, ctx.params, ctx.cameras, descriptors=True, beta=True)
+    return _run(scene, ctx, descriptors=True, beta=True)
 
 
-@register_pruner("betadesc-nodesc", params={**_EVIDENCE_PARAMS, **_BETA_PARAMS})
-def betadesc_nodesc(scene, ctx: PruneContext):
-    """Ablation: per-splat parameter statistics (no neighbourhood descriptors), Beta score."""
-    return pipeline.run(scene, ctx.params, ctx.cameras, descriptors=False, beta=True)
-
-
-@register_pruner("betadesc-nobeta", params={**_DESCRIPTOR_PARAMS, **_EVIDENCE_PARAMS})
+@register_pruner("betadesc-nobeta", params=NoBetaParams, label="BetaDesc (no Beta)", group="ablation",
+                 ablation=Ablation(descriptors=True, beta=False), uses_cameras=_views_on)
 def betadesc_nobeta(scene, ctx: PruneContext):
     """Ablation: HSFH descriptor statistics ranked by net evidence A − B (no posterior, no σ)."""
-    return pipeline.run(scene, ctx.params, ctx.cameras, descriptors=True, beta=False)
+    return _run(scene, ctx, descriptors=True, beta=False)
 
 
-@register_pruner("betadesc-nodesc-nobeta", params=dict(_EVIDENCE_PARAMS))
+@register_pruner("betadesc-nodesc", params=NoDescParams, label="BetaDesc (no desc.)", group="ablation",
+                 ablation=Ablation(descriptors=False, beta=True), uses_cameras=_views_on)
+def betadesc_nodesc(scene, ctx: PruneContext):
+    """Ablation: per-splat parameter statistics (no neighbourhood descriptors), Beta score."""
+    return _run(scene, ctx, descriptors=False, beta=True)
+
+
+@register_pruner("betadesc-nodesc-nobeta", params=EvidenceOnlyParams, label="BetaDesc (neither)",
+                 group="ablation", ablation=Ablation(descriptors=False, beta=False), uses_cameras=_views_on)
 def betadesc_nodesc_nobeta(scene, ctx: PruneContext):
     """Ablation: per-splat parameter statistics ranked by net evidence A − B."""
-    return pipeline.run(scene, ctx.params, ctx.cameras, descriptors=False, beta=False)
+    return _run(scene, ctx, descriptors=False, beta=False)

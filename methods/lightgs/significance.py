@@ -1,4 +1,4 @@
-"""LightGSPrune: LightGaussian's global significance (pruning only, no fine-tuning).
+"""LightGSPrune's computation: LightGaussian's global significance (pruning only, no fine-tuning).
 
 Read from VITA-Group/LightGaussian (``prune.py``: ``prune_list``, ``calculate_v_imp_score``;
 ``prune_finetune.py``: ``--prune_type v_important_score``, ``--v_pow 0.1``; ``scene/gaussian_model.py``:
@@ -18,8 +18,8 @@ Readings decided here:
   (default true) keeps that; false counts every splat as the harness renderers composite them.
 * Footprint: the harness renderers' ±radius box (the reference's ``footprint="box"``), not graphdeco's
   whole-tile evaluation (which also lets a splat paint faint pixels beyond its radius).
-* Views: the context's training cameras, each resized to ``longest_side`` pixels on its long side
-  (default 512, for speed; ``0`` keeps their own resolution). Σ over pixels scales with the pixel
+* Views: the context's training cameras, each resized to ``train_longest_side`` pixels on its long
+  side (default 512, for speed; ``0`` keeps their own resolution). Σ over pixels scales with the pixel
   count, the same factor for every splat, so only small-splat rounding depends on it.
 * (V_j / V_ref)^v_pow is evaluated as exp(v_pow·(Σ log s_j − log V_ref)) in float64, which ranks
   like LightGaussian's float32 product but cannot underflow to 0 for tiny splats.
@@ -35,8 +35,7 @@ import numpy as np
 import torch
 
 from harness.core.scene import GaussianScene
-from methods.registry import PruneContext, register_pruner
-from renderers.pixel_pairs import build_pairs, composite, torch_threads
+from renderers.pixel_pairs import build_pairs, composite
 from renderers.projection import SplatTensors, project_gaussians
 
 V_REF_FRACTION = 0.9
@@ -65,14 +64,3 @@ def volume_factor(scales_log: np.ndarray, v_pow: float = 0.1) -> np.ndarray:
         return np.zeros(0)
     log_ref = np.sort(log_v)[::-1][int(n * V_REF_FRACTION)]
     return np.exp(v_pow * (log_v - log_ref))
-
-
-@register_pruner("lightgs", needs=("cameras",),
-                 params={"longest_side": 512, "v_pow": 0.1, "early_stop": True, "threads": 1})
-def lightgs_score(scene: GaussianScene, ctx: PruneContext) -> np.ndarray:
-    """LightGaussian global significance Σ o·T over training views × (V/V_ref)^0.1."""
-    p = ctx.params
-    with torch_threads(int(p["threads"])):
-        imp = significance(scene, ctx.cameras, longest_side=int(p["longest_side"]),
-                           early_stop=bool(p["early_stop"]), device=ctx.device)
-    return imp * volume_factor(scene.scales_log, float(p["v_pow"]))

@@ -1,4 +1,4 @@
-"""ConfSplatPrune: Confident Splatting's Beta confidence, learned post hoc with geometry frozen.
+"""ConfSplatPrune's optimisation: Confident Splatting's Beta confidence, learned post hoc with geometry frozen.
 
 Read from amirhossein-razlighi/Confident-Splatting (``confidence_utils.py``: ``confidence_values``,
 ``beta_entropy``; ``trainer.py``: ``create_splats_with_optimizers``, ``rasterize_splats``, the training
@@ -19,8 +19,8 @@ which splats the scene's own images need. Score = c. Left out: their saliency ra
 
 Readings decided here:
 
-* Rendering: the reference rasterizer's projection and α tests at reduced resolution (``longest_side``,
-  default 128) through :mod:`renderers.pixel_pairs`, whose image and opacity gradient equal the tile
+* Rendering: the reference rasterizer's projection and α tests at reduced resolution
+  (``train_longest_side``, default 128) through :mod:`renderers.pixel_pairs`, whose image and opacity gradient equal the tile
   rasterizer's (tested) at a fraction of the cost; black background; ``early_stop`` false as the
   harness renderers. SSIM is the 3DGS window (11×11, σ = 1.5, zero padding) of
   :func:`harness.metrics.ssim.ssim_map` with a differentiable banded-matmul blur (:func:`blur_matmul`),
@@ -47,7 +47,6 @@ import torch.nn.functional as F
 
 from harness.core.scene import GaussianScene
 from harness.metrics.ssim import ssim_map
-from methods.registry import PruneContext, register_pruner
 from renderers.pixel_pairs import (
     PixelPairs,
     build_pairs,
@@ -59,20 +58,6 @@ from renderers.projection import SplatTensors, project_gaussians
 
 log = logging.getLogger(__name__)
 
-DEFAULTS = {
-    "longest_side": 128,
-    "iterations": 600,
-    "time_budget_s": 300.0,
-    "lr": 1e-3,
-    "init": 1.0,
-    "lambda_dssim": 0.2,
-    "lambda_sparsity": 2e-3,
-    "lambda_entropy": 2e-3,
-    "entropy_sign": "minimize",
-    "early_stop": False,
-    "seed": None,
-    "threads": 1,
-}
 ENTROPY_SIGNS = {"minimize": 1.0, "maximize": -1.0}
 
 
@@ -144,19 +129,19 @@ def image_loss(img: torch.Tensor, target: torch.Tensor, lambda_dssim: float) -> 
     return (1.0 - lambda_dssim) * l1 + lambda_dssim * (1.0 - ssim)
 
 
-def optimise_confidence(scene: GaussianScene, cameras, params: dict | None = None, *, seed: int = 0,
+def optimise_confidence(scene: GaussianScene, cameras, params=None, *, seed: int = 0,
                         device: str = "cpu") -> ConfidenceResult:
-    """Learn the per-splat Beta gate (module docstring); ``params`` overlay :data:`DEFAULTS`."""
-    p = {**DEFAULTS, **(params or {})}
-    if p["entropy_sign"] not in ENTROPY_SIGNS:
-        raise ValueError(f"entropy_sign must be one of {sorted(ENTROPY_SIGNS)}, got {p['entropy_sign']!r}")
+    """Learn the per-splat Beta gate (module docstring); ``params`` is a
+    :class:`methods.confsplat.ConfSplatParams` (or a mapping of its fields; defaults for the rest)."""
+    from methods.confsplat import ConfSplatParams
+
+    p = (params if isinstance(params, ConfSplatParams) else ConfSplatParams.parse(params or {})).to_dict()
     if not cameras:
         raise ValueError("confsplat needs at least one training camera")
-    seed = int(seed if p["seed"] is None else p["seed"])
     early_stop = bool(p["early_stop"])
     t0 = time.perf_counter()
     with torch_threads(int(p["threads"])):
-        views = prepare_views(scene, cameras, int(p["longest_side"]), early_stop=early_stop, device=device)
+        views = prepare_views(scene, cameras, int(p["train_longest_side"]), early_stop=early_stop, device=device)
     result = ConfidenceResult(np.zeros(len(scene)), setup_s=time.perf_counter() - t0)
 
     n = len(scene)
@@ -201,9 +186,3 @@ def optimise_confidence(scene: GaussianScene, cameras, params: dict | None = Non
     finally:
         torch.use_deterministic_algorithms(deterministic)
     return result
-
-
-@register_pruner("confsplat", needs=("cameras",), params=DEFAULTS)
-def confsplat_score(scene: GaussianScene, ctx: PruneContext) -> np.ndarray:
-    """Confident Splatting Beta confidence α/(α+β), learned with frozen geometry to match the unpruned render."""
-    return optimise_confidence(scene, ctx.cameras, ctx.params, seed=ctx.seed, device=ctx.device).confidence

@@ -1,0 +1,63 @@
+"""The metrics a run can measure, with what tables need to show them: label, digits, direction.
+
+    register_metric(MetricSpec("psnr", "PSNR", higher_is_better=True, digits=2, family="3dgs"))
+
+``family`` groups metrics into sets a config can ask for by name (``metrics: [3dgs]`` expands to
+every metric of that family). Cheap to import (no torch): configs and tables use it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from harness.core.registry import Registry
+
+
+@dataclass(frozen=True)
+class MetricSpec:
+    name: str
+    label: str
+    higher_is_better: bool
+    digits: int
+    family: str
+    doc: str = ""
+
+    @property
+    def heading(self) -> str:
+        """Table heading with the direction arrow: ``PSNR (↑)``."""
+        return f"{self.label} ({'↑' if self.higher_is_better else '↓'})"
+
+    def better(self, a: float, b: float) -> bool:
+        """Is value ``a`` better than ``b``?"""
+        return a > b if self.higher_is_better else a < b
+
+
+#: every metric :class:`harness.metrics.suite.MetricSuite` computes
+METRICS: Registry[MetricSpec] = Registry("metric")
+
+
+def register_metric(spec: MetricSpec) -> MetricSpec:
+    METRICS.add(spec.name, spec, same=lambda a, b: a == b)
+    return spec
+
+
+def get_metric(name: str) -> MetricSpec:
+    return METRICS.get(name)
+
+
+def expand(names) -> tuple[str, ...]:
+    """Metric names with family names (``3dgs``) replaced by their members, duplicates dropped."""
+    families = {}
+    for m in METRICS:
+        families.setdefault(m.family, []).append(m.name)
+    out: list[str] = []
+    for n in names:
+        for m in families.get(n, [n]):
+            if m not in out:
+                out.append(m)
+    return tuple(out)
+
+
+register_metric(MetricSpec("psnr", "PSNR", True, 2, "3dgs", "dB on [0, 1]-clamped float images; +inf if identical"))
+register_metric(MetricSpec("ssim", "SSIM", True, 3, "3dgs", "11×11 Gaussian σ 1.5, zero padding, data range 1"))
+register_metric(MetricSpec("lpips", "LPIPS", False, 3, "3dgs", "LPIPS v0.1 VGG, inputs in [-1, 1]"))

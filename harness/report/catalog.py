@@ -1,0 +1,86 @@
+"""What tables and plots need to know about methods and metrics, asked of the registries.
+
+Methods a run measured but the registry does not know (a plugin no longer installed) still show,
+under their own name, in the ``other`` group.
+"""
+
+from __future__ import annotations
+
+from harness.metrics.registry import METRICS
+from methods.registry import GROUPS, PRUNERS, ablation_grid
+
+#: the comparison table's groups (ablations have their own table)
+COMPARISON_GROUPS = tuple(g for g in GROUPS if g != "ablation")
+
+
+def _spec(name: str):
+    try:
+        return PRUNERS.get(name)
+    except KeyError:
+        return None
+
+
+def method_label(name: str) -> str:
+    spec = _spec(name)
+    return spec.label if spec is not None else name
+
+
+def method_order(names) -> list[str]:
+    """``names`` ordered by group (:data:`methods.registry.GROUPS`), then registration order."""
+    registered = {s.name: i for i, s in enumerate(PRUNERS)}
+    group_rank = {g: i for i, g in enumerate(GROUPS)}
+
+    def key(name):
+        spec = _spec(name)
+        return (group_rank[spec.group] if spec else len(GROUPS), registered.get(name, len(registered)), name)
+
+    return sorted(dict.fromkeys(names), key=key)
+
+
+def comparison_methods(present) -> list[tuple[str, str]]:
+    """(group title, method) of the comparison table's columns, for the methods ``present``."""
+    out = []
+    for name in method_order(present):
+        spec = _spec(name)
+        group = spec.group if spec else "other"
+        if group in COMPARISON_GROUPS:
+            out.append((GROUPS[group], name))
+    return out
+
+
+def ablation_cells() -> list[tuple[str, str, str]]:
+    """(descriptors label, Beta label, method) of the ablation grid, the full method last."""
+    grid = ablation_grid()
+    order = [(False, False), (False, True), (True, False), (True, True)]
+    return [(*grid[k].ablation.labels, grid[k].name) for k in order if k in grid]
+
+
+def _pair(without: tuple[bool, bool]) -> tuple[str, str] | None:
+    grid = ablation_grid()
+    if without in grid and (True, True) in grid:
+        return grid[without].name, grid[(True, True)].name
+    return None
+
+
+def descriptor_pair() -> tuple[str, str] | None:
+    """(method without descriptors, the full method), both with the Beta score."""
+    return _pair((False, True))
+
+
+def beta_pair() -> tuple[str, str] | None:
+    """(method without the Beta score, the full method), both with descriptors."""
+    return _pair((True, False))
+
+
+def proposed_method() -> str | None:
+    spec = ablation_grid().get((True, True))
+    return spec.name if spec else None
+
+
+def metric_columns(present) -> list[tuple[str, str, int]]:
+    """(name, heading, digits) of the registered metrics among ``present``, registry order."""
+    return [(m.name, m.heading, m.digits) for m in METRICS if m.name in set(present)]
+
+
+def higher_is_better(metric: str) -> bool:
+    return METRICS.get(metric).higher_is_better
