@@ -3,7 +3,8 @@
 Removing a ratio r of N splats removes exactly ``k = round(r·N)`` splats (Python's round,
 half to even), the k lowest scores, ties broken by index (the lower index is removed first),
 i.e. a stable sort on (score, index). τ is reported as the largest removed score (the score
-value at the cut); with k = 0 it is −inf. ``keep`` fractions are ``ratio = 1 − keep``.
+value at the cut); with k = 0 it is −inf. ``keep`` fractions are ``ratio = 1 − keep``
+(:mod:`harness.core.ratios`).
 """
 
 from __future__ import annotations
@@ -11,6 +12,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
+from harness.core import ratios
 
 
 @dataclass(frozen=True)
@@ -28,7 +31,7 @@ class PruneSelection:
 def removal_count(n: int, ratio: float) -> int:
     if not 0.0 <= ratio <= 1.0:
         raise ValueError(f"pruning ratio must be in [0, 1], got {ratio}")
-    return int(round(ratio * n))
+    return int(round(ratio * n))  # a canonical ratio (harness.core.ratios) times N
 
 
 def select_by_ratio(scores: np.ndarray, ratio: float) -> PruneSelection:
@@ -44,6 +47,4 @@ def select_by_ratio(scores: np.ndarray, ratio: float) -> PruneSelection:
 
 
 def select_by_keep(scores: np.ndarray, keep_fraction: float) -> PruneSelection:
-    if not 0.0 <= keep_fraction <= 1.0:
-        raise ValueError(f"keep fraction must be in [0, 1], got {keep_fraction}")
-    return select_by_ratio(scores, 1.0 - keep_fraction)
+    return select_by_ratio(scores, ratios.from_keep(keep_fraction))

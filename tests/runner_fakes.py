@@ -75,10 +75,10 @@ def make_renderer(name: str, device: str):
     return PointRenderer()
 
 
-def make_rig(rig, scene, *, kind, name, n_train, n_test, longest_side, aspect, seed):
+def make_rig(rig, scene, *, kind, dataset, n_train, n_test, longest_side, aspect, seed):
     """Cameras on a circle of radius 5 around the origin; every other one held out until n_test."""
     n = n_train + n_test
-    w, h = longest_side, max(1, round(longest_side / aspect))
+    w, h = longest_side, max(1, round(longest_side / (aspect or 4 / 3)))
     cams = [Camera.look_at((5 * math.cos(2 * math.pi * i / n + seed), 0.5, 5 * math.sin(2 * math.pi * i / n + seed)),
                            (0, 0, 0), fov_y_deg=40, width=w, height=h, name=f"cam{i:02d}") for i in range(n)]
     held = set(list(range(0, n, 2))[:n_test])

@@ -95,3 +95,53 @@ def test_missing_scene_and_file_as_out(tmp_path, capsys, scene_file):
     (tmp_path / "file").write_text("x")
     assert run(scene_file, "--rig", "orbit", "--out", tmp_path / "file", "--backend", "reference") == 2
     assert "not a folder" in capsys.readouterr().err
+
+
+def _rendered_cameras(out):
+    return [c.to_dict() for c in load_cameras(out / "cameras.json")]
+
+
+def test_views_never_come_from_the_file_name(scene_file, tmp_path):
+    """The same flags give the same cameras whatever the file is called (luigi.ply vs luigi_pruned.ply)."""
+    import shutil
+
+    renamed = tmp_path / "luigi.ply"
+    shutil.copyfile(scene_file, renamed)
+    common = ("--rig", "orbit", "--backend", "reference", "--longest-side", 24, "--n-train", 2, "--n-test", 2)
+    assert run(scene_file, "--out", tmp_path / "a", *common) == 0
+    assert run(renamed, "--out", tmp_path / "b", *common) == 0
+    assert _rendered_cameras(tmp_path / "a") == _rendered_cameras(tmp_path / "b")
+
+
+def test_pruned_scene_renders_at_the_same_size(scene_file, tmp_path):
+    """Explicit rig flags: a scene and its pruned copy render at the same size (compare works)."""
+    assert main(["prune", str(scene_file), str(tmp_path / "p.ply"), "--ratio", "0.3", "--method", "opacity"]) == 0
+    common = ("--rig", "orbit", "--backend", "reference", "--longest-side", 24, "--n-train", 2, "--n-test", 2)
+    assert run(scene_file, "--out", tmp_path / "a", *common) == 0
+    assert run(tmp_path / "p.ply", "--out", tmp_path / "b", *common) == 0
+    sizes = [{(c["width"], c["height"]) for c in _rendered_cameras(tmp_path / d)} for d in "ab"]
+    assert sizes[0] == sizes[1]
+    # identical views: render the second scene with the first render's cameras
+    assert run(tmp_path / "p.ply", "--out", tmp_path / "c", "--cameras", tmp_path / "a" / "cameras.json",
+               "--split", "all", "--backend", "reference") == 0
+    for c, a in zip(_rendered_cameras(tmp_path / "c"), _rendered_cameras(tmp_path / "a"), strict=True):
+        assert (c["name"], c["width"], c["height"]) == (a["name"], a["width"], a["height"])
+        np.testing.assert_allclose(c["world_to_cam"], a["world_to_cam"], atol=1e-12)
+
+
+def test_embedded_cameras_are_the_default_views(scene_file, tmp_path, capsys):
+    from harness.core.cameras import Camera
+    from harness.io.cameras import ply_camera_comments
+    from harness.io.scenes import load_scene, write_scene
+
+    cams = [Camera.look_at((np.cos(a) * 5, 0.5, np.sin(a) * 5), (0, 0, 0), width=30, height=20, name=f"e{i}")
+            for i, a in enumerate(np.linspace(0, 2 * np.pi, 9, endpoint=False))]
+    with_cams = tmp_path / "with_cams.ply"
+    write_scene(load_scene(scene_file), with_cams, comments=ply_camera_comments(cams))
+    assert run(with_cams, "--out", tmp_path / "o", "--backend", "reference", "--split", "all") == 0
+    assert "embedded cameras" in capsys.readouterr().out
+    assert [c["name"] for c in _rendered_cameras(tmp_path / "o")] == [c.name for c in cams]
+    # pruning keeps them (header comments travel with the scene), so the pruned file renders the same views
+    assert main(["prune", str(with_cams), str(tmp_path / "p.ply"), "--ratio", "0.5", "--method", "opacity"]) == 0
+    assert run(tmp_path / "p.ply", "--out", tmp_path / "q", "--backend", "reference", "--split", "all") == 0
+    assert _rendered_cameras(tmp_path / "q") == _rendered_cameras(tmp_path / "o")

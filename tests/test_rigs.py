@@ -13,7 +13,6 @@ from harness.views.rigs import (
     held_out_indices,
     image_size,
     make_rig,
-    scene_key,
     scene_rig,
 )
 from tests.scene_factory import random_scene
@@ -132,19 +131,27 @@ def test_auto_choice():
     assert make_rig("auto", room(), n_train=2, n_test=2, up=(0, -1, 0)).rig == "room"
 
 
-def test_scene_table_and_keys():
-    assert scene_key("/data/grape_small.ply") == "grape-small"
-    assert scene_key("/work/shared/data/playbot_sog/") == "playbot"
-    assert scene_key("bonsai-7k.splat") == "bonsai-7k"
+def test_dataset_table_and_explicit_rigs():
+    from harness.io.datasets import SCENES
+
+    assert set(SCENE_RIGS) <= set(SCENES)  # keyed by dataset name, never by file name
     assert set(SCENE_RIGS) == {"grape-small", "luigi", "bonsai-7k-mini", "bonsai-7k", "playbot"}
     scene = blob()
-    views = scene_rig("playbot.ply", scene, n_train=2, n_test=4)
+    views = scene_rig("playbot", scene, n_train=2, n_test=4)
     up = np.array(SCENE_RIGS["playbot"].up)
     frame = scene_frame(scene, up=up)
     assert views.rig == SCENE_RIGS["playbot"].rig
     for cam in views.test:  # table elevations (all ≥ 20° − jitter) put cameras above the centre
         assert (cam.center - frame.center) @ up > 0
-    assert scene_rig("unknown-thing", scene, n_train=2, n_test=2).rig == "orbit"  # auto
+    assert scene_rig(None, scene, n_train=2, n_test=2).rig == "orbit"  # default of an unknown scene: auto
+    # an explicit rig uses its flags alone: the dataset's table (up, aspect) does not leak in
+    a = scene_rig("luigi", scene, "orbit", n_train=2, n_test=2)
+    b = scene_rig(None, scene, "orbit", n_train=2, n_test=2)
+    assert [c.to_dict() for c in a.test] == [c.to_dict() for c in b.test]
+    # the table's aspect applies to `default` unless one is given explicitly (the runner's aspect bug)
+    assert scene_rig("luigi", scene, n_train=1, n_test=1, longest_side=512).test[0].height == 512
+    wide = scene_rig("luigi", scene, n_train=1, n_test=1, longest_side=512, aspect=2.0).test[0]
+    assert (wide.width, wide.height) == (512, 256)
 
 
 def test_bad_arguments():
@@ -154,3 +161,15 @@ def test_bad_arguments():
         make_rig("orbit", blob(), n_test=0)
     with pytest.raises(ValueError, match="empty scene"):
         make_rig("orbit", blob().subset(np.zeros(3000, bool)))
+
+
+@pytest.mark.parametrize("dataset, aspect, size", [
+    ("bonsai-7k", None, (512, 384)), ("bonsai-7k", 1.0, (512, 512)), ("bonsai-7k", 2.0, (512, 256)),
+    ("luigi", None, (512, 512)), ("luigi", 2.0, (512, 256)), (None, None, (512, 384))])
+def test_run_rig_honours_the_protocol_aspect(dataset, aspect, size):
+    """The runner's rig for a named scene used to drop the config's aspect (yet keyed the cache on it)."""
+    from harness.run.toolkit import make_rig as run_rig
+
+    _, _, test = run_rig("default", blob(), kind="object-centric", dataset=dataset, n_train=1, n_test=1,
+                         longest_side=512, aspect=aspect, seed=0)
+    assert (test[0].width, test[0].height) == size

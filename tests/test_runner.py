@@ -149,7 +149,7 @@ def test_frames_sequence_shares_views_and_aggregates(tmp_path):
 def test_cameras_file_split_by_name(tmp_path, scenes):
     from harness.io.cameras import write_3dgs_cameras
 
-    _, train, test = fakes.make_rig("x", None, kind="", name="", n_train=3, n_test=2, longest_side=64,
+    _, train, test = fakes.make_rig("x", None, kind="", dataset=None, n_train=3, n_test=2, longest_side=64,
                                     aspect=1.0, seed=0)
     cams = train + test
     write_3dgs_cameras(cams, tmp_path / "cams.json")
@@ -188,7 +188,7 @@ def test_bad_scene_file_or_split_is_an_error_row_and_the_run_goes_on(scenes, tmp
 
     bad = tmp_path / "bad.ply"
     bad.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 10\nend_header\n")
-    _, train, test = fakes.make_rig("x", None, kind="", name="", n_train=2, n_test=1, longest_side=64,
+    _, train, test = fakes.make_rig("x", None, kind="", dataset=None, n_train=2, n_test=1, longest_side=64,
                                     aspect=1.0, seed=0)
     write_3dgs_cameras(train + test, tmp_path / "cams.json")
     cfg = _config([{"name": "bad", "source": str(bad)}, {"name": "s0", "source": scenes["s0"]},

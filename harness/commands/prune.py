@@ -20,6 +20,7 @@ import math
 import time
 from pathlib import Path
 
+from harness.core import ratios
 from harness.core.errors import InputError
 
 NAME = "prune"
@@ -97,8 +98,10 @@ def _check_paths(args) -> float:
     from harness.io.datasets import resolve_scene
 
     value, flag = (args.ratio, "--ratio") if args.ratio is not None else (args.keep, "--keep")
-    if not (math.isfinite(value) and 0.0 <= value <= 1.0):
-        raise InputError(flag, f"must be a number in [0, 1], got {value}")
+    try:
+        ratio = ratios.canonical(value) if args.ratio is not None else ratios.from_keep(value)
+    except ValueError:
+        raise InputError(flag, f"must be a number in [0, 1], got {value}") from None
     out = Path(args.output)
     if out.suffix.lower() != ".ply":
         raise InputError(out, "the pruned scene is written as INRIA .ply; give an output ending in .ply")
@@ -116,7 +119,7 @@ def _check_paths(args) -> float:
                 raise InputError(path, f"would overwrite the input {src}; choose another output")
     if args.scores is not None and Path(args.scores).resolve() == out.resolve():
         raise InputError(args.scores, "the scores file and the pruned scene are the same path")
-    return value if args.ratio is not None else 1.0 - value
+    return ratio
 
 
 def _cameras(args, spec, params):
@@ -166,7 +169,7 @@ def run(args) -> int:
     seconds["select"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    write_scene(scene.subset(selection.keep), args.output, comments=_ply_comments(args.input))
+    write_scene(scene.subset(selection.keep), args.output)  # the input's header comments travel with it
     if args.scores is not None:
         atomic_write_npy(args.scores, scores)
     seconds["write"] = time.perf_counter() - t0
@@ -184,11 +187,3 @@ def run(args) -> int:
         print("  " + ", ".join(f"{k} {v:.3f} s" for k, v in seconds.items()))
     return 0
 
-
-def _ply_comments(source) -> list[str]:
-    """Header comments of a .ply input (kept in the output: pruned = input minus rows); none otherwise."""
-    from harness.io.datasets import resolve_scene
-    from harness.io.ply import read_ply_header
-
-    path = resolve_scene(source)
-    return read_ply_header(path).comments if path.suffix.lower() == ".ply" else []

@@ -1,18 +1,28 @@
-"""`harness render SCENE (--cameras FILE | --rig NAME) --out DIR`: render views of a scene.
+"""`harness render SCENE [--cameras FILE | --rig NAME] --out DIR`: render views of a scene.
 
 Writes into DIR (created if needed; every file written atomically):
 
 * ``NNN_<view name>.png`` (image clamped to [0, 1], 8-bit, no gamma: the linear render as-is) or
   ``.npy`` (float32 H×W×3, linear, unclamped: exactly what the renderer returned);
 * ``contact_sheet.png`` (all rendered views, labelled with their coverage, see
-  :mod:`harness.views.contact_sheet`), ``coverage.json`` (per view) and ``cameras.json`` (the views, 3DGS
-  format, so a render can be repeated with ``--cameras``).
+  :mod:`harness.views.contact_sheet`), ``coverage.json`` (per view) and ``cameras.json`` (the views,
+  3DGS format, so a render can be repeated with ``--cameras``).
 
-Views: ``--rig`` builds a synthetic rig (:mod:`harness.views.rigs`; ``default`` = the scene's table entry,
-``auto`` for unknown scenes), split into train/test. ``--cameras`` reads a camera file
-(:mod:`harness.io.cameras`); its held-out ``test`` split is every 8th view (index i with i % 8 == 0,
-the 3DGS ``llffhold`` convention), ``train`` the others. ``--longest-side`` resizes camera-file
-views (default: as stored) and sets the rig resolution (default 1024).
+Views come from the scene's content and the flags, never from its file name:
+
+* ``--cameras FILE`` reads a camera file (:mod:`harness.io.cameras`);
+* ``--rig NAME`` (orbit, room, forward, auto) builds that synthetic rig from the flags alone
+  (``--up``, ``--aspect``, ``--n-train/--n-test``, ``--seed``, ``--longest-side``): the same flags give
+  the same rig for any scene. A rig is fitted to the content it is given, so a pruned scene's rig
+  can sit slightly differently; for identical views render the second scene with
+  ``--cameras DIR/cameras.json`` of the first render;
+* neither: the cameras embedded in the scene's header when it has any; else, for a named dataset
+  (given by name, or a file with a dataset's exact content), that dataset's own rig
+  (:data:`harness.views.rigs.SCENE_RIGS`); else ``auto``.
+
+Camera files and embedded cameras: the held-out ``test`` split is every 8th view (index i with
+i % 8 == 0, the 3DGS ``llffhold`` convention), ``train`` the others; ``--longest-side`` resizes them
+(default: as stored). Rigs: ``--longest-side`` is the resolution (default 1024).
 """
 
 from __future__ import annotations
@@ -25,29 +35,33 @@ import numpy as np
 
 from harness.core.errors import InputError
 from harness.io.files import atomic_write_npy, atomic_write_text, atomic_write_with
+from harness.views.rigs import LONGEST_SIDE, N_TEST, N_TRAIN, RIG_CHOICES
+from renderers import RENDERERS
 
 NAME = "render"
 HELP = "render a scene from a camera file or a synthetic rig (images + contact sheet)"
-RIG_CHOICES = ("default", "orbit", "room", "forward", "auto")
 LLFF_HOLD = 8
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("scene", help="scene file/folder or dataset name (bonsai-7k, playbot, ...)")
-    views = parser.add_mutually_exclusive_group(required=True)
+    views = parser.add_mutually_exclusive_group()
     views.add_argument("--cameras", metavar="FILE", help="camera file: cameras.json, transforms.json, "
                        "COLMAP model folder, or a PLY with camera comments")
-    views.add_argument("--rig", choices=RIG_CHOICES, help="synthetic rig (default: the scene's table entry)")
+    views.add_argument("--rig", choices=RIG_CHOICES, help="synthetic rig from the flags alone; `default`: the "
+                       "scene's own (its embedded cameras, a dataset's rig, else auto), as without the flag")
     parser.add_argument("--out", required=True, metavar="DIR", help="output folder")
-    parser.add_argument("--backend", choices=("gl", "reference"), default="gl", help="renderer (default gl)")
+    parser.add_argument("--backend", choices=tuple(RENDERERS.names()), default="gl", help="renderer (default gl)")
     parser.add_argument("--device", default=None, help="torch device for the reference renderer")
     parser.add_argument("--format", choices=("png", "npy"), default="png", help="image format (default png)")
     parser.add_argument("--split", choices=("test", "train", "all"), default="test", help="views to render")
-    parser.add_argument("--longest-side", type=int, default=None, metavar="N", help="image size (long side)")
-    parser.add_argument("--n-train", type=int, default=48, help="rig training views (default 48)")
-    parser.add_argument("--n-test", type=int, default=8, help="rig held-out views (default 8)")
+    parser.add_argument("--longest-side", type=int, default=None, metavar="N",
+                        help=f"image size (long side; rigs default {LONGEST_SIDE})")
+    parser.add_argument("--n-train", type=int, default=N_TRAIN, help=f"rig training views (default {N_TRAIN})")
+    parser.add_argument("--n-test", type=int, default=N_TEST, help=f"rig held-out views (default {N_TEST})")
     parser.add_argument("--seed", type=int, default=0, help="rig seed (default 0)")
-    parser.add_argument("--aspect", type=float, default=None, help="rig width/height (default: table or 4/3)")
+    parser.add_argument("--aspect", type=float, default=None, help="rig width/height (default: the rig's own, 4/3)")
+    parser.add_argument("--up", default=None, metavar="X,Y,Z", help="world direction drawn upwards (default 0,-1,0)")
     parser.add_argument("--background", default="0,0,0", metavar="R,G,B", help="background colour in [0, 1]")
 
 
@@ -61,37 +75,59 @@ def _background(text: str) -> tuple[float, float, float]:
     return vals
 
 
+def _triple(text: str | None, flag: str):
+    if text is None:
+        return None
+    try:
+        vals = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        vals = ()
+    if len(vals) != 3 or not all(np.isfinite(vals)):
+        raise InputError(flag, f"expected three numbers X,Y,Z, got {text!r}")
+    return vals
+
+
+def _split_llff(cams):
+    return ([c for i, c in enumerate(cams) if i % LLFF_HOLD != 0], [c for i, c in enumerate(cams) if i % LLFF_HOLD == 0])
+
+
 def select_views(args, scene):
-    """The cameras to render, per ``--cameras``/``--rig``, ``--split`` and ``--longest-side``."""
+    """(where the views came from, the cameras to render), per the module docstring."""
+    from harness.io.cameras import embedded_cameras, load_cameras
+
     if args.longest_side is not None and args.longest_side < 1:
         raise InputError("--longest-side", "must be a positive number of pixels")
-    if args.cameras:
-        from harness.io.cameras import load_cameras
-
-        cams = load_cameras(args.cameras)
-        if args.longest_side:
-            cams = [c.resized(args.longest_side) for c in cams]
-        test = [c for i, c in enumerate(cams) if i % LLFF_HOLD == 0]
-        train = [c for i, c in enumerate(cams) if i % LLFF_HOLD != 0]
+    up = _triple(args.up, "--up")
+    if up is not None and not any(up):
+        raise InputError("--up", "must be a non-zero direction")
+    file_cams = load_cameras(args.cameras) if args.cameras else None
+    if file_cams is None and args.rig in (None, "default"):
+        file_cams = embedded_cameras(scene) or None
+    if file_cams is not None:
+        origin = args.cameras or f"{scene.meta.source or args.scene} (embedded cameras)"
+        cams = [c.resized(args.longest_side) for c in file_cams] if args.longest_side else file_cams
+        train, test = _split_llff(cams)
     else:
+        from harness.io.datasets import identify
         from harness.views.rigs import scene_rig
 
         if args.n_test < 1 or args.n_train < 0:
             raise InputError("--n-test/--n-train", "need at least one test view and no negative counts")
-        if args.aspect is not None and not args.aspect > 0:
+        if args.aspect is not None and not (np.isfinite(args.aspect) and args.aspect > 0):
             raise InputError("--aspect", "must be a positive width/height ratio")
+        rig = args.rig or "default"
+        dataset = identify(args.scene) if rig == "default" else None
         try:
-            views = scene_rig(args.scene, scene, None if args.rig == "default" else args.rig,
-                              n_train=args.n_train, n_test=args.n_test, seed=args.seed,
-                              longest_side=args.longest_side or 1024, aspect=args.aspect)
+            views = scene_rig(dataset, scene, rig, n_train=args.n_train, n_test=args.n_test, seed=args.seed,
+                              longest_side=args.longest_side or LONGEST_SIDE, aspect=args.aspect, up=up)
         except ValueError as err:
             raise InputError(args.scene, f"cannot build a rig: {err}") from None
-        train, test = views.train, views.test
-        cams = views.all
+        origin = f"rig {views.rig}" + (f" (the {dataset} dataset's own)" if dataset else "")
+        train, test, cams = views.train, views.test, views.all
     selected = {"test": test, "train": train, "all": cams}[args.split]
     if not selected:
         raise InputError("--split", f"the {args.split!r} split has no views")
-    return selected
+    return origin, selected
 
 
 def _safe(name: str) -> str:
@@ -120,7 +156,7 @@ def run(args) -> int:
     if out.exists() and not out.is_dir():
         raise InputError(out, "exists and is not a folder")
     scene = load_scene(args.scene)
-    cams = select_views(args, scene)
+    origin, cams = select_views(args, scene)
     from renderers import get_renderer
 
     try:
@@ -144,5 +180,5 @@ def run(args) -> int:
     atomic_write_text(out / "coverage.json", json.dumps(record, indent=1))
     for r in record:
         print(f"{r['view']:>24}  {r['width']}x{r['height']}  coverage {100 * r['coverage']:5.1f}%")
-    print(f"wrote {len(cams)} views, contact_sheet.png, cameras.json and coverage.json to {out}")
+    print(f"wrote {len(cams)} views ({origin}), contact_sheet.png, cameras.json and coverage.json to {out}")
     return 0

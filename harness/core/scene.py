@@ -11,13 +11,16 @@ Stored (pre-activation) parameters, exactly as INRIA `.ply` files hold them:
   (the `.ply` stores them channel-major: ``f_rest_{c*K + k}``; readers/writers transpose)
 * ``extra``          name -> (N,) array of any other per-splat property (``nx``, ``ny``, ...),
   carried through untouched in file order.
+* ``meta``           :class:`SceneMeta`: where the scene came from (path, format) and its file's
+  header comments (embedded cameras among them), kept by :meth:`subset` so that writers put them
+  back (a pruned file is its input minus rows).
 
 Activations are functions, never cached state, so a scene is just data.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -25,6 +28,24 @@ SH_C0 = 0.28209479177387814
 #: number of higher-order SH coefficients per channel for degrees 0..3
 SH_REST_COUNT = {0: 0, 1: 3, 2: 8, 3: 15}
 _DEGREE_OF_REST = {k: d for d, k in SH_REST_COUNT.items()}
+
+
+@dataclass(frozen=True)
+class SceneMeta:
+    """What a scene's file said besides the splats.
+
+    ``comments`` are header comment texts in file order, each with whether it stood before the
+    PLY ``format`` line (``preamble``: where MPEG tools put ``camera_position`` lines) or after it.
+    """
+
+    source: str = ""        # the path it was read from ("" for a scene built in memory)
+    format: str = ""        # the reader's format name ("ply", "splat", "sog", ...)
+    preamble: tuple[str, ...] = ()   # comments before the `format` line
+    comments: tuple[str, ...] = ()   # comments after it (obj_info lines included, as written)
+
+    @property
+    def all_comments(self) -> tuple[str, ...]:
+        return self.preamble + self.comments
 
 
 @dataclass
@@ -36,6 +57,7 @@ class GaussianScene:
     sh_dc: np.ndarray
     sh_rest: np.ndarray
     extra: dict[str, np.ndarray] = field(default_factory=dict)
+    meta: SceneMeta = field(default_factory=SceneMeta)
 
     def __post_init__(self) -> None:
         n = len(self.means)
@@ -82,6 +104,7 @@ class GaussianScene:
         sh_dc,
         sh_rest=None,
         extra: dict[str, np.ndarray] | None = None,
+        meta: SceneMeta | None = None,
     ) -> "GaussianScene":
         """Build a scene, casting every core array to contiguous float32."""
         f32 = lambda a: np.ascontiguousarray(a, dtype=np.float32)  # noqa: E731
@@ -96,10 +119,11 @@ class GaussianScene:
             sh_dc=f32(sh_dc),
             sh_rest=f32(sh_rest),
             extra=dict(extra or {}),
+            meta=meta or SceneMeta(),
         )
 
     def subset(self, index) -> "GaussianScene":
-        """Rows selected by a boolean mask or an index array (order preserved), extras included."""
+        """Rows selected by a boolean mask or an index array (order preserved), extras and meta included."""
         index = np.asarray(index)
         return GaussianScene(
             means=self.means[index],
@@ -109,14 +133,20 @@ class GaussianScene:
             sh_dc=self.sh_dc[index],
             sh_rest=self.sh_rest[index],
             extra={k: v[index] for k, v in self.extra.items()},
+            meta=self.meta,
         )
+
+    def with_meta(self, **changes) -> "GaussianScene":
+        """The same arrays with :class:`SceneMeta` fields replaced."""
+        return GaussianScene(self.means, self.scales_log, self.quats, self.opacity_logit, self.sh_dc,
+                             self.sh_rest, self.extra, replace(self.meta, **changes))
 
     def with_sh_degree(self, degree: int) -> "GaussianScene":
         """The same scene truncated to ``degree`` (never raises the degree)."""
         k = SH_REST_COUNT[min(degree, self.sh_degree)]
         return GaussianScene(
             self.means, self.scales_log, self.quats, self.opacity_logit, self.sh_dc,
-            np.ascontiguousarray(self.sh_rest[:, :k]), dict(self.extra),
+            np.ascontiguousarray(self.sh_rest[:, :k]), dict(self.extra), self.meta,
         )
 
 

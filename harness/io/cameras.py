@@ -200,13 +200,10 @@ def ply_camera_comments(cameras: list[Camera]) -> list[str]:
     return [PLY_CAMERA_TAG + json.dumps(c.to_dict(), separators=(",", ":")) for c in cameras]
 
 
-def read_ply_cameras(path: str | Path) -> list[Camera]:
-    """Cameras stored as ``comment camera {JSON}`` lines in a PLY header (may be empty)."""
-    from harness.io.ply import read_ply_header  # header only, never the body
-
-    path = Path(path)
+def cameras_from_comments(comments, source) -> list[Camera]:
+    """Cameras stored as ``camera {JSON}`` header comment texts (other comments are ignored)."""
     out = []
-    for text in read_ply_header(path).comments:
+    for text in comments:
         if not text.startswith(PLY_CAMERA_TAG):
             continue
         try:
@@ -215,12 +212,25 @@ def read_ply_cameras(path: str | Path) -> list[Camera]:
             if m.shape != (4, 4) or np.abs(m[3] - [0, 0, 0, 1]).max() > 1e-9:
                 raise ValueError("world_to_cam must be a 4x4 rigid transform")
             name = d.get("name") or f"view_{len(out):04d}"
-            r = _proper_rotation(m[:3, :3], path, f"camera {name!r}")
+            r = _proper_rotation(m[:3, :3], source, f"camera {name!r}")
             out.append(_camera_from_c2w(r.T, -r.T @ m[:3, 3], d["fx"], d["fy"], d["cx"], d["cy"],
-                                        d["width"], d["height"], name, path))
+                                        d["width"], d["height"], name, source))
         except (json.JSONDecodeError, KeyError, TypeError, ValueError) as err:
-            raise InputError(path, f"malformed camera comment ({err}): {text[:80]!r}") from None
+            raise InputError(source, f"malformed camera comment ({err}): {text[:80]!r}") from None
     return out
+
+
+def read_ply_cameras(path: str | Path) -> list[Camera]:
+    """Cameras in a PLY header's comments (may be empty); the body is never read."""
+    from harness.io.ply import read_ply_header
+
+    header = read_ply_header(path)
+    return cameras_from_comments(header.preamble + header.comments, Path(path))
+
+
+def embedded_cameras(scene) -> list[Camera]:
+    """Cameras a loaded scene's file carried in its header (``scene.meta``; may be empty)."""
+    return cameras_from_comments(scene.meta.all_comments, scene.meta.source or "scene")
 
 
 # ------------------------------------------------------------------------------ dispatch

@@ -36,6 +36,7 @@ class FetchedScene:
 class SharedScene:
     relpath: str
     splats: int
+    sha256: str | None = None  # of a single-file scene (a folder scene has none)
 
 
 SCENES: dict[str, FetchedScene | SharedScene] = {
@@ -45,7 +46,8 @@ SCENES: dict[str, FetchedScene | SharedScene] = {
                                    "9e67a38943cd02aa0388c5abf3cb0465a330b7b45ad8aa3d3decc82e5cc8fbb1", 272_956),
     "luigi": FetchedScene("luigi.ply", "gradio-model3dgs==0.2.5",
                           "6971debf967bac924a4c8bd4457b354db66326792d1a300fd996c7eefede04aa", 14_526),
-    "grape-small": SharedScene("grape_small.ply", 5_000),
+    "grape-small": SharedScene("grape_small.ply", 5_000,
+                               "dc7d3e0e55bd35a97e071707e7f44480ae366836283c9f27dc39c1affff140d4"),
     "playbot": SharedScene("playbot_sog", 500_000),
 }
 
@@ -75,6 +77,19 @@ def resolve_scene(path_or_name) -> Path:
         raise InputError(path, "no such file or folder")
     raise InputError(text, f"unknown scene name; known names: {', '.join(SCENES)} "
                            "(run `harness fetch` to download the registry ones), or give a path")
+
+
+def identify(path_or_name) -> str | None:
+    """The named dataset a scene is: its name when given by name, else the dataset whose file has
+    the same content (sha256) — a copy or a renamed file is still that dataset, a pruned one is not."""
+    text = str(path_or_name)
+    if text in SCENES:
+        return text
+    path = Path(text).expanduser()
+    known = {spec.sha256: name for name, spec in SCENES.items() if spec.sha256}
+    if not known or not path.is_file():
+        return None
+    return known.get(sha256_file(path))
 
 
 def sha256_file(path: Path, chunk: int = 1 << 22) -> str:

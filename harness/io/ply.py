@@ -65,8 +65,9 @@ class PlyElement:
 class PlyHeader:
     format: str
     elements: list[PlyElement]
-    comments: list[str] = field(default_factory=list)
+    comments: list[str] = field(default_factory=list)   # after the `format` line
     data_offset: int = 0
+    preamble: list[str] = field(default_factory=list)   # comments before the `format` line (MPEG cameras)
 
     def element(self, name: str) -> PlyElement | None:
         return next((e for e in self.elements if e.name == name), None)
@@ -77,6 +78,7 @@ def read_ply_header(path: str | Path) -> PlyHeader:
     path = Path(path)
     elements: list[PlyElement] = []
     comments: list[str] = []
+    preamble: list[str] = []
     fmt = None
     with open(path, "rb") as f:
         if f.readline().strip() != b"ply":
@@ -100,7 +102,7 @@ def read_ply_header(path: str | Path) -> PlyHeader:
                     raise InputError(path, f"unsupported PLY format line {line!r}")
                 fmt = words[1]
             elif key in ("comment", "obj_info"):
-                comments.append(line[len(key):].strip() if key == "comment" else line)
+                (comments if fmt else preamble).append(line[len(key):].strip() if key == "comment" else line)
             elif key == "element":
                 if len(words) != 3 or not words[2].isdigit():
                     raise InputError(path, f"bad PLY element line {line!r}")
@@ -124,7 +126,7 @@ def read_ply_header(path: str | Path) -> PlyHeader:
         offset = f.tell()
     if fmt is None:
         raise InputError(path, "PLY header has no 'format' line")
-    return PlyHeader(fmt, elements, comments, offset)
+    return PlyHeader(fmt, elements, comments, offset, preamble)
 
 
 def _vertex_dtype(element: PlyElement, endian: str, path: Path) -> np.dtype:
@@ -261,9 +263,11 @@ def read_ply_table(path: str | Path) -> tuple[np.ndarray, PlyHeader]:
 
 
 def read_ply(path: str | Path) -> GaussianScene:
-    """Read an INRIA 3DGS ``.ply`` (any property order, ascii or binary) into a scene."""
-    table, _ = read_ply_table(path)
-    return table_to_scene(table, path)
+    """Read an INRIA 3DGS ``.ply`` (any property order, ascii or binary) into a scene whose
+    :class:`SceneMeta` holds the path and the header comments (before and after ``format``)."""
+    table, header = read_ply_table(path)
+    return table_to_scene(table, path).with_meta(source=str(path), format="ply", preamble=tuple(header.preamble),
+                                                 comments=tuple(header.comments))
 
 
 # ---------------------------------------------------------------------- writing
@@ -286,8 +290,8 @@ def ply_layout(scene: GaussianScene) -> list[tuple[str, np.dtype]]:
     return layout
 
 
-def ply_header_bytes(layout: list[tuple[str, np.dtype]], count: int, comments=()) -> bytes:
-    lines = ["ply", "format binary_little_endian 1.0"]
+def ply_header_bytes(layout: list[tuple[str, np.dtype]], count: int, comments=(), preamble=()) -> bytes:
+    lines = ["ply"] + [f"comment {c}" for c in preamble] + ["format binary_little_endian 1.0"]
     lines += [f"comment {c}" for c in comments]
     lines.append(f"element vertex {count}")
     lines += [f"property {_WRITE_TYPES[dt.str[1:]]} {name}" for name, dt in layout]
@@ -327,10 +331,16 @@ def sibr_compatible(scene: GaussianScene) -> GaussianScene:
     return GaussianScene(scene.means, scene.scales_log, scene.quats, scene.opacity_logit, scene.sh_dc, rest, normals)
 
 
-def write_ply(scene: GaussianScene, path: str | Path, *, comments=(), sibr_layout: bool = False) -> None:
-    """Write ``scene`` as a binary little-endian INRIA ``.ply`` (atomically); see the module docstring."""
+def write_ply(scene: GaussianScene, path: str | Path, *, comments=None, preamble=None,
+              sibr_layout: bool = False) -> None:
+    """Write ``scene`` as a binary little-endian INRIA ``.ply`` (atomically); see the module docstring.
+
+    Header comments default to the scene's own (``scene.meta``), each where it stood: the preamble
+    before the ``format`` line, the rest after it."""
+    comments = scene.meta.comments if comments is None else comments
+    preamble = scene.meta.preamble if preamble is None else preamble
     if sibr_layout:
         scene = sibr_compatible(scene)
     table = scene_to_table(scene)
-    header = ply_header_bytes(ply_layout(scene), len(scene), comments)
+    header = ply_header_bytes(ply_layout(scene), len(scene), comments, preamble)
     atomic_write_chunks(path, [header, table])

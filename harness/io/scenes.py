@@ -111,6 +111,7 @@ def read_scene(path_or_name, *, lod: int | str | None = None, drop_nonfinite: bo
     except OSError as err:
         raise InputError(path, f"cannot read: {err.strerror or err}") from None
     scene, dropped = check_scene(scene, path, drop_nonfinite=drop_nonfinite)
+    scene = scene.with_meta(source=str(path), format=fmt)
     return LoadResult(scene, path, fmt, lod if fmt == "sog" else None, dropped)
 
 
@@ -122,10 +123,11 @@ def load_scene(path_or_name, *, lod: int | str | None = None, drop_nonfinite: bo
     return result.scene
 
 
-def write_scene(scene: GaussianScene, path, *, comments=(), sibr_layout: bool = False) -> Path:
+def write_scene(scene: GaussianScene, path, *, comments=None, sibr_layout: bool = False) -> Path:
     """Write ``.ply`` (lossless) or ``.splat`` (lossy export) atomically; returns the path.
 
-    ``comments`` (header comment lines) and ``sibr_layout`` apply to ``.ply``, see :mod:`harness.io.ply`.
+    A ``.ply`` keeps the scene's header comments (``scene.meta``; ``comments`` replaces those after
+    the ``format`` line); ``sibr_layout`` see :mod:`harness.io.ply`.
     """
     path = Path(path)
     suffix = path.suffix.lower()

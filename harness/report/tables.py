@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from harness.core import ratios
 from harness.io.files import atomic_write_text
 from harness.report import catalog
 from harness.report.summary import summarise
@@ -41,16 +42,20 @@ KEEPS = (0.7, 0.5, 0.3)
 SENSITIVITY_KNOBS = {"preset": "coefficients", "voxel": "voxel size"}
 
 
+def _at(df: pd.DataFrame, ratio: float) -> pd.Series:
+    """Rows of ``df`` at pruning ratio ``ratio``."""
+    return (df["ratio"] - ratio).abs() <= ratios.TOLERANCE
+
+
 def _metrics() -> list[tuple[str, str, int]]:
     return catalog.metric_columns(("psnr", "ssim", "lpips"))
 
 
-_TOL = 1e-6
 
 
 def _cell(s: pd.DataFrame, scene, method, ratio, variant="default"):
     m = s[(s["label"] == scene) & (s["method"] == method) & (s["variant"] == variant)
-          & (np.abs(s["ratio"] - ratio) < _TOL)]
+          & _at(s, ratio)]
     return None if m.empty else m.iloc[0]
 
 
@@ -88,7 +93,7 @@ def table_comparison(s: pd.DataFrame):
 
 def table_ablation(s: pd.DataFrame, ratio: float = 0.2):
     present = [a for a in catalog.ablation_cells()
-               if not s[(s["method"] == a[2]) & (np.abs(s["ratio"] - ratio) < _TOL)].empty]
+               if not s[(s["method"] == a[2]) & _at(s, ratio)].empty]
     if not present:
         return None
     idx, num, disp = [], [], []
@@ -103,12 +108,12 @@ def table_ablation(s: pd.DataFrame, ratio: float = 0.2):
                          for v in vals])
     mi = pd.MultiIndex.from_tuples([a[:2] for a in present], names=["descriptors", "beta"])
     ri = pd.MultiIndex.from_tuples(idx, names=["Dataset", "Metric"])
-    return pd.DataFrame(num, ri, mi), pd.DataFrame(disp, ri, mi), _inf_note(s[s["ratio"].sub(ratio).abs() < _TOL])
+    return pd.DataFrame(num, ri, mi), pd.DataFrame(disp, ri, mi), _inf_note(s[_at(s, ratio)])
 
 
 def _pooled(df: pd.DataFrame, method: str, ratio: float, variant: str = "default") -> dict:
     ok = df[(df["status"] == "ok") & (df["method"] == method) & (df["variant"] == variant)
-            & ((df["ratio"] - ratio).abs() < _TOL)]
+            & _at(df, ratio)]
     fin = ok["psnr"][np.isfinite(ok["psnr"])]
     return {"psnr": fin.mean() if len(fin) else (np.inf if len(ok) else np.nan), "ssim": ok["ssim"].mean(),
             "lpips": ok["lpips"].mean(), "n": len(ok), "n_inf": int(np.isinf(ok["psnr"]).sum())}
@@ -120,7 +125,7 @@ def _common(df: pd.DataFrame, cells) -> tuple[pd.DataFrame, list[str]]:
     ok = df[df["status"] == "ok"]
     sets = []
     for m, v, r in cells:
-        c = ok[(ok["method"] == m) & (ok["variant"] == v) & ((ok["ratio"] - r).abs() < _TOL)]
+        c = ok[(ok["method"] == m) & (ok["variant"] == v) & _at(ok, r)]
         if len(c):
             sets.append(set(c["scene"]))
     common = sorted(set.intersection(*sets)) if sets else []
@@ -134,12 +139,12 @@ def table_keep(df: pd.DataFrame):
     without, full = pair
     rows, idx = [], []
     for k in KEEPS:
-        r = round(1 - k, 9)
+        r = ratios.from_keep(k)
         sub, _ = _common(df, [(without, "default", r), (full, "default", r)])
         a, b = _pooled(sub, without, r), _pooled(sub, full, r)
         if a["n"] == 0 and b["n"] == 0:
             continue
-        idx.append(f"{round(100 * r)}%")
+        idx.append(ratios.percent(r))
         rows.append([a["psnr"], a["ssim"], a["lpips"], b["psnr"], b["ssim"], b["lpips"], a["psnr"] - b["psnr"],
                      a["n"], b["n"]])
     if not rows:
@@ -161,8 +166,8 @@ def table_keep(df: pd.DataFrame):
 
 def table_sensitivity(df: pd.DataFrame, keep: float = 0.7):
     method = catalog.proposed_method()
-    r = round(1 - keep, 9)
-    sub = df[(df["method"] == method) & ((df["ratio"] - r).abs() < _TOL)]
+    r = ratios.from_keep(keep)
+    sub = df[(df["method"] == method) & _at(df, r)]
     knobs = list(SENSITIVITY_KNOBS)
 
     def knob(v: str) -> str | None:  # sweep variants are named "<param>=<value>"
@@ -218,14 +223,14 @@ def table_per_scene(s: pd.DataFrame):
     for scene in dict.fromkeys(s["label"]):
         gains = []
         for k in KEEPS:
-            a, b = _cell(s, scene, without, round(1 - k, 9)), _cell(s, scene, full, round(1 - k, 9))
+            a, b = _cell(s, scene, without, ratios.from_keep(k)), _cell(s, scene, full, ratios.from_keep(k))
             gains.append(np.nan if a is None or b is None else b["psnr"] - a["psnr"])
         if not all(np.isnan(g) for g in gains):
             idx.append(scene)
             rows.append(gains)
     if not rows:
         return None
-    num = pd.DataFrame(rows, pd.Index(idx, name="scene"), [f"prune {round(100 * (1 - k))}%" for k in KEEPS])
+    num = pd.DataFrame(rows, pd.Index(idx, name="scene"), [f"prune {ratios.percent(ratios.from_keep(k))}" for k in KEEPS])
     disp = num.map(lambda v: "–" if np.isnan(v) else f"{v:+.2f}")
     return num, disp, [f"descriptor gain in dB: PSNR({full}) − PSNR({without}); positive = descriptors help"]
 

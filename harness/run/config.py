@@ -6,23 +6,25 @@ A config is a YAML mapping::
     output: runs/default          # results directory (relative to the working directory)
     workers: 2                    # local process pool size (--workers overrides)
     protocol:                     # how every scene is evaluated
-      longest_side: 512           # render resolution (px, longest image side)
-      aspect: 1.3333              # width / height of rig views
+      longest_side: 512           # render resolution (px, longest image side; default 1024)
+      aspect: 1.3333              # width / height of rig views (default: the rig's own — a named
+                                  # dataset's table entry, else 4/3)
       background: [0, 0, 0]
       renderer: gl                # gl | reference
       device: cpu                 # torch device for metrics / camera-aware pruners
       metrics: [psnr, ssim, lpips]
       seed: 0
-      n_train: 24                 # rig views handed to camera-aware pruners
-      n_test: 3                   # held-out rig views that are measured
+      n_train: 48                 # rig views handed to camera-aware pruners (default 48)
+      n_test: 8                   # held-out rig views that are measured (default 8)
     ratios: [0.1, 0.2, 0.3]       # default pruning ratios of every method
     keep: [0.7, 0.5, 0.3]         # default keep fractions (ratio = 1 - keep), merged with ratios
     scenes:
       - name: luigi               # row label; also the dataset name or path when `source` is absent
         source: luigi             # dataset name (harness.io.datasets) or a path; ${VAR:-default} expanded
         frames: "dir/*.ply"       # instead of source: a glob of per-frame files (one sequence)
-        kind: object-centric      # or forward-facing (informational; picks the rig when rig: auto)
-        rig: auto                 # rig name, or `auto` (the per-scene default of harness.views.rigs)
+        kind: object-centric      # or forward-facing (picks the `forward` rig for rig: default)
+        rig: default              # `default` (a named dataset's own rig, else auto), or orbit, room,
+                                  # forward, auto (harness.views.rigs; same meaning as `harness render --rig`)
         cameras: {path: cams.json, test: [v08, v10], test_every: 8}   # instead of a rig
         lod: 0                    # SOG level of detail
         n_test: 3                 # per-scene override of protocol.n_test / n_train
@@ -46,6 +48,7 @@ is wrong. Variant names are stable: ``<variant or 'default'>`` for plain entries
 from __future__ import annotations
 
 import itertools
+import math
 import os
 import re
 from dataclasses import dataclass, field
@@ -54,9 +57,11 @@ from typing import Any
 
 import yaml
 
+from harness.core import ratios
 from harness.core.errors import InputError
 from harness.core.params import Params
 from harness.metrics.registry import METRICS, expand
+from harness.views import rigs
 from renderers import RENDERERS
 
 KINDS = ("forward-facing", "object-centric")
@@ -73,15 +78,15 @@ def expand_env(text: str) -> str:
 
 @dataclass(frozen=True)
 class Protocol:
-    longest_side: int = 1024
-    aspect: float = 4.0 / 3.0
+    longest_side: int = rigs.LONGEST_SIDE
+    aspect: float | None = None  # None: the rig's own (a named dataset's table entry, else 4/3)
     background: tuple[float, float, float] = (0.0, 0.0, 0.0)
     renderer: str = "gl"
     device: str = "cpu"
     metrics: tuple[str, ...] = ("psnr", "ssim", "lpips")
     seed: int = 0
-    n_train: int = 24
-    n_test: int = 3
+    n_train: int = rigs.N_TRAIN
+    n_test: int = rigs.N_TEST
 
 
 @dataclass(frozen=True)
@@ -100,11 +105,11 @@ class SceneSpec:
     source: str | None = None
     frames: str | None = None
     kind: str = "object-centric"
-    rig: str = "auto"
+    rig: str = "default"
     cameras: CameraSpec | None = None
     lod: int | None = None
-    n_train: int = 24
-    n_test: int = 3
+    n_train: int = rigs.N_TRAIN
+    n_test: int = rigs.N_TEST
     suites: tuple[str, ...] = ()
 
 
@@ -155,6 +160,8 @@ def _only(d: dict, allowed: set[str], where: str, src: str) -> None:
 def _num(v, where: str, src: str, *, lo=None, hi=None, integer=False):
     if isinstance(v, bool) or not isinstance(v, (int, float)) or (integer and not isinstance(v, int)):
         raise InputError(src, f"{where}: expected {'an integer' if integer else 'a number'}, got {v!r}")
+    if not math.isfinite(v):
+        raise InputError(src, f"{where}: expected a finite number, got {v!r}")
     if (lo is not None and v < lo) or (hi is not None and v > hi):
         raise InputError(src, f"{where}: {v!r} is outside [{lo}, {hi}]")
     return v
@@ -184,10 +191,9 @@ def _names(v, choices, where: str, src: str) -> tuple[str, ...]:
     return tuple(_choice(x, choices, f"{where}[{i}]", src) for i, x in enumerate(v))
 
 
-def merge_ratios(ratios, keep) -> tuple[float, ...]:
-    """Sorted union of pruning ratios and ``1 - keep`` fractions (rounded to 1e-9 to merge 0.3/0.7)."""
-    out = {round(float(r), 9) for r in ratios} | {round(1.0 - float(k), 9) for k in keep}
-    return tuple(sorted(out))
+def merge_ratios(ratio_list, keep) -> tuple[float, ...]:
+    """Sorted union of pruning ratios and the ratios of keep fractions (:func:`harness.core.ratios.merge`)."""
+    return ratios.merge(ratio_list, keep)
 
 
 # --------------------------------------------------------------------------- sections
@@ -262,7 +268,7 @@ def _scene(d, i, protocol: Protocol, src) -> SceneSpec:
         source=None if "frames" in d else expand_env(str(d.get("source", name))),
         frames=expand_env(_str(d["frames"], f"{where}.frames", src)) if "frames" in d else None,
         kind=_choice(d.get("kind", "object-centric"), KINDS, f"{where}.kind", src),
-        rig=_str(d.get("rig", "auto"), f"{where}.rig", src),
+        rig=_choice(d.get("rig", "default"), rigs.RIG_CHOICES, f"{where}.rig", src),
         cameras=_cameras(d["cameras"], f"{where}.cameras", src) if "cameras" in d else None,
         lod=None if lod is None else _num(lod, f"{where}.lod", src, lo=0, integer=True),
         n_train=_num(d.get("n_train", protocol.n_train), f"{where}.n_train", src, lo=0, integer=True),

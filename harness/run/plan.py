@@ -158,7 +158,8 @@ def scene_views(item_spec: SceneSpec, scene, path: Path, protocol, cache: StageC
         source = {"cameras": cache.files.digest(cpath), "test": list(item_spec.cameras.test),
                   "test_every": item_spec.cameras.test_every}
     else:
-        source = {"rig": item_spec.rig, "scene": scene_digest, "name": item_spec.name, "kind": item_spec.kind,
+        dataset = item_spec.source if item_spec.source and toolkit.resolve_dataset(item_spec.source) else None
+        source = {"rig": item_spec.rig, "scene": scene_digest, "dataset": dataset, "kind": item_spec.kind,
                   "n_train": item_spec.n_train, "n_test": item_spec.n_test, "aspect": p.aspect, "seed": p.seed}
     key = cache.key("views", source=source, longest_side=p.longest_side, code=versions.rigs)
     hit = cache.get_json("views", key)
@@ -174,7 +175,7 @@ def scene_views(item_spec: SceneSpec, scene, path: Path, protocol, cache: StageC
                                     f"{len(cams)} cameras ({', '.join(c.name for c in cams[:6])}, ...)")
         rig = "file"
     else:
-        rig, train, test = toolkit.make_rig(item_spec.rig, scene(), kind=item_spec.kind, name=item_spec.name,
+        rig, train, test = toolkit.make_rig(item_spec.rig, scene(), kind=item_spec.kind, dataset=dataset,
                                             n_train=item_spec.n_train, n_test=item_spec.n_test,
                                             longest_side=p.longest_side, aspect=p.aspect, seed=p.seed)
     cache.put_json("views", key, {"rig": rig, "train": [c.to_dict() for c in train],

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from harness.core import ratios
 from harness.run.cache import StageCache, digest_mask
 from harness.run.config import RunConfig
 from harness.run.plan import SceneItem, Skip, Versions, load_items, variants_for
@@ -285,7 +286,7 @@ class Runner:
                          "params": canonical_json(mv.params.to_dict()),
                          "splats_in": item.n_splats}
                 for r in mv.ratios:
-                    row0 = {**ident, "ratio": r, "keep": round(1.0 - r, 9)}
+                    row0 = {**ident, "ratio": r, "keep": ratios.to_keep(r)}
                     if "error" in srec:
                         rows.append({**row0, "status": "error", "reason": srec["error"]})
                         continue

@@ -34,23 +34,20 @@ def resolve_dataset(name: str) -> Path | None:
     return datasets.scene_path(name) if name in datasets.SCENES else None
 
 
-def make_rig(rig: str, scene, *, kind: str, name: str, n_train: int, n_test: int, longest_side: int,
-             aspect: float, seed: int):
-    """(rig name, train, test) cameras from a synthetic rig.
+def make_rig(rig: str, scene, *, kind: str, dataset: str | None, n_train: int, n_test: int,
+             longest_side: int, aspect: float | None, seed: int):
+    """(rig name, train, test) cameras from a synthetic rig (:func:`harness.views.rigs.scene_rig`).
 
-    ``rig='auto'``: the scene's entry in :data:`harness.views.rigs.SCENE_RIGS` when it has one (its own
-    aspect, up axis and elevations win over the config's aspect), else ``forward`` for a
-    forward-facing scene and the rigs module's ``auto`` choice (room or orbit) otherwise.
+    ``rig='default'``: the named dataset's own rig (its up axis, aspect and elevations); for other
+    scenes ``forward`` when the config calls the scene forward-facing, else ``auto`` (room or
+    orbit). ``aspect`` (None = the rig's own) overrides the table's when given.
     """
     from harness.views import rigs
 
-    common = dict(n_train=n_train, n_test=n_test, longest_side=longest_side, seed=seed)
-    if rig == "auto" and rigs.scene_key(name) in rigs.SCENE_RIGS:
-        views = rigs.default_rig(name, scene, **common)
-    else:
-        if rig == "auto" and kind == "forward-facing":
-            rig = "forward"
-        views = rigs.make_rig(rig, scene, aspect=aspect, **common)
+    if rig == "default" and dataset not in rigs.SCENE_RIGS and kind == "forward-facing":
+        rig = "forward"
+    views = rigs.scene_rig(dataset, scene, rig, n_train=n_train, n_test=n_test, longest_side=longest_side,
+                           aspect=aspect, seed=seed)
     return views.rig or rig, list(views.train), list(views.test)
 
 

@@ -36,15 +36,13 @@ keeps its distance: a view where the content looks compact is not turned into a 
   also sees all around, stays near 3); else ``orbit``. Never ``forward``: a forward-facing capture
   cannot be told from splats.
 
-:data:`SCENE_RIGS` holds the per-scene defaults the runner uses (looked at on contact sheets).
+:data:`SCENE_RIGS` holds the named datasets' own rigs (``rig: default``; looked at on contact sheets).
 """
 
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -53,6 +51,13 @@ from harness.core.scene import GaussianScene
 from harness.views.placement import SceneFrame, enclosure, scene_frame
 
 RIG_NAMES = ("orbit", "room", "forward", "auto")
+#: what a config's ``rig:`` and ``harness render --rig`` accept: a rig, or ``default`` (the scene's own)
+RIG_CHOICES = ("default",) + RIG_NAMES
+#: view defaults of the whole house (configs, ``harness render``, benchmarks)
+LONGEST_SIDE = 1024  # px, the CTC setting
+ASPECT = 4.0 / 3.0
+N_TRAIN = 48
+N_TEST = 8
 NEAR_MARGIN = 0.3  # keep content beyond the renderer's z > 0.2 cull
 DISTANCE_QUANTILE = 99.0
 ENCLOSURE_ROOM = 0.5
@@ -83,7 +88,7 @@ class RigDefaults:
     note: str = ""
 
 
-#: Defaults per named scene (keys from :func:`scene_key`), chosen by looking at contact sheets.
+#: Defaults per named dataset (:mod:`harness.io.datasets`), chosen by looking at contact sheets.
 SCENE_RIGS: dict[str, RigDefaults] = {
     "grape-small": RigDefaults(
         "forward", up=(0.0, 1.0, 0.0),
@@ -103,14 +108,6 @@ SCENE_RIGS: dict[str, RigDefaults] = {
 }
 
 _RIG_DEFAULT_ELEVATIONS = {"orbit": (5.0, 25.0, 45.0), "room": (15.0, 30.0), "forward": (0.0,)}
-
-
-def scene_key(name_or_path: str | Path) -> str:
-    """Table key of a scene name or file: base name, lower case, ``_``→``-``, format suffix dropped
-    (``/x/grape_small.ply`` → ``grape-small``, ``playbot_sog`` → ``playbot``)."""
-    key = Path(str(name_or_path).rstrip("/")).name.lower()
-    key = re.sub(r"\.(ply|splat|sog|json|compressed\.ply)$", "", key).replace("_", "-")
-    return re.sub(r"-sog$", "", key)
 
 
 def image_size(longest_side: int, aspect: float) -> tuple[int, int]:
@@ -201,8 +198,8 @@ def choose_rig(frame: SceneFrame) -> str:
     return "room" if spread >= ROOM_SPREAD and enclosure(frame) >= ENCLOSURE_ROOM else "orbit"
 
 
-def make_rig(name: str, scene: GaussianScene, *, n_train: int = 48, n_test: int = 8,
-             longest_side: int = 1024, aspect: float = 4 / 3, seed: int = 0, up=None,
+def make_rig(name: str, scene: GaussianScene, *, n_train: int = N_TRAIN, n_test: int = N_TEST,
+             longest_side: int = LONGEST_SIDE, aspect: float = ASPECT, seed: int = 0, up=None,
              elevations=None, fov_deg: float = 60.0, front=None) -> RigViews:
     """Build rig ``name`` (one of :data:`RIG_NAMES`) around ``scene``; see the module docstring.
 
@@ -241,23 +238,20 @@ def make_rig(name: str, scene: GaussianScene, *, n_train: int = 48, n_test: int 
     return _split(cams, n_test, name)
 
 
-def scene_rig(scene_name: str | Path, scene: GaussianScene, rig: str | None = None, **overrides) -> RigViews:
-    """The rig for a named scene. ``rig=None``: the :data:`SCENE_RIGS` entry (``auto`` for unknown
-    scenes). An explicit ``rig`` still takes the scene's ``up`` from the table (a property of the
-    scene), and its aspect/elevations only when it is the table's rig. Keyword arguments of
-    :func:`make_rig` override everything."""
-    d = SCENE_RIGS.get(scene_key(scene_name))
-    name = rig or (d.rig if d is not None else "auto")
+def scene_rig(dataset: str | None, scene: GaussianScene, rig: str = "default", **overrides) -> RigViews:
+    """The rig of a scene. ``rig="default"``: the :data:`SCENE_RIGS` entry of the named dataset the
+    scene is (its rig, up axis, aspect and elevations), ``auto`` for any other scene. An explicit rig
+    (``orbit``, ``room``, ``forward``, ``auto``) uses only what it is given: the same flags give the
+    same rig whatever the scene or its file is called. Keyword arguments of :func:`make_rig` that are
+    not None override everything (an explicit ``aspect`` wins over the table's)."""
+    if rig not in RIG_CHOICES:
+        raise ValueError(f"unknown rig {rig!r}; known: {', '.join(RIG_CHOICES)}")
     kwargs = {}
-    if d is not None:
-        kwargs["up"] = d.up
-        if name == d.rig:
-            kwargs.update({k: v for k, v in (("aspect", d.aspect), ("elevations", d.elevations))
-                           if v is not None})
+    if rig == "default":
+        d = SCENE_RIGS.get(dataset or "")
+        rig = d.rig if d is not None else "auto"
+        if d is not None:
+            kwargs = {k: v for k, v in (("up", d.up), ("aspect", d.aspect), ("elevations", d.elevations))
+                      if v is not None}
     kwargs.update({k: v for k, v in overrides.items() if v is not None})
-    return make_rig(name, scene, **kwargs)
-
-
-def default_rig(scene_name: str | Path, scene: GaussianScene, **overrides) -> RigViews:
-    """:func:`scene_rig` with the table's rig (``auto`` for scenes not in :data:`SCENE_RIGS`)."""
-    return scene_rig(scene_name, scene, None, **overrides)
+    return make_rig(rig, scene, **kwargs)
