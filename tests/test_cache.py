@@ -15,10 +15,10 @@ from harness.run.cache import (
     FileDigests,
     StageCache,
     canonical_json,
-    code_digest,
     digest_json,
     digest_mask,
 )
+from harness.run.versions import code_digest
 
 
 def test_keys_depend_on_content_not_order():

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from harness.core.scene import GaussianScene
-from harness.views.placement import scene_frame
+from harness.views.placement import placement
 from harness.views.rigs import (
     SCENE_RIGS,
     choose_rig,
@@ -78,8 +78,8 @@ def test_held_out_indices_spread():
 @pytest.mark.parametrize("rig, scene_fn", [("orbit", blob), ("forward", blob), ("room", room), ("orbit", room)])
 def test_every_test_view_sees_its_target(rig, scene_fn):
     scene = scene_fn()
-    frame = scene_frame(scene)
-    target = frame.dense_center if rig == "room" else frame.center
+    place = placement(scene)
+    target = place.dense_center if rig == "room" else place.center
     views = make_rig(rig, scene, n_train=6, n_test=8, seed=1)
     for cam in views.test:
         u, v, z = project(cam, target)
@@ -91,9 +91,9 @@ def test_every_test_view_sees_its_target(rig, scene_fn):
 @pytest.mark.parametrize("rig", ["orbit", "forward"])
 def test_content_fills_the_frame(rig):
     scene = blob()
-    frame = scene_frame(scene)
+    place = placement(scene)
     for cam in make_rig(rig, scene, n_train=4, n_test=6).test:
-        u, v, z = projected(cam, frame.points)
+        u, v, z = projected(cam, place.points)
         inside = (z > 0.2) & (u >= 0) & (u < cam.width) & (v >= 0) & (v < cam.height)
         assert inside.mean() >= 0.98
         span_u = (np.percentile(u, 99) - np.percentile(u, 1)) / cam.width
@@ -111,9 +111,9 @@ def test_room_cameras_stay_inside_and_look_down():
 
 def test_up_is_drawn_upwards():
     scene = blob()
-    frame = scene_frame(scene, up=(0, 0, 1))
+    place = placement(scene, up=(0, 0, 1))
     for cam in make_rig("orbit", scene, n_train=2, n_test=4, up=(0, 0, 1)).test:
-        _, v, _ = project(cam, frame.center + 0.3 * frame.radius * np.array([0, 0, 1.0]))
+        _, v, _ = project(cam, place.center + 0.3 * place.radius * np.array([0, 0, 1.0]))
         assert v < cam.height / 2
 
 
@@ -126,8 +126,8 @@ def test_image_size_and_aspect():
 
 
 def test_auto_choice():
-    assert choose_rig(scene_frame(blob())) == "orbit"
-    assert choose_rig(scene_frame(room(), up=(0, -1, 0))) == "room"
+    assert choose_rig(placement(blob())) == "orbit"
+    assert choose_rig(placement(room(), up=(0, -1, 0))) == "room"
     assert make_rig("auto", room(), n_train=2, n_test=2, up=(0, -1, 0)).rig == "room"
 
 
@@ -139,10 +139,10 @@ def test_dataset_table_and_explicit_rigs():
     scene = blob()
     views = scene_rig("playbot", scene, n_train=2, n_test=4)
     up = np.array(SCENE_RIGS["playbot"].up)
-    frame = scene_frame(scene, up=up)
+    place = placement(scene, up=up)
     assert views.rig == SCENE_RIGS["playbot"].rig
     for cam in views.test:  # table elevations (all ≥ 20° − jitter) put cameras above the centre
-        assert (cam.center - frame.center) @ up > 0
+        assert (cam.center - place.center) @ up > 0
     assert scene_rig(None, scene, n_train=2, n_test=2).rig == "orbit"  # default of an unknown scene: auto
     # an explicit rig uses its flags alone: the dataset's table (up, aspect) does not leak in
     a = scene_rig("luigi", scene, "orbit", n_train=2, n_test=2)

@@ -176,11 +176,15 @@ def test_missing_lpips_weights_fail_before_any_work(scenes, tmp_path, monkeypatc
 
 
 def test_pruner_version_follows_imported_project_modules():
-    from harness.run.plan import project_closure
+    from harness.run.versions import project_closure
 
     mods = project_closure("tests.runner_fakes", roots=("tests", "harness", "methods"))
     assert {"tests.runner_fakes", "harness.core.cameras", "harness.core.scene", "methods.registry", "harness.run.toolkit"} <= mods
     assert not any(m.startswith(("numpy", "renderers")) for m in mods)
+    # imports inside functions count: betadesc's pipeline is imported when a variant runs
+    full = project_closure("methods.betadesc")
+    assert {"methods.betadesc.pipeline", "methods.betadesc.fpfh", "methods.betadesc.statistics"} <= full
+    assert "renderers.projection" in project_closure("methods.lightgs")
 
 
 def test_bad_scene_file_or_split_is_an_error_row_and_the_run_goes_on(scenes, tmp_path):
@@ -199,3 +203,21 @@ def test_bad_scene_file_or_split_is_an_error_row_and_the_run_goes_on(scenes, tmp
     assert rows.loc["bad", "status"] == "error" and "cannot use it" in rows.loc["bad", "reason"]
     assert rows.loc["split", "status"] == "error" and "v99" in rows.loc["split", "reason"]
     assert (df[df["scene"] == "s0"]["status"] == "ok").all() and len(res.errors) == 2
+
+
+def test_betadesc_gets_training_views_only_when_its_view_evidence_is_on(scenes, tmp_path):
+    """view_weight > 0: the runner hands betadesc the rig's training views (the paper's optional
+    view-aware edge evidence); at 0 (the default) it stays camera-agnostic and its scores do not
+    depend on the cameras."""
+    small = {"voxel": 0.05, "radius_voxels": 3.0, "max_nn": 40}
+    methods = [{"name": "betadesc", "variant": "agnostic", "params": small},
+               {"name": "betadesc", "variant": "views", "params": {**small, "view_weight": 1.0}}]
+    one = {"s0": scenes["s0"]}
+    _, df = _run(_config(one, methods), tmp_path)
+    assert (df["status"] == "ok").all()
+    psnr = df.pivot_table(index=["ratio", "view"], columns="variant", values="psnr")
+    assert not np.allclose(psnr["agnostic"], psnr["views"])  # the edge evidence changed what is pruned
+    # other training views: only the view-aware variant is scored again
+    res, _ = _run(_config(one, methods, protocol={"longest_side": 32, "metrics": ["psnr"], "n_train": 5,
+                                                  "n_test": 2}), tmp_path)
+    assert res.counts["score"] == {"hits": 1, "misses": 1}

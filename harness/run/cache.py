@@ -3,7 +3,7 @@
 ``key = sha256(canonical JSON of {stage, inputs})`` where the inputs name everything the result
 depends on: scene file digests (:func:`file_digest`), method + resolved params, camera set
 (:func:`digest_json` of the camera dicts), renderer / metric / pruner code versions
-(:func:`code_digest` of their source files). Values live at ``<root>/<stage>/<key[:2]>/<key>.<ext>``.
+(:func:`harness.run.versions.code_digest` of their source files). Values live at ``<root>/<stage>/<key[:2]>/<key>.<ext>``.
 
 Writes are atomic (temp file in the same folder + ``os.replace``), so ``kill -9`` at any instant
 leaves either the complete entry or none: nothing already stored is ever lost or half-written.
@@ -101,37 +101,6 @@ class FileDigests:
             items = sorted(p for p in path.rglob("*") if p.is_file())
             return digest_json([[str(p.relative_to(path)), self._file(p)] for p in items])
         return self._file(path)
-
-
-def module_file(module) -> Path | None:
-    """Source file of a module object or dotted name, found without executing the module itself."""
-    import importlib.util
-
-    if isinstance(module, str):
-        spec = importlib.util.find_spec(module)  # imports parent packages only
-        return Path(spec.origin) if spec is not None and spec.origin not in (None, "built-in", "frozen") else None
-    f = getattr(module, "__file__", None)
-    return Path(f) if f else None
-
-
-def code_digest(*modules) -> str:
-    """Digest of the source of ``modules`` (module objects or dotted names).
-
-    A package contributes every ``.py`` file under its folder; a plain module its own file. Used as
-    the "version" of a pruner, renderer or metric in cache keys, so editing the code invalidates
-    exactly the results it produced. Names are resolved with ``find_spec``, so a rerun that finds
-    everything cached never pays for importing torch-heavy modules just to version them.
-    """
-    parts = []
-    for mod in modules:
-        f = module_file(mod)
-        if f is None:
-            parts.append([mod if isinstance(mod, str) else getattr(mod, "__name__", str(mod)), "builtin"])
-            continue
-        files = sorted(f.parent.rglob("*.py")) if f.name == "__init__.py" else [f]
-        for p in files:
-            parts.append([str(p.relative_to(f.parent)), digest_bytes(p.read_bytes())])
-    return digest_json(parts)
 
 
 # --------------------------------------------------------------------------- the cache

@@ -20,13 +20,14 @@ from __future__ import annotations
 
 import glob
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 from harness.core.cameras import Camera
 from harness.run.cache import StageCache, digest_json
 from harness.run.config import MethodVariant, RunConfig, SceneSpec
-from harness.run.toolkit import Toolkit, module_versions
+from harness.run.toolkit import Toolkit
+from harness.run.versions import Versions
 
 
 @dataclass
@@ -57,57 +58,6 @@ class Skip:
     variant: str
     reason: str
     status: str = "skipped"  # or "error": the input exists but cannot be used (bad file, bad split)
-
-
-@dataclass
-class Versions:
-    """Code digests that version each stage's results."""
-
-    reader: str
-    rigs: str
-    renderer: str
-    metrics: str
-    pruners: dict[str, str] = field(default_factory=dict)
-
-    @classmethod
-    def of(cls, toolkit: Toolkit) -> Versions:
-        return cls(reader=module_versions(toolkit.reader_modules), rigs=module_versions(toolkit.rig_modules),
-                   renderer=module_versions(toolkit.renderer_modules),
-                   metrics=module_versions(toolkit.metric_modules))
-
-    def pruner(self, name: str) -> str:
-        """Digest of the code a pruner runs: its module and, transitively, every project module
-        (``methods``, ``renderers``, ``harness``) reachable through module-level names — e.g.
-        LightGS's projection code in ``renderers`` or BetaDescPrune's sibling modules — so an edit
-        anywhere on that path, and only there, invalidates its scores."""
-        if name not in self.pruners:
-            from methods.registry import get_pruner
-
-            mods = sorted(project_closure(get_pruner(name).fn.__module__))
-            self.pruners[name] = module_versions(tuple(mods) + ("methods.registry",))
-        return self.pruners[name]
-
-
-PROJECT_PACKAGES = ("methods", "renderers", "harness")
-
-
-def project_closure(module_name: str, roots=PROJECT_PACKAGES) -> set[str]:
-    """Names of the project modules reachable from ``module_name`` through module-level globals
-    (imported modules, and the modules defining imported functions/classes)."""
-    import inspect
-    import sys
-
-    seen, todo = set(), [module_name]
-    while todo:
-        name = todo.pop()
-        if name in seen or name.split(".")[0] not in roots or name not in sys.modules:
-            continue
-        seen.add(name)
-        for value in vars(sys.modules[name]).values():
-            ref = value.__name__ if inspect.ismodule(value) else getattr(value, "__module__", None)
-            if isinstance(ref, str) and ref not in seen:
-                todo.append(ref)
-    return seen
 
 
 # --------------------------------------------------------------------------- resolving sources

@@ -37,7 +37,8 @@ from harness.run.tasks import (
     run_score,
     run_view,
 )
-from harness.run.toolkit import Toolkit, module_versions
+from harness.run.toolkit import Toolkit
+from harness.run.versions import module_versions
 
 #: pruned sets per view task: small enough to balance two workers, large enough that the per-task
 #: reference LPIPS features (one VGG pass) stay a small overhead

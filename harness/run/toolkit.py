@@ -7,7 +7,7 @@ rigs, camera files, renderers, metrics. The default toolkit imports the real mod
 callable in it must be a module-level function.
 
 Each entry also names the modules whose source is its "version" in cache keys
-(see :func:`harness.run.cache.code_digest`).
+(see :func:`harness.run.versions.code_digest`).
 """
 
 from __future__ import annotations
@@ -102,17 +102,3 @@ class Toolkit:
     #: imported before any GL context exists: triton (via torchvision/lpips) segfaults when first
     #: loaded into a process that already holds an llvmpipe EGL context
     preload: tuple[str, ...] = ("torchvision", "lpips")
-
-
-def module_versions(names) -> str:
-    """code_digest of the named modules that exist (a missing optional module is skipped)."""
-    from harness.run.cache import code_digest, module_file
-
-    present = []
-    for n in names:
-        try:
-            if module_file(n) is not None:
-                present.append(n)
-        except ModuleNotFoundError:
-            continue
-    return code_digest(*present)

@@ -35,7 +35,7 @@ SAMPLE_SIZE = 20000
 
 
 @dataclass(frozen=True)
-class SceneFrame:
+class Placement:
     center: np.ndarray  # (3,)
     dense_center: np.ndarray  # (3,)
     up: np.ndarray  # (3,) unit
@@ -85,7 +85,7 @@ def _density_peak(points: np.ndarray, bins: int = 24) -> np.ndarray:
     return peak
 
 
-def scene_frame(scene: GaussianScene, up=None, sample_size: int = SAMPLE_SIZE) -> SceneFrame:
+def placement(scene: GaussianScene, up=None, sample_size: int = SAMPLE_SIZE) -> Placement:
     """Robust statistics of ``scene`` (see the module docstring); ``up`` defaults to −y."""
     if len(scene) == 0:
         raise ValueError("cannot place cameras around an empty scene")
@@ -97,7 +97,7 @@ def scene_frame(scene: GaussianScene, up=None, sample_size: int = SAMPLE_SIZE) -
     up = np.asarray(DEFAULT_UP if up is None else up, np.float64)
     if not np.all(np.isfinite(up)) or np.linalg.norm(up) == 0:
         raise ValueError("up must be a finite non-zero vector")
-    return SceneFrame(center, _density_peak(points), up / np.linalg.norm(up), max(radius, 1e-6), points)
+    return Placement(center, _density_peak(points), up / np.linalg.norm(up), max(radius, 1e-6), points)
 
 
 def fibonacci_sphere(n: int) -> np.ndarray:
@@ -109,16 +109,16 @@ def fibonacci_sphere(n: int) -> np.ndarray:
     return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
 
 
-def enclosure(frame: SceneFrame, n_dirs: int = 64, eye_fraction: float = 0.3, share: float = 0.05) -> float:
+def enclosure(place: Placement, n_dirs: int = 64, eye_fraction: float = 0.3, share: float = 0.05) -> float:
     """Mean over four eyes (azimuths 0°, 90°, 180°, 270°, elevation 20°, at ``eye_fraction`` of the
     90th-percentile content distance from ``dense_center``) of the fraction of ``n_dirs`` direction
     cells (nearest of a Fibonacci sphere) holding at least ``share`` of a uniform share of the points."""
     dirs = fibonacci_sphere(n_dirs)
-    d_edge = np.percentile(np.linalg.norm(frame.points - frame.dense_center, axis=1), 90)
+    d_edge = np.percentile(np.linalg.norm(place.points - place.dense_center, axis=1), 90)
     fractions = []
     for az in np.arange(4) * np.pi / 2:
-        eye = frame.dense_center + eye_fraction * d_edge * frame.direction(az, np.radians(20.0))
-        v = frame.points - eye
+        eye = place.dense_center + eye_fraction * d_edge * place.direction(az, np.radians(20.0))
+        v = place.points - eye
         v = v[np.linalg.norm(v, axis=1) > 1e-9]
         v /= np.linalg.norm(v, axis=1, keepdims=True)
         cells = np.bincount(np.argmax(v @ dirs.T, axis=1), minlength=n_dirs)

@@ -48,7 +48,7 @@ import numpy as np
 
 from harness.core.cameras import Camera
 from harness.core.scene import GaussianScene
-from harness.views.placement import SceneFrame, enclosure, scene_frame
+from harness.views.placement import Placement, enclosure, placement
 
 RIG_NAMES = ("orbit", "room", "forward", "auto")
 #: what a config's ``rig:`` and ``harness render --rig`` accept: a rig, or ``default`` (the scene's own)
@@ -169,20 +169,20 @@ def _split(cams: list[Camera], n_test: int, rig: str) -> RigViews:
                     [c for i, c in enumerate(cams) if i in test_idx], rig)
 
 
-def front_direction(frame: SceneFrame) -> np.ndarray:
+def front_direction(place: Placement) -> np.ndarray:
     """Least-spread principal axis of the content, signed as described in the module docstring."""
-    _, vecs = np.linalg.eigh(np.cov((frame.points - frame.center).T))
+    _, vecs = np.linalg.eigh(np.cov((place.points - place.center).T))
     f = vecs[:, 0]
-    s = float(f @ frame.up)
+    s = float(f @ place.up)
     if abs(s) < 1e-6:
-        s = float(f @ frame.horizontal_basis[0])
+        s = float(f @ place.horizontal_basis[0])
     return f if s >= 0 else -f
 
 
-def _forward_directions(frame: SceneFrame, front, path) -> list[np.ndarray]:
+def _forward_directions(place: Placement, front, path) -> list[np.ndarray]:
     f = np.asarray(front, np.float64)
     f = f / np.linalg.norm(f)
-    side = np.cross(frame.up, f)
+    side = np.cross(place.up, f)
     if np.linalg.norm(side) < 1e-6:  # looking straight along up: any perpendicular
         side = np.cross(f, [1.0, 0.0, 0.0] if abs(f[0]) < 0.9 else [0.0, 1.0, 0.0])
     side /= np.linalg.norm(side)
@@ -191,11 +191,11 @@ def _forward_directions(frame: SceneFrame, front, path) -> list[np.ndarray]:
     return [d / np.linalg.norm(d) for d in dirs]
 
 
-def choose_rig(frame: SceneFrame) -> str:
+def choose_rig(place: Placement) -> str:
     """``room`` or ``orbit`` for a scene without a table entry (see the module docstring)."""
-    d = np.linalg.norm(frame.points - frame.dense_center, axis=1)
+    d = np.linalg.norm(place.points - place.dense_center, axis=1)
     spread = np.percentile(d, 90) / max(np.percentile(d, 10), 1e-12)
-    return "room" if spread >= ROOM_SPREAD and enclosure(frame) >= ENCLOSURE_ROOM else "orbit"
+    return "room" if spread >= ROOM_SPREAD and enclosure(place) >= ENCLOSURE_ROOM else "orbit"
 
 
 def make_rig(name: str, scene: GaussianScene, *, n_train: int = N_TRAIN, n_test: int = N_TEST,
@@ -210,26 +210,26 @@ def make_rig(name: str, scene: GaussianScene, *, n_train: int = N_TRAIN, n_test:
         raise ValueError(f"unknown rig {name!r}; known: {', '.join(RIG_NAMES)}")
     if n_train < 0 or n_test < 1:
         raise ValueError("need n_train ≥ 0 and n_test ≥ 1")
-    frame = scene_frame(scene, up=up)
+    place = placement(scene, up=up)
     if name == "auto":
-        name = choose_rig(frame)
+        name = choose_rig(place)
     width, height = image_size(longest_side, aspect)
     n = n_train + n_test
     els = tuple(elevations) if elevations else _RIG_DEFAULT_ELEVATIONS[name]
-    common = {"up": frame.up, "width": width, "height": height, "fov_deg": fov_deg}
+    common = {"up": place.up, "width": width, "height": height, "fov_deg": fov_deg}
     if name in ("orbit", "room"):
-        dirs = [frame.direction(az, el) for az, el in _path(n, els, seed, 2 * math.pi, 0.0, 0.0)]
+        dirs = [place.direction(az, el) for az, el in _path(n, els, seed, 2 * math.pi, 0.0, 0.0)]
     if name == "orbit":
-        target, points, fill, max_d = frame.center, frame.points, OBJECT_FILL, None
+        target, points, fill, max_d = place.center, place.points, OBJECT_FILL, None
     elif name == "room":
-        target = frame.dense_center
-        dist = np.linalg.norm(frame.points - target, axis=1)
-        points = frame.points[dist <= np.percentile(dist, 25)]
+        target = place.dense_center
+        dist = np.linalg.norm(place.points - target, axis=1)
+        points = place.points[dist <= np.percentile(dist, 25)]
         fill, max_d = 0.6, 0.5 * float(np.median(dist))
     else:
-        f = front_direction(frame) if front is None else front
-        dirs = _forward_directions(frame, f, _path(n, els, seed, math.radians(40.0), 0.0, 5.0))
-        target, points, fill, max_d = frame.center, frame.points, OBJECT_FILL, None
+        f = front_direction(place) if front is None else front
+        dirs = _forward_directions(place, f, _path(n, els, seed, math.radians(40.0), 0.0, 5.0))
+        target, points, fill, max_d = place.center, place.points, OBJECT_FILL, None
     dist = np.array([fit_distance(target, u, points, fill=fill, **common) for u in dirs])
     dist = np.minimum(np.maximum(dist, np.median(dist)), np.inf if max_d is None else max_d)
     digits = max(3, len(str(n - 1)))  # names sort in path order (RigViews.all)

@@ -1,0 +1,117 @@
+"""Code versions in cache keys: the digest of the source a stage runs, so editing that code — and
+only that code — invalidates what it produced.
+
+* :func:`code_digest`: sha256 of modules' source (a package: every ``.py`` under its folder).
+* :func:`project_closure`: the project modules a module depends on, read **statically** from the
+  ``import`` statements of their source (module level and inside functions), never from what
+  happens to be imported in this process — pruners import their heavy code lazily, inside the
+  score function, and a closure over ``sys.modules`` would change between the first run and the
+  next (the same result stored under two keys).
+* :class:`Versions`: the digests a run takes once, at its start, per stage.
+"""
+
+from __future__ import annotations
+
+import ast
+import importlib.util
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+
+from harness.run.cache import digest_bytes, digest_json
+
+PROJECT_PACKAGES = ("methods", "renderers", "harness")
+
+
+def module_file(module) -> Path | None:
+    """Source file of a module object or dotted name, found without executing the module itself."""
+    if isinstance(module, str):
+        try:
+            spec = importlib.util.find_spec(module)  # imports parent packages only
+        except (ModuleNotFoundError, ValueError):
+            return None
+        return Path(spec.origin) if spec is not None and spec.origin not in (None, "built-in", "frozen") else None
+    f = getattr(module, "__file__", None)
+    return Path(f) if f else None
+
+
+def code_digest(*modules) -> str:
+    """Digest of the source of ``modules`` (module objects or dotted names); a package contributes
+    every ``.py`` file under its folder, a plain module its own file."""
+    parts = []
+    for mod in modules:
+        f = module_file(mod)
+        if f is None:
+            parts.append([mod if isinstance(mod, str) else getattr(mod, "__name__", str(mod)), "builtin"])
+            continue
+        files = sorted(f.parent.rglob("*.py")) if f.name == "__init__.py" else [f]
+        for p in files:
+            parts.append([str(p.relative_to(f.parent)), digest_bytes(p.read_bytes())])
+    return digest_json(parts)
+
+
+def module_versions(names) -> str:
+    """:func:`code_digest` of the named modules that exist (a missing optional module is skipped)."""
+    return code_digest(*[n for n in names if module_file(n) is not None])
+
+
+@lru_cache(maxsize=None)
+def _imports(name: str, path: str, mtime_ns: int) -> tuple[str, ...]:
+    """Dotted names imported anywhere in the module's source (relative imports resolved)."""
+    package = name if path.endswith("__init__.py") else name.rpartition(".")[0]
+    out = []
+    for node in ast.walk(ast.parse(Path(path).read_bytes(), path)):
+        if isinstance(node, ast.Import):
+            out += [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join(anchor + ([base] if base else []))
+            out += [base] + [f"{base}.{a.name}" for a in node.names]  # `from pkg import submodule`
+    return tuple(out)
+
+
+def project_closure(module_name: str, roots=PROJECT_PACKAGES) -> set[str]:
+    """Names of the modules under ``roots`` that ``module_name`` imports, directly or through
+    others (statically, see the module docstring); ``module_name`` included."""
+    roots = tuple(roots) + (module_name.split(".")[0],)
+    seen, todo = set(), [module_name]
+    while todo:
+        name = todo.pop()
+        if name in seen or name.split(".")[0] not in roots:
+            continue
+        f = module_file(name)
+        if f is None or f.suffix != ".py":
+            continue
+        seen.add(name)
+        todo += [d for d in _imports(name, str(f), f.stat().st_mtime_ns) if d not in seen]
+    return seen
+
+
+@dataclass
+class Versions:
+    """Code digests that version each stage's results, taken when a run starts."""
+
+    reader: str
+    rigs: str
+    renderer: str
+    metrics: str
+    pruners: dict[str, str] = field(default_factory=dict)
+
+    @classmethod
+    def of(cls, toolkit) -> Versions:
+        return cls(reader=module_versions(toolkit.reader_modules), rigs=module_versions(toolkit.rig_modules),
+                   renderer=module_versions(toolkit.renderer_modules),
+                   metrics=module_versions(toolkit.metric_modules))
+
+    def pruner(self, name: str) -> str:
+        """Digest of the code a pruner runs: its module and every project module it imports,
+        directly or through others (LightGS's projection code in ``renderers``, BetaDescPrune's
+        pipeline imported inside its score function ...)."""
+        if name not in self.pruners:
+            from methods.registry import get_pruner
+
+            mods = sorted(project_closure(get_pruner(name).fn.__module__))
+            self.pruners[name] = module_versions(tuple(mods) + ("methods.registry",))
+        return self.pruners[name]
