@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Idempotent set-up on a fresh Debian machine (root, Python 3.11, no GPU, package registries only):
 #   1. system packages: headless OpenGL through EGL (Mesa llvmpipe), libusb -- skipped when present
-#   2. a virtual environment .venv with this package and its test extra     -- skipped when up to date
+#   2. a virtual environment .venv with this package, its test and bench extras -- skipped when up to date
 #   3. the registry scenes and the LPIPS-VGG weights (`harness fetch`)      -- verified, no-op when present
 # A second call reuses everything and takes a few seconds.
 set -euo pipefail
@@ -27,7 +27,7 @@ if [ ! -f "$stamp" ]; then
   echo "setup: creating .venv and installing the package (torch comes from the machine's wheel store)"
   [ -x .venv/bin/python ] || "$PY" -m venv .venv
   .venv/bin/python -m pip install -q --upgrade pip
-  .venv/bin/python -m pip install -q -e ".[test]"
+  .venv/bin/python -m pip install -q -e ".[test,bench]"
   rm -f .venv/.installed-*
   touch "$stamp"
 fi

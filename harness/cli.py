@@ -17,6 +17,7 @@ import pkgutil
 import sys
 
 from harness import __version__
+from harness.commands import help_text
 from harness.core.errors import InputError
 
 
@@ -36,7 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"harness {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for mod in _command_modules():
-        p = sub.add_parser(mod.NAME, help=mod.HELP, description=mod.HELP)
+        p = sub.add_parser(mod.NAME, help=help_text(mod.HELP), description=help_text(mod.HELP))
         mod.add_arguments(p)
         p.set_defaults(_run=mod.run)
     return parser

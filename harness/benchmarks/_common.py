@@ -14,6 +14,18 @@ from harness.io.files import atomic_write_text
 from harness.report.machine import describe_machine
 
 
+def require(module: str, purpose: str):
+    """Import a benchmark-only dependency, or say how to install it (one line, exit 2)."""
+    import importlib
+
+    from harness.core.errors import InputError
+
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise InputError(module, f"{purpose} needs it; install the bench extra: pip install -e '.[bench]'") from None
+
+
 def peak_rss_mb() -> float:
     """Peak resident memory of this process so far (MiB)."""
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0

@@ -88,7 +88,10 @@ def _voxel_cloud(scene_name: str, voxel_fraction: float):
 def run(args) -> int:
     import numba
     import numpy as np
-    import open3d as o3d
+
+    from harness.benchmarks._common import require
+
+    o3d = require("open3d", "the open3d comparison")
 
     from harness.benchmarks._common import write_result
     from methods.betadesc.fpfh import (

@@ -31,6 +31,9 @@ def add_arguments(parser) -> None:
 
 
 def _images(width: int, height: int, n: int) -> tuple[np.ndarray, list[np.ndarray]]:
+    from harness.benchmarks._common import require
+
+    require("skimage", "the metrics benchmark's test images")
     from skimage import data, filters, transform
 
     ref = transform.resize(data.astronaut().astype(np.float32) / 255.0, (height, width, 3),

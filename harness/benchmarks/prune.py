@@ -114,7 +114,9 @@ def _cpu_stages(scene_name: str, ratio: float, repeats: int) -> dict:
 
 
 def _fpfh_vs_open3d(scene_name: str, repeats: int) -> dict:
-    import open3d as o3d
+    from harness.benchmarks._common import require
+
+    o3d = require("open3d", "the open3d comparison")
 
     from harness.io.scenes import load_scene
     from methods import get_pruner

@@ -10,6 +10,8 @@ from __future__ import annotations
 import importlib
 import pkgutil
 
+from harness.commands import help_text
+
 NAME = "bench"
 HELP = "run a benchmark and write its results under results/bench/"
 
@@ -25,7 +27,7 @@ def _modules():
 def add_arguments(parser) -> None:
     sub = parser.add_subparsers(dest="benchmark", metavar="BENCHMARK", required=True)
     for mod in _modules():
-        p = sub.add_parser(mod.NAME, help=mod.HELP, description=mod.HELP)
+        p = sub.add_parser(mod.NAME, help=help_text(mod.HELP), description=help_text(mod.HELP))
         mod.add_arguments(p)
         p.set_defaults(_bench=mod.run)
 

@@ -20,6 +20,7 @@ import math
 import time
 from pathlib import Path
 
+from harness.commands import help_text
 from harness.core import ratios
 from harness.core.errors import InputError
 
@@ -61,7 +62,7 @@ def add_arguments(parser) -> None:
             continue
         p = specs[name]
         group.add_argument(_flag(name), dest=f"param__{name}", metavar="V", default=None,
-                           help=f"{p.doc} ({p.describe()}; default {p.default}) [{', '.join(methods)}]")
+                           help=help_text(f"{p.doc} ({p.describe()}; default {p.default}) [{', '.join(methods)}]"))
 
 
 def _given_params(args) -> dict[str, tuple[str, str]]:
