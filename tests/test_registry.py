@@ -114,3 +114,35 @@ def test_methods_command_lists_json(capsys):
     assert by_name["betadesc"]["params"]["voxel"] == {"type": "float > 0, <= 1", "default": 0.01,
                                                       "doc": "voxel edge as a fraction of the bounding-box diagonal"}
     assert by_name["betadesc"]["ablation"] == {"descriptors": True, "beta": True}
+
+
+def test_third_party_pruner_through_an_entry_point(tmp_path, monkeypatch):
+    """A package names a module under the `harness.pruners` entry-point group; asking the registry
+    for an unknown name loads it, and its pruner (with typed params and metadata) is usable."""
+    from methods.registry import PRUNERS
+
+    (tmp_path / "plugin_pruners.py").write_text(
+        "from dataclasses import dataclass\n"
+        "import numpy as np\n"
+        "from harness.core.params import Params, param\n"
+        "from methods.registry import register_pruner\n\n"
+        "@dataclass(frozen=True)\n"
+        "class P(Params):\n"
+        "    sign: float = param(1.0, doc='multiplies the x coordinate')\n\n"
+        "@register_pruner('plugin-x', params=P, label='Plugin X')\n"
+        "def score(scene, ctx):\n"
+        "    '''Keep large x.'''\n"
+        "    return ctx.params.sign * scene.means[:, 0].astype(np.float64)\n")
+    dist = tmp_path / "plugin_pruners-0.1.dist-info"
+    dist.mkdir()
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: plugin-pruners\nVersion: 0.1\n")
+    (dist / "entry_points.txt").write_text("[harness.pruners]\nplugin = plugin_pruners\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(PRUNERS, "_plugins_loaded", False)
+    monkeypatch.setattr(PRUNERS, "_entries", dict(PRUNERS._entries))
+    spec = get_pruner("plugin-x")
+    assert spec.label == "Plugin X" and spec.group == "other" and spec.params.names() == ("sign",)
+    scene = random_scene(20, seed=4)
+    np.testing.assert_array_equal(spec.score(scene, PruneContext(params={"sign": -1.0})), -scene.means[:, 0])
+    with pytest.raises(ParamError, match="sign: expected a number"):
+        spec.parse_params({"sign": "x"})
