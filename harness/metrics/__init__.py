@@ -4,4 +4,6 @@
   (cheap to import: configs and tables use it without loading torch);
 * :mod:`.suite` — :func:`compare_images` (one pair) and :class:`MetricSuite` (many images per view);
 * :mod:`.psnr`, :mod:`.ssim`, :mod:`.lpips_vgg` — the definitions.
+
+Imports harness.core and harness.io only.
 """
