@@ -11,7 +11,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from harness.core import ratios
-from harness.core.params import Params, ParamError, param
+from harness.core.params import ParamError, Params, param
 
 
 @dataclass(frozen=True)

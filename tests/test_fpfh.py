@@ -150,9 +150,9 @@ def test_fpfh_matches_open3d_random(seed):
 
 @needs_o3d
 def test_fpfh_matches_open3d_on_grape_small():
-    from harness.core.paths import shared_data_dir
+    from harness.io import datasets
 
-    path = shared_data_dir() / "grape_small.ply"
+    path = datasets.scene_path("grape-small")
     if not path.exists():
         pytest.skip(f"shared data folder absent ({path})")
     from harness.io.scenes import load_scene

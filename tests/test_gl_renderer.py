@@ -250,10 +250,10 @@ def test_zero_norm_quaternions_and_huge_scales(gl, ref):
 
 @pytest.mark.data
 def test_real_scene_agrees_with_reference(gl, ref):
-    from harness.core.paths import shared_data_dir
+    from harness.io import datasets
     from harness.io.scenes import load_scene
 
-    path = shared_data_dir() / "grape_small.ply"
+    path = datasets.scene_path("grape-small")
     if not path.exists():
         pytest.skip(f"shared scene missing: {path}")
     scene = load_scene(path)

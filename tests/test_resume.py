@@ -14,7 +14,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from harness.core.paths import shared_data_dir
+from harness.io import datasets
 
 CONFIG = """
 name: resume
@@ -54,8 +54,8 @@ def _env(tmp_path):
 @pytest.mark.data
 @pytest.mark.gl
 def test_kill_9_then_rerun_matches_uninterrupted(tmp_path):
-    if not (shared_data_dir() / "grape_small.ply").exists():
-        pytest.skip(f"shared scene grape_small.ply absent under {shared_data_dir()}")
+    if not (datasets.scene_path("grape-small")).exists():
+        pytest.skip(f"grape-small is absent ({datasets.scene_path('grape-small')}); run `harness fetch grape-small`")
     _gl_or_skip()
     cfg = tmp_path / "resume.yaml"
     cfg.write_text(CONFIG)

@@ -56,9 +56,9 @@ def test_cheapest_within_tolerance():
 @pytest.mark.weights
 def test_quick_run_writes_table_json_and_plot(tmp_path):
     from harness.cli import main
-    from harness.core.paths import shared_data_dir
+    from harness.io import datasets
 
-    if not (shared_data_dir() / "grape_small.ply").is_file():
+    if not (datasets.scene_path("grape-small")).is_file():
         pytest.skip("grape_small.ply missing from the shared data folder")
     try:
         from harness.metrics.lpips_weights import load_backbone

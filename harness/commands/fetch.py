@@ -1,31 +1,53 @@
-"""`harness fetch [--scenes] [--weights]`: download and verify the registry scenes and LPIPS weights.
+"""`harness fetch [NAME ...] [--scenes] [--weights] [--from URL]`: get the named scenes and the LPIPS
+weights onto this machine, verified by sha256 (:mod:`harness.io.fetch`).
 
-With neither flag both are fetched. Everything is idempotent: present files with the right sha256
-are only re-verified.
+Without arguments: every named scene and the weights. ``NAME ...`` fetches those scenes only;
+``--scenes`` all scenes, ``--weights`` the weights. Public scenes are copied from the mirror folder
+(``HARNESS_SHARED_DATA``, default ``../shared/data``) when it holds them, else downloaded from their
+pinned URL (``--from`` replaces the URL's base, e.g. an internal mirror server). Idempotent: present
+files with the right sha256 are only re-verified. Every scene is attempted; a scene that cannot be
+had is reported on its own line and the exit status is 1.
 """
 
 from __future__ import annotations
 
+from harness.core.errors import InputError
+
 NAME = "fetch"
-HELP = "download and verify the registry scenes (bonsai-7k, bonsai-7k-mini, luigi) and LPIPS weights"
+HELP = "download and verify the named scenes (bonsai-7k, bonsai-7k-mini, luigi, grape-small, playbot) and LPIPS weights"
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--scenes", action="store_true", help="fetch the registry scenes")
+    parser.add_argument("names", nargs="*", metavar="NAME", help="named scenes to fetch (default: all)")
+    parser.add_argument("--scenes", action="store_true", help="fetch every named scene")
     parser.add_argument("--weights", action="store_true", help="fetch and convert the LPIPS-VGG weights")
+    parser.add_argument("--from", dest="base_url", metavar="URL",
+                        help="base URL replacing the public scenes' pinned one (a mirror server)")
 
 
 def run(args) -> int:
-    both = not (args.scenes or args.weights)
-    if args.scenes or both:
-        from harness.io.datasets import fetch_scenes
+    from harness.io.datasets import SCENES
 
-        fetch_scenes(log=print)
-    if args.weights or both:
+    unknown = [n for n in args.names if n not in SCENES]
+    if unknown:
+        raise InputError(unknown[0], f"unknown scene name; known names: {', '.join(SCENES)}")
+    everything = not (args.names or args.scenes or args.weights)
+    names = list(SCENES) if (args.scenes or everything) else list(args.names)
+    failed = 0
+    if names:
+        from harness.io.fetch import fetch_scenes
+
+        for name in names:
+            try:
+                fetch_scenes([name], log=print, base_url=args.base_url)
+            except InputError as err:
+                failed += 1
+                print(f"{name}: not fetched: {err}")
+    if args.weights or everything:
         from harness.metrics.lpips_weights import fetch_weights, weights_path
 
         before = weights_path().stat().st_mtime_ns if weights_path().is_file() else None
         path = fetch_weights()
         state = "present" if before == path.stat().st_mtime_ns else "fetched and converted"
         print(f"lpips-vgg weights: {state}, sha256 verified ({path})")
-    return 0
+    return 1 if failed else 0

@@ -1,63 +1,129 @@
-"""Named real scenes and how to get them.
+"""Named real scenes: what they are, where they come from, where they are on this machine.
 
-``bonsai-7k``, ``bonsai-7k-mini`` and ``luigi`` are cached demo outputs inside the PyPI source
-distributions of ``gradio-model3dgs`` (0.1.5 and 0.2.5). :func:`fetch_scenes` downloads each sdist
-once with ``pip download`` (the registry's ordinary client, run with this interpreter so it works
-inside the venv), takes the member whose *file name* matches (the hash-named folder differs between
-versions), checks its sha256 and renames it into :func:`harness.core.paths.data_dir`. Present files with
-the right hash make it a no-op. ``grape-small`` and ``playbot`` live in the project's shared data
-folder (:func:`harness.core.paths.shared_data_dir`).
+Two kinds of source, both pinned and verified by sha256 (:mod:`harness.io.fetch` downloads them):
+
+* :class:`RegistryScene` — a cached demo output inside a PyPI source distribution of
+  ``gradio-model3dgs`` (``bonsai-7k``, ``bonsai-7k-mini``, ``luigi``), fetched with ``pip download``.
+* :class:`PublicScene` — files of a public repository at a pinned commit, fetched by URL
+  (``grape-small``: asny/three-d-asset, MIT; ``playbot``: playcanvas/engine, CC-BY-4.0, model by
+  Stephane Agullo — https://sa3d.fr, credit required). A local **mirror folder**
+  (:func:`harness.core.paths.shared_data_dir`: ``HARNESS_SHARED_DATA``, default ``../shared/data``
+  beside the repository) is consulted first, so a machine with the mirror needs no network.
+
+A named scene resolves to its fetched copy under :func:`harness.core.paths.data_dir`, else to the
+mirror's copy, else it is absent and the message says exactly how to get it.
 """
 
 from __future__ import annotations
 
 import hashlib
+import json
 import os
-import subprocess
-import sys
-import tarfile
-import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 
 from harness.core import paths
 from harness.core.errors import InputError
 
+_MANIFESTS = Path(__file__).with_name("manifests")
+
 
 @dataclass(frozen=True)
-class FetchedScene:
+class RegistryScene:
     file: str
     sdist: str      # pip requirement of the source distribution holding it
     sha256: str
     splats: int
 
+    @property
+    def disk_name(self) -> str:
+        return self.file
+
+    def origin(self) -> str:
+        return f"the PyPI source distribution {self.sdist}"
+
 
 @dataclass(frozen=True)
-class SharedScene:
-    relpath: str
+class PublicScene:
+    """Files at a pinned commit of a public repository: ``base_url + relpath`` for each manifest entry."""
+
+    disk_name: str            # a file (``grape_small.ply``) or a folder (``playbot_sog``)
+    base_url: str             # raw URL of the pinned file's folder (or of the scene's folder)
     splats: int
-    sha256: str | None = None  # of a single-file scene (a folder scene has none)
+    license: str
+    credit: str
+    files: tuple[tuple[str, int, str], ...] = field(default=())  # (relpath, bytes, sha256)
+    manifest: str | None = None  # a JSON file under harness/io/manifests holding ``files``
+
+    @property
+    def is_folder(self) -> bool:
+        """A folder scene's entries are paths inside it; a file scene has one entry, itself."""
+        return any(rel != self.disk_name for rel, _, _ in self.entries())
+
+    @property
+    def sha256(self) -> str | None:
+        """Of a single-file scene (identifies its content); a folder scene has none."""
+        return None if self.is_folder else self.entries()[0][2]
+
+    def entries(self) -> tuple[tuple[str, int, str], ...]:
+        return self.files if self.manifest is None else _manifest(self.manifest)
+
+    def origin(self) -> str:
+        return f"{self.base_url} ({self.license}; {self.credit})"
 
 
-SCENES: dict[str, FetchedScene | SharedScene] = {
-    "bonsai-7k": FetchedScene("bonsai-7k.splat", "gradio-model3dgs==0.1.5",
-                              "42b687ad9d4ab9f7332cb0df84b1b4552a64cb0619c2b8e19817fdb3acd5fbfc", 1_157_141),
-    "bonsai-7k-mini": FetchedScene("bonsai-7k-mini.splat", "gradio-model3dgs==0.2.5",
-                                   "9e67a38943cd02aa0388c5abf3cb0465a330b7b45ad8aa3d3decc82e5cc8fbb1", 272_956),
-    "luigi": FetchedScene("luigi.ply", "gradio-model3dgs==0.2.5",
-                          "6971debf967bac924a4c8bd4457b354db66326792d1a300fd996c7eefede04aa", 14_526),
-    "grape-small": SharedScene("grape_small.ply", 5_000,
-                               "dc7d3e0e55bd35a97e071707e7f44480ae366836283c9f27dc39c1affff140d4"),
-    "playbot": SharedScene("playbot_sog", 500_000),
+@lru_cache(maxsize=None)
+def _manifest(name: str) -> tuple[tuple[str, int, str], ...]:
+    data = json.loads((_MANIFESTS / name).read_text())
+    return tuple((rel, int(size), sha) for rel, (size, sha) in data["files"].items())
+
+
+SCENES: dict[str, RegistryScene | PublicScene] = {
+    "bonsai-7k": RegistryScene("bonsai-7k.splat", "gradio-model3dgs==0.1.5",
+                               "42b687ad9d4ab9f7332cb0df84b1b4552a64cb0619c2b8e19817fdb3acd5fbfc", 1_157_141),
+    "bonsai-7k-mini": RegistryScene("bonsai-7k-mini.splat", "gradio-model3dgs==0.2.5",
+                                    "9e67a38943cd02aa0388c5abf3cb0465a330b7b45ad8aa3d3decc82e5cc8fbb1", 272_956),
+    "luigi": RegistryScene("luigi.ply", "gradio-model3dgs==0.2.5",
+                           "6971debf967bac924a4c8bd4457b354db66326792d1a300fd996c7eefede04aa", 14_526),
+    "grape-small": PublicScene(
+        "grape_small.ply",
+        "https://raw.githubusercontent.com/asny/three-d-asset/f8a193b5619c410fccb00535718f458bfdb40337/test_data/",
+        5_000, "MIT", "asny/three-d-asset test_data/grape_small.ply",
+        files=(("grape_small.ply", 1_181_475, "dc7d3e0e55bd35a97e071707e7f44480ae366836283c9f27dc39c1affff140d4"),)),
+    "playbot": PublicScene(
+        "playbot_sog",
+        "https://raw.githubusercontent.com/playcanvas/engine/0aaef5e432c4797ed23c1f966e2cc43232ec0613/"
+        "examples/assets/splats/playbot/",
+        500_000, "CC-BY-4.0", "PLAYBOT by Stephane Agullo (https://sa3d.fr)", manifest="playbot.json"),
 }
 
 
+def fetched_path(name: str) -> Path:
+    """Where ``harness fetch`` puts the named scene."""
+    return paths.data_dir() / SCENES[name].disk_name
+
+
+def mirror_path(name: str) -> Path:
+    """Where the mirror folder would hold the named scene."""
+    return paths.shared_data_dir() / SCENES[name].disk_name
+
+
 def scene_path(name: str) -> Path:
-    """Where the named scene lives (whether or not it is there yet)."""
+    """Where the named scene is: its fetched copy, else the mirror's, else the (absent) fetched path."""
+    fetched = fetched_path(name)
+    if fetched.exists() or isinstance(SCENES[name], RegistryScene):
+        return fetched
+    mirror = mirror_path(name)
+    return mirror if mirror.exists() else fetched
+
+
+def missing_reason(name: str) -> str:
+    """The truth about an absent named scene: how to get it."""
     spec = SCENES[name]
-    if isinstance(spec, FetchedScene):
-        return paths.data_dir() / spec.file
-    return paths.shared_data_dir() / spec.relpath
+    return (f"dataset scene {name!r} is not on this machine (looked in {fetched_path(name)}"
+            + ("" if isinstance(spec, RegistryScene) else f" and the mirror folder {mirror_path(name)}")
+            + f"); `harness fetch {name}` downloads it from {spec.origin()}")
 
 
 def resolve_scene(path_or_name) -> Path:
@@ -67,16 +133,14 @@ def resolve_scene(path_or_name) -> Path:
         path = scene_path(text)
         if path.exists():
             return path
-        if isinstance(SCENES[text], FetchedScene):
-            raise InputError(text, f"scene not downloaded yet ({path} is missing); run `harness fetch`")
-        raise InputError(text, f"the shared data folder lacks it ({path}); set HARNESS_SHARED_DATA")
+        raise InputError(text, missing_reason(text))
     path = Path(text).expanduser()
     if path.exists():
         return path
     if path.suffix or os.sep in text or "/" in text:
         raise InputError(path, "no such file or folder")
     raise InputError(text, f"unknown scene name; known names: {', '.join(SCENES)} "
-                           "(run `harness fetch` to download the registry ones), or give a path")
+                           "(`harness fetch NAME` downloads them), or give a path")
 
 
 def identify(path_or_name) -> str | None:
@@ -98,66 +162,3 @@ def sha256_file(path: Path, chunk: int = 1 << 22) -> str:
         while block := f.read(chunk):
             h.update(block)
     return h.hexdigest()
-
-
-def _pip_download(requirement: str, dest: Path) -> Path:
-    """Download the sdist of ``requirement`` into ``dest``; returns the archive path."""
-    cmd = [sys.executable, "-m", "pip", "download", "--no-deps", "--no-binary", ":all:",
-           "--disable-pip-version-check", "-q", "-d", str(dest), requirement]
-    proc = subprocess.run(cmd, check=False, capture_output=True, text=True)
-    if proc.returncode != 0:
-        last = (proc.stderr.strip().splitlines() or ["no output"])[-1]
-        raise InputError(requirement, f"pip download failed: {last}")
-    archives = sorted(dest.glob("*.tar.gz")) + sorted(dest.glob("*.zip"))
-    if not archives:
-        raise InputError(requirement, f"pip download produced no source archive in {dest}")
-    return archives[0]
-
-
-def _extract_by_name(archive: Path, wanted: dict[str, Path]) -> set[str]:
-    """Copy archive members whose base name is a key of ``wanted`` to the mapped temp paths."""
-    found = set()
-    with tarfile.open(archive) as tar:
-        for member in tar:
-            base = member.name.rsplit("/", 1)[-1]
-            if member.isfile() and base in wanted and base not in found:
-                src = tar.extractfile(member)
-                with open(wanted[base], "wb") as out:
-                    while block := src.read(1 << 22):
-                        out.write(block)
-                found.add(base)
-    return found
-
-
-def fetch_scenes(names=None, *, log=print) -> dict[str, str]:
-    """Make the registry scenes present and verified; returns name -> 'present' | 'fetched'."""
-    names = [n for n in (names or SCENES) if isinstance(SCENES[n], FetchedScene)]
-    status: dict[str, str] = {}
-    todo: dict[str, list[str]] = {}
-    for name in names:
-        spec, path = SCENES[name], scene_path(name)
-        if path.is_file() and sha256_file(path) == spec.sha256:
-            status[name] = "present"
-            log(f"{name}: present, sha256 verified ({path})")
-        else:
-            if path.exists():
-                log(f"{name}: {path} has the wrong sha256; fetching it again")
-            todo.setdefault(spec.sdist, []).append(name)
-    for sdist, group in todo.items():
-        log(f"downloading {sdist} for {', '.join(group)} ...")
-        with tempfile.TemporaryDirectory(dir=paths.data_dir(), prefix=".fetch-") as tmp:
-            tmp = Path(tmp)
-            archive = _pip_download(sdist, tmp / "sdist")
-            wanted = {SCENES[n].file: tmp / SCENES[n].file for n in group}
-            found = _extract_by_name(archive, wanted)
-            for name in group:
-                spec = SCENES[name]
-                if spec.file not in found:
-                    raise InputError(sdist, f"the source distribution holds no {spec.file}")
-                digest = sha256_file(wanted[spec.file])
-                if digest != spec.sha256:
-                    raise InputError(spec.file, f"sha256 mismatch after download: {digest} != {spec.sha256}")
-                os.replace(wanted[spec.file], scene_path(name))
-                status[name] = "fetched"
-                log(f"{name}: fetched, sha256 verified ({scene_path(name)})")
-    return status

@@ -73,7 +73,9 @@ def resolve_paths(spec: SceneSpec, toolkit: Toolkit, base: Path) -> tuple[list[t
     named = toolkit.resolve_dataset(src)
     if named is not None:
         if not Path(named).exists():
-            return [], f"dataset scene {src!r} is not fetched (expected {named}); run `harness fetch`"
+            from harness.io.datasets import missing_reason
+
+            return [], missing_reason(src)
         return [("", Path(named))], None
     path = Path(src) if Path(src).is_absolute() else base / src
     if not path.exists():

@@ -26,8 +26,8 @@ def load_scene(path: str, lod: int | None = None):
 def resolve_dataset(name: str) -> Path | None:
     """Path of a named dataset scene, or None when ``name`` is not a dataset name.
 
-    A named scene that is not fetched yet resolves to its expected path (which then does not exist);
-    the runner reports it as absent with the hint to run ``harness fetch``.
+    A named scene that is not on this machine resolves to its expected path (which then does not
+    exist); the runner reports it as absent with :func:`harness.io.datasets.missing_reason`.
     """
     from harness.io import datasets
 

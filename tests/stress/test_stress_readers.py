@@ -24,7 +24,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from harness.core.paths import data_dir, shared_data_dir
+from harness.core.paths import data_dir
+from harness.io import datasets
 from tests.stress.budget import FULL, n
 from tests.stress.fuzz import run_cases
 
@@ -48,7 +49,7 @@ def _ply_subset(src: Path, dst: Path, rows: int, fmt: str | None = None) -> Path
 def seeds(tmp_path_factory) -> list[dict]:
     tmp = tmp_path_factory.mktemp("fuzz_seeds")
     out = []
-    grape = shared_data_dir() / "grape_small.ply"
+    grape = datasets.scene_path("grape-small")
     if grape.is_file():
         out.append({"kind": "ply", "name": "grape_small.ply", "path": str(grape)})
         out.append({"kind": "ply", "name": "grape-ascii", "path": str(_ply_subset(grape, tmp / "a.ply", 60, "ascii"))})
@@ -62,7 +63,7 @@ def seeds(tmp_path_factory) -> list[dict]:
         with open(bonsai, "rb") as f:
             (tmp / "s.splat").write_bytes(f.read(32 * 1000))
         out.append({"kind": "splat", "name": "bonsai-mini-1000", "path": str(tmp / "s.splat")})
-    sog = shared_data_dir() / "playbot_sog" / "6_0"
+    sog = datasets.scene_path("playbot") / "6_0"
     if (sog / "meta.json").is_file():
         out.append({"kind": "sog", "name": "playbot-6_0", "dir": str(sog), "meta": (sog / "meta.json").read_text()})
     if len(out) < 3:
