@@ -2,7 +2,8 @@
 # Idempotent set-up on a fresh Debian machine (root, Python 3.11, no GPU, package registries only):
 #   1. system packages: headless OpenGL through EGL (Mesa llvmpipe), libusb -- skipped when present
 #   2. a virtual environment .venv with this package, its test and bench extras -- skipped when up to date
-#   3. the named scenes and the LPIPS-VGG weights (`harness fetch`)         -- verified, no-op when present
+#   3. numba kernels compiled once (python -m methods.warmup)                 -- cached, seconds when done
+#   4. the named scenes and the LPIPS-VGG weights (`harness fetch`)         -- verified, no-op when present
 #      (grape-small and playbot come from a mirror folder or GitHub; without either they are skipped)
 # A second call reuses everything and takes a few seconds.
 set -euo pipefail
@@ -33,6 +34,8 @@ if [ ! -f "$stamp" ]; then
   touch "$stamp"
 fi
 
+# compile the numba kernels now (cached beside the sources), not in the user's first `harness prune`
+.venv/bin/python -m methods.warmup
 .venv/bin/harness fetch bonsai-7k bonsai-7k-mini luigi --weights
 .venv/bin/harness fetch grape-small playbot ||
   echo "setup: grape-small/playbot are not available here (no mirror folder, no access to GitHub); runs skip them"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -125,3 +126,32 @@ def test_header_comments_are_kept(tmp_path, capsys):
     write_scene(random_scene(40, 1, seed=2), src, comments=['camera {"name": "c0"}', "made by a test"])
     assert main(["prune", str(src), str(tmp_path / "out.ply"), "--ratio", "0.25"]) == 0
     assert read_ply_header(tmp_path / "out.ply").comments == ['camera {"name": "c0"}', "made by a test"]
+
+
+@pytest.mark.slow
+def test_warmup_leaves_nothing_to_compile(tmp_path):
+    """After `python -m methods.warmup` (run by setup.sh), scoring a real scene compiles no numba
+    kernel: the first `harness prune` of a fresh install costs what the second does."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba"), "PYTHONPATH": str(Path(__file__).parents[1])}
+    subprocess.run([sys.executable, "-m", "methods.warmup"], env=env, check=True, capture_output=True, timeout=1800)
+    probe = (
+        "from numba.core import event\n"
+        "names = []\n"
+        "class L(event.Listener):\n"
+        "    def on_start(self, ev): names.append(ev.data['dispatcher'].py_func.__name__)\n"
+        "    def on_end(self, ev): pass\n"
+        "event.register('numba:compile', L())\n"
+        "from methods.warmup import synthetic_scene\n"
+        "from methods.registry import get_pruner, PruneContext\n"
+        "for deg, n in ((0, 7001), (3, 4003)):\n"
+        "    s = synthetic_scene(n, deg, seed=5)\n"
+        "    for m in ('betadesc', 'betadesc-nodesc', 'betadesc-nobeta', 'betadesc-nodesc-nobeta'):\n"
+        "        get_pruner(m).score(s, PruneContext())\n"
+        "print(names)\n")
+    out = subprocess.run([sys.executable, "-c", probe], env=env, check=True, capture_output=True, text=True,
+                         timeout=600).stdout
+    assert out.strip() == "[]", f"compiled after the warm-up: {out}"

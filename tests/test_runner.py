@@ -221,3 +221,23 @@ def test_betadesc_gets_training_views_only_when_its_view_evidence_is_on(scenes, 
     res, _ = _run(_config(one, methods, protocol={"longest_side": 32, "metrics": ["psnr"], "n_train": 5,
                                                   "n_test": 2}), tmp_path)
     assert res.counts["score"] == {"hits": 1, "misses": 1}
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_progress_lines_count_what_was_done(scenes, tmp_path, workers):
+    """The plain (non-terminal) progress lines end with done N/N per stage; they used to print
+    'render_ref: done 0/4' after rendering the four references in-process."""
+    import io
+
+    from rich.console import Console
+
+    from harness.run.progress import StageProgress
+
+    buf = io.StringIO()
+    console = Console(file=buf, force_terminal=False, width=200)
+    with StageProgress(console) as progress:
+        _run(_config(scenes, ["opacity"]), tmp_path, progress=progress, workers=workers)
+    done = [line for line in buf.getvalue().splitlines() if ": done " in line]
+    assert done and all(line.split("done ")[1].split()[0].split("/")[0] == line.split("done ")[1].split()[0].split("/")[1]
+                        for line in done), done
+    assert any(line.strip().startswith("render_ref: done 4/4") for line in done)

@@ -82,12 +82,16 @@ class Runner:
         if self.workers == 1 or len(tasks) <= 1:
             init_worker(self.threads, self.toolkit.imports, self.toolkit.preload)
             for t in tasks:
-                if fn is run_view:
-                    results.append(fn(t, progress=bar.advance if bar else None))
-                else:
-                    results.append(fn(t))
+                done = [0]  # units the task reported itself (a view task reports each measured set)
+
+                def report(n=1, done=done):
+                    done[0] += n
                     if bar:
-                        bar.advance(weight(t))
+                        bar.advance(n)
+
+                results.append(fn(t, progress=report) if fn is run_view else fn(t))
+                if bar and weight(t) > done[0]:  # the rest of its weight (e.g. a reference render)
+                    bar.advance(weight(t) - done[0])
         else:
             ctx = get_context("spawn")
             with ProcessPoolExecutor(self.workers, mp_context=ctx, initializer=init_worker,
