@@ -103,6 +103,11 @@ def _check_layout(elements: dict[str, np.ndarray], source) -> tuple[np.ndarray, 
 def decode_compressed_ply(elements: dict[str, np.ndarray], source) -> GaussianScene:
     """The scene held by the parsed elements of a compressed.ply (module docstring has the math)."""
     chunk, vertex, sh = _check_layout(elements, source)
+    with np.errstate(invalid="ignore", over="ignore"):  # non-finite ranges: reported by scene validation
+        return _decode(chunk, vertex, sh)
+
+
+def _decode(chunk: np.ndarray, vertex: np.ndarray, sh: np.ndarray | None) -> GaussianScene:
     n = len(vertex)
     ci = np.arange(n) // CHUNK
     bound = lambda *names: np.stack([chunk[p].astype(np.float64) for p in names], 1)[ci]  # noqa: E731
