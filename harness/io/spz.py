@@ -81,12 +81,9 @@ class SpzHeader:
     sh_degree: int
     fractional_bits: int
     flags: int
+    container: str                 # "gzip" (v1-3) or "zstd" (v4, plaintext NGSP header)
     streams: int | None = None     # v4 only
     toc_offset: int | None = None  # v4 only
-
-    @property
-    def container(self) -> str:
-        return "zstd" if self.version >= 4 else "gzip"
 
     def stream_sizes(self) -> list[int]:
         n, dim = self.points, _SH_DIM[self.sh_degree]
@@ -97,7 +94,7 @@ def probe(head: bytes) -> SpzHeader | None:
     """The header of an spz file from its first bytes, or None when they are not spz."""
     if head[:4] == MAGIC and len(head) >= _V4.size:
         _, version, n, sh, fb, flags, streams, toc = _V4.unpack_from(head)
-        return SpzHeader(version, n, sh, fb, flags, streams, toc)
+        return SpzHeader(version, n, sh, fb, flags, "zstd", streams, toc)
     if head[:2] == GZIP_MAGIC:
         try:
             raw = zlib.decompressobj(16 + zlib.MAX_WBITS).decompress(head, _LEGACY.size)
@@ -105,12 +102,12 @@ def probe(head: bytes) -> SpzHeader | None:
             return None
         if len(raw) == _LEGACY.size and raw[:4] == MAGIC:
             _, version, n, sh, fb, flags, _ = _LEGACY.unpack(raw)
-            return SpzHeader(version, n, sh, fb, flags)
+            return SpzHeader(version, n, sh, fb, flags, "gzip")
     return None
 
 
 def describe(header: SpzHeader) -> str:
-    kind = f"zstd, {header.streams} streams" if header.version >= 4 else "gzip"
+    kind = f"zstd, {header.streams} streams" if header.container == "zstd" else "gzip"
     return f"spz v{header.version} ({kind}, SH degree {header.sh_degree})"
 
 
