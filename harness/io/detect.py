@@ -7,7 +7,7 @@ ply                first line ``ply``; the vertex element has no ``packed_*`` pr
 compressed-ply     first line ``ply``; a ``chunk`` element and ``packed_position`` (PlayCanvas)
 spz                ``NGSP`` (v4, zstd) or a gzip stream that inflates to an ``NGSP`` header (v1-3)
 ksplat             no magic: a 4096-byte header (version 0.1+, level 0-2) whose section headers
-                   account for exactly the file's size; or such a header in a ``.ksplat`` file
+                   account for exactly the file's size; or a ``.ksplat`` file starting 00 01+ 00 00
 sog                a folder with ``meta.json`` / ``lod-meta.json``, either JSON file, a ``.sog`` zip
 splat              no magic: the ``.splat`` extension (antimatter15 32-byte records)
 =================  ===========================================================================
@@ -58,12 +58,21 @@ def detect(path: Path) -> Detected:
         return Detected("sog", "sog (PlayCanvas SOG meta.json)")
     from harness.io import ksplat
 
+    if name.endswith(".ksplat") and ksplat.looks_like_ksplat(head):
+        return Detected("ksplat", _ksplat_name(path, size))
     ks = ksplat.probe(path, size)
-    if ks is not None and (ks.size == size or name.endswith(".ksplat")):
+    if ks is not None and ks.size == size:
         return Detected("ksplat", ksplat.describe(ks))
     if name.endswith(".splat") and head[:2] != b"\x1f\x8b":
         return Detected("splat", "splat (antimatter15, 32-byte records)")
     raise InputError(path, f"unsupported format: {looks_like(path, head, size)}")
+
+
+def _ksplat_name(path: Path, size: int) -> str:
+    from harness.io import ksplat
+
+    header = ksplat.probe(path, size)
+    return ksplat.describe(header) if header is not None else "ksplat (unreadable header)"
 
 
 def _read(path: Path, count: int) -> bytes:

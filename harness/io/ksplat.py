@@ -98,19 +98,35 @@ def _section_bytes(level: int, sec: np.ndarray) -> np.ndarray:
         + per_splat * sec["max_splats"]
 
 
-def probe(path: Path, size: int) -> KsplatHeader | None:
-    """The headers when the file starts like a ksplat (version 0.x ≥ 0.1, level 0-2), else None."""
+def parse_headers(path: Path, size: int) -> KsplatHeader:
+    """The main and section headers; InputError naming what does not fit a ksplat."""
     if size < HEADER_BYTES:
-        return None
+        raise InputError(path, f"a ksplat starts with a 4096-byte header; the file has {size:,} bytes")
     main = np.fromfile(path, _MAIN, count=1)[0]
-    if main["major"] != 0 or main["minor"] < 1 or main["pad"] != 0 or main["level"] > 2 or main["max_sections"] < 1:
-        return None
+    if main["major"] != 0 or main["minor"] < 1 or main["pad"] != 0:
+        raise InputError(path, f"ksplat version {main['major']}.{main['minor']} is not supported (0.1 and later 0.x)")
+    if main["level"] > 2:
+        raise InputError(path, f"ksplat compression level {main['level']} is not supported (0-2)")
     count = int(main["max_sections"])
-    if HEADER_BYTES + count * SECTION_BYTES > size:
-        return None
+    if count < 1 or HEADER_BYTES + count * SECTION_BYTES > size:
+        raise InputError(path, f"ksplat header lists {count:,} sections; their headers need "
+                               f"{HEADER_BYTES + count * SECTION_BYTES:,} bytes, the file has {size:,}")
     sections = np.fromfile(path, _SECTION, count=count, offset=HEADER_BYTES)
     total = HEADER_BYTES + count * SECTION_BYTES + int(_section_bytes(int(main["level"]), sections).sum())
     return KsplatHeader(main, sections, total)
+
+
+def probe(path: Path, size: int) -> KsplatHeader | None:
+    """The headers when the file starts like a ksplat (version 0.x ≥ 0.1, level 0-2), else None."""
+    try:
+        return parse_headers(path, size)
+    except InputError:
+        return None
+
+
+def looks_like_ksplat(head: bytes) -> bool:
+    """The first bytes every ksplat writer produces: version 0.1+ then two zero bytes."""
+    return len(head) >= 4 and head[0] == 0 and head[1] >= 1 and head[2:4] == b"\0\0"
 
 
 def describe(h: KsplatHeader) -> str:
@@ -124,6 +140,8 @@ def _validate(h: KsplatHeader, size: int, source) -> None:
     bad = [int(d) for d in sec["sh_degree"] if d not in _SH_COMPONENTS]
     if bad:
         raise InputError(source, f"ksplat section has SH degree {bad[0]}; expected 0-3")
+    if h.level and ((sec["buckets"] > 0) & (sec["bucket_bytes"] != 12)).any():
+        raise InputError(source, "ksplat bucket entries must be 12 bytes (3 floats)")
     if h.size != size:
         raise InputError(source, f"ksplat headers describe {h.size:,} bytes but the file has {size:,} "
                                  "(truncated file or corrupt header)")
@@ -132,8 +150,6 @@ def _validate(h: KsplatHeader, size: int, source) -> None:
     if int(sec["splats"].astype(np.int64).sum()) != int(h.main["splats"]):
         raise InputError(source, f"ksplat header counts {int(h.main['splats']):,} splats, its sections "
                                  f"{int(sec['splats'].astype(np.int64).sum()):,}")
-    if h.level and ((sec["buckets"] > 0) & (sec["bucket_bytes"] != 12)).any():
-        raise InputError(source, "ksplat bucket entries must be 12 bytes (3 floats)")
 
 
 def _bucket_of(sec: np.void, lengths: np.ndarray, source) -> np.ndarray:
@@ -196,9 +212,7 @@ def read_ksplat(path: str | Path) -> GaussianScene:
     """Read a ``.ksplat`` file (levels 0-2, every section, in file order)."""
     path = Path(path)
     size = path.stat().st_size
-    h = probe(path, size)
-    if h is None:
-        raise InputError(path, "not a ksplat file (expected a 4096-byte header with version 0.1+ and level 0-2)")
+    h = parse_headers(path, size)
     _validate(h, size, path)
     lo, hi = (float(h.main[k]) for k in ("sh_min", "sh_max"))
     sh_range = (lo if lo and np.isfinite(lo) else -1.5, hi if hi and np.isfinite(hi) else 1.5)
