@@ -181,7 +181,7 @@ def test_truncated_file(capsys, tmp_path):
 
 
 def test_vertex_count_larger_than_the_data(capsys, tmp_path):
-    path = _compressed(tmp_path, lambda h, c, v, s: (h.replace(b"element vertex 300", b"element vertex 9000000"), c, v, s))
+    path = _compressed(tmp_path, lambda h, c, v, s: (h.replace(b"vertex 300", b"vertex 9000000"), c, v, s))
     assert_clean_error(capsys, path, "truncated", "of 9000000")
 
 
@@ -194,7 +194,7 @@ def test_non_finite_chunk_range_is_reported(capsys, tmp_path):
 
 
 def test_wrong_property_types_and_sh_counts(capsys, tmp_path):
-    path = _compressed(tmp_path, lambda h, c, v, s: (h.replace(b"uint packed_rotation", b"float packed_rotation"), c, v, s))
+    path = _compressed(tmp_path, lambda h, c, v, s: (h.replace(b"uint packed_rot", b"float packed_rot"), c, v, s))
     assert_clean_error(capsys, path, "packed_rotation is missing or not a uint")
     path = _compressed(tmp_path, lambda h, c, v, s: (h.replace(b"property uchar f_rest_8\n", b""),
                                                      c, v, s.reshape(300, 9)[:, :8].copy()))

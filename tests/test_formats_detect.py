@@ -104,7 +104,8 @@ def test_a_zip_with_meta_json_is_taken_for_a_sog_bundle(capsys, tmp_path):
 
 
 # ---------------------------------------------------------------------- mutated fixtures
-FUZZED = sorted(p.name for p in FIXTURES.iterdir() if p.suffix in (".spz", ".ksplat") or p.name.endswith(".compressed.ply"))
+FUZZED = sorted(p.name for p in FIXTURES.iterdir()
+                if p.suffix in (".spz", ".ksplat") or p.name.endswith(".compressed.ply"))
 
 
 @pytest.mark.parametrize("name", FUZZED)

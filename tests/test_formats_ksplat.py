@@ -40,7 +40,8 @@ def check_against_source(decoded, src, level: int, sh_range=None) -> dict:
     if level == 0:
         assert_within("log-scale", np.abs(decoded.scales_log - src.scales_log), _EPS, errors)
     else:
-        assert_within("scale (linear)", np.abs(lin - lin_src), np.maximum(lin_src * 2.0**-10, 2.0**-24) * (1 + 1e-5), errors)
+        bound = np.maximum(lin_src * 2.0**-10, 2.0**-24) * (1 + 1e-5)
+        assert_within("scale (linear)", np.abs(lin - lin_src), bound, errors)
         normal = src.scales_log >= np.log(2.0**-14)
         errors["log-scale (half-float normal range)"] = float(np.abs(decoded.scales_log - src.scales_log)[normal].max())
         errors["log-scale (unclipped)"] = float(np.abs(decoded.scales_log - src.scales_log).max())
@@ -54,8 +55,8 @@ def check_against_source(decoded, src, level: int, sh_range=None) -> dict:
         if level == 0:
             assert_within("f_rest", np.abs(decoded.sh_rest - want), 1e-7, errors)
         elif level == 1:
-            assert_within("f_rest", np.abs(decoded.sh_rest - want), np.maximum(np.abs(want) * 2.0**-10, 2.0**-24) + 1e-7,
-                          errors)
+            bound = np.maximum(np.abs(want) * 2.0**-10, 2.0**-24) + 1e-7
+            assert_within("f_rest", np.abs(decoded.sh_rest - want), bound, errors)
         else:
             lo, hi = sh_range
             assert_within("f_rest", np.abs(decoded.sh_rest - np.clip(want, lo, hi)), (hi - lo) / 255 + _EPS, errors)

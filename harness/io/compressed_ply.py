@@ -85,7 +85,8 @@ def _check_layout(elements: dict[str, np.ndarray], source) -> tuple[np.ndarray, 
         raise InputError(source, f"compressed.ply vertex property {bad[0]} is missing or not a uint")
     n, c = len(vertex), len(chunk)
     if c != -(-n // CHUNK):
-        raise InputError(source, f"compressed.ply has {c} chunks for {n} splats; expected ceil({n}/256) = {-(-n // CHUNK)}")
+        raise InputError(source, f"compressed.ply has {c} chunks for {n} splats; "
+                                 f"expected ceil({n}/256) = {-(-n // CHUNK)}")
     sh = elements.get("sh")
     if sh is None or not sh.dtype.names:
         return chunk, vertex, None

@@ -147,7 +147,8 @@ def _read_binary(path: Path, header: PlyHeader, element: PlyElement) -> np.ndarr
     n = element.count
     if dtype.itemsize == 0:  # an element without properties (e.g. an empty compressed.ply 'sh')
         return np.zeros(n, dtype)
-    rows, row = ("vertices", "vertex") if element.name == "vertex" else (f"{element.name!r} rows", f"{element.name!r} row")
+    name = f"{element.name!r}"
+    rows, row = ("vertices", "vertex") if element.name == "vertex" else (f"{name} rows", f"{name} row")
     available = path.stat().st_size - offset
     need = n * dtype.itemsize
     if available < need:
