@@ -120,7 +120,9 @@ def _check_header(h: SpzHeader, size: int, source) -> None:
         raise InputError(source, f"spz SH degree {h.sh_degree} is not valid (0-4)")
     if h.sh_degree == 4:
         raise InputError(source, "spz SH degree 4 is not supported (the harness holds SH degrees 0-3)")
-    if h.points == 0 or sum(h.stream_sizes()) > size * _MAX_RATIO:
+    if h.points == 0:
+        raise InputError(source, "spz header declares 0 points (an empty spz, which the reference loader rejects)")
+    if sum(h.stream_sizes()) > size * _MAX_RATIO:
         raise InputError(source, f"spz header declares {h.points:,} points, impossible for a {size:,}-byte file "
                                  "(corrupt header or truncated file)")
 
