@@ -137,7 +137,7 @@ def test_zero_norm_quaternion_splat(capsys, tmp_path):
 
 def test_unknown_extension(capsys, tmp_path):
     (tmp_path / "scene.xyz").write_bytes(b"1 2 3\n")
-    assert_rejected(capsys, tmp_path, tmp_path / "scene.xyz", "unknown scene format '.xyz'")
+    assert_rejected(capsys, tmp_path, tmp_path / "scene.xyz", "unsupported format: text that is not a PLY header")
 
 
 def test_unreadable_path(capsys, tmp_path):
@@ -151,7 +151,7 @@ def test_folder_that_is_not_a_scene(capsys, tmp_path):
 
 def test_not_a_ply_file(capsys, tmp_path):
     (tmp_path / "fake.ply").write_bytes(b"\x89PNG\r\n\x1a\n....")
-    assert_rejected(capsys, tmp_path, tmp_path / "fake.ply", "not a PLY file")
+    assert_rejected(capsys, tmp_path, tmp_path / "fake.ply", "unsupported format: a PNG image")
 
 
 def test_unknown_lod_level_for_single_level_format(capsys, tmp_path, good_ply):

@@ -10,7 +10,8 @@ HELP = "describe a scene (by path or name): splat count, SH degree, bounding box
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("scene", help="path (.ply, .splat, SOG folder/meta.json/.sog) or a scene name")
+    parser.add_argument("scene", help="path (.ply, .compressed.ply, .spz, .ksplat, .splat, SOG folder/meta.json/.sog) "
+                                      "or a scene name")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--lod", type=lod_arg, default=None, help="SOG LOD level (default 0) or 'all'")
     parser.add_argument("--drop-nonfinite", action="store_true",
@@ -40,7 +41,7 @@ def run(args) -> int:
     if result.dropped_nonfinite:
         print(f"harness: {result.path}: dropped {result.dropped_nonfinite} splats with NaN/inf values",
               file=sys.stderr)
-    info = describe_scene(result.scene, result.path, fmt=result.format, lod=result.lod)
+    info = describe_scene(result.scene, result.path, fmt=result.format, lod=result.lod, format_name=result.format_name)
     info["dropped_nonfinite"] = result.dropped_nonfinite
     if args.json:
         print(json.dumps(info))
@@ -48,7 +49,7 @@ def run(args) -> int:
     lo, hi = info["bbox_min"], info["bbox_max"]
     lines = [
         f"scene       {info['path']}",
-        f"format      {info['format']}" + (f" (LOD {info['lod']})" if info["lod"] is not None else ""),
+        f"format      {info['format_name']}" + (f" (LOD {info['lod']})" if info["lod"] is not None else ""),
         f"splats      {info['splats']:,}",
         f"SH degree   {info['sh_degree']}",
         f"bbox min    {lo[0]:.4g} {lo[1]:.4g} {lo[2]:.4g}",

@@ -131,31 +131,44 @@ def read_ply_header(path: str | Path) -> PlyHeader:
 
 def _vertex_dtype(element: PlyElement, endian: str, path: Path) -> np.dtype:
     if any(t == "list" for _, t in element.properties):
-        raise InputError(path, "the vertex element has a list property; 3DGS files have none")
+        raise InputError(path, f"the {element.name} element has a list property; 3DGS files have none")
     return np.dtype([(name, endian + t) for name, t in element.properties])
 
 
-def _read_binary(path: Path, header: PlyHeader, vertex: PlyElement) -> np.ndarray:
+def _read_binary(path: Path, header: PlyHeader, element: PlyElement) -> np.ndarray:
+    """The rows of one element of a binary file (elements before it must have fixed-size rows)."""
     endian = _ENDIAN[header.format]
     offset = header.data_offset
     for el in header.elements:
-        if el is vertex:
+        if el is element:
             break
         if any(t == "list" for _, t in el.properties):
-            raise InputError(path, f"element {el.name!r} before 'vertex' has list properties (unsupported)")
+            raise InputError(path, f"element {el.name!r} before {element.name!r} has list properties (unsupported)")
         offset += el.count * np.dtype([(n, endian + t) for n, t in el.properties]).itemsize
-    dtype = _vertex_dtype(vertex, endian, path)
-    n = vertex.count
+    dtype = _vertex_dtype(element, endian, path)
+    n = element.count
+    if dtype.itemsize == 0:  # an element without properties (e.g. an empty compressed.ply 'sh')
+        return np.zeros(n, dtype)
+    name = f"{element.name!r}"
+    rows, row = ("vertices", "vertex") if element.name == "vertex" else (f"{name} rows", f"{name} row")
     available = path.stat().st_size - offset
     need = n * dtype.itemsize
     if available < need:
         whole = max(available, 0) // dtype.itemsize
         if max(available, 0) % dtype.itemsize:
-            raise InputError(path, f"truncated: the data ends inside vertex {whole + 1} of {n} "
+            raise InputError(path, f"truncated: the data ends inside {row} {whole + 1} of {n} "
                                    f"({max(available, 0)} of {need} bytes present)")
-        raise InputError(path, f"header declares {n} vertices but the file holds data for only {whole} "
+        raise InputError(path, f"header declares {n} {rows} but the file holds data for only {whole} "
                                "(truncated file or wrong count)")
     return np.fromfile(path, dtype=dtype, count=n, offset=offset)
+
+
+def read_binary_elements(path: str | Path, header: PlyHeader) -> dict[str, np.ndarray]:
+    """Every element of a binary PLY as a structured array, by name (sizes checked first)."""
+    path = Path(path)
+    if header.format == "ascii":
+        raise InputError(path, "expected a binary PLY, found format ascii")
+    return {el.name: _read_binary(path, header, el) for el in header.elements}
 
 
 def _read_ascii(path: Path, header: PlyHeader, vertex: PlyElement) -> np.ndarray:
@@ -251,10 +264,10 @@ def table_to_scene(table: np.ndarray, path: str | Path) -> GaussianScene:
     )
 
 
-def read_ply_table(path: str | Path) -> tuple[np.ndarray, PlyHeader]:
+def read_ply_table(path: str | Path, header: PlyHeader | None = None) -> tuple[np.ndarray, PlyHeader]:
     """The raw ``vertex`` rows as a structured array (file dtypes), and the header."""
     path = Path(path)
-    header = read_ply_header(path)
+    header = header or read_ply_header(path)
     vertex = header.element("vertex")
     if vertex is None:
         raise InputError(path, "PLY file has no 'vertex' element")
@@ -264,10 +277,20 @@ def read_ply_table(path: str | Path) -> tuple[np.ndarray, PlyHeader]:
 
 def read_ply(path: str | Path) -> GaussianScene:
     """Read an INRIA 3DGS ``.ply`` (any property order, ascii or binary) into a scene whose
-    :class:`SceneMeta` holds the path and the header comments (before and after ``format``)."""
-    table, header = read_ply_table(path)
-    return table_to_scene(table, path).with_meta(source=str(path), format="ply", preamble=tuple(header.preamble),
-                                                 comments=tuple(header.comments))
+    :class:`SceneMeta` holds the path and the header comments (before and after ``format``).
+
+    A PlayCanvas ``compressed.ply`` (``chunk`` element, ``packed_*`` vertex properties) is decoded
+    by :mod:`harness.io.compressed_ply`.
+    """
+    from harness.io import compressed_ply
+
+    header = read_ply_header(path)
+    if compressed_ply.is_compressed_ply(header):
+        scene, fmt = compressed_ply.decode_compressed_ply(read_binary_elements(path, header), path), "compressed-ply"
+    else:
+        scene, fmt = table_to_scene(read_ply_table(path, header)[0], path), "ply"
+    return scene.with_meta(source=str(path), format=fmt, preamble=tuple(header.preamble),
+                           comments=tuple(header.comments))
 
 
 # ---------------------------------------------------------------------- writing

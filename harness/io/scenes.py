@@ -1,8 +1,11 @@
 """One entry point for scenes: load by path or name, validate, write, describe.
 
-Formats by extension / shape: ``.ply`` (INRIA), ``.splat`` (antimatter15), SOG (a folder with
-``lod-meta.json`` or ``meta.json``, either JSON file, or a ``.sog`` bundle). Named scenes
-(``bonsai-7k``, ``playbot``, ...) resolve through :mod:`harness.io.datasets`.
+Formats are recognised by content first (:mod:`harness.io.detect`): INRIA ``.ply``, PlayCanvas
+``compressed.ply``, Niantic ``.spz`` (v1-4), mkkellogg ``.ksplat`` (levels 0-2), antimatter15
+``.splat``, SOG (a folder with ``lod-meta.json`` or ``meta.json``, either JSON file, or a ``.sog``
+bundle); anything else is "unsupported format: <what it looks like>". Named scenes
+(``bonsai-7k``, ``playbot``, ...) resolve through :mod:`harness.io.datasets`. Written:
+``.ply``, ``.splat`` and ``.compressed.ply`` (by the name's ending).
 
 Validation after reading (every format):
 
@@ -27,33 +30,46 @@ from harness.core.scene import GaussianScene, bounding_box, opacities, scales
 log = logging.getLogger(__name__)
 
 _CORE = ("means", "scales_log", "quats", "opacity_logit", "sh_dc", "sh_rest")
-WRITABLE = (".ply", ".splat")
+WRITABLE = (".ply", ".splat")  # and names ending in .compressed.ply
 
 
 @dataclass
 class LoadResult:
     scene: GaussianScene
     path: Path
-    format: str           # "ply" | "splat" | "sog"
+    format: str           # "ply" | "compressed-ply" | "spz" | "ksplat" | "splat" | "sog"
     lod: int | str | None  # the SOG level read (None for single-level formats)
     dropped_nonfinite: int = 0
+    format_name: str = ""  # e.g. "spz v3 (gzip, SH degree 3)": what `harness info` prints
 
 
 def detect_format(path: Path) -> str:
-    """'ply' | 'splat' | 'sog' from the extension or folder contents; InputError otherwise."""
-    if path.is_dir():
-        if (path / "lod-meta.json").is_file() or (path / "meta.json").is_file():
-            return "sog"
-        raise InputError(path, "is a folder without lod-meta.json or meta.json (not a SOG scene)")
-    name = path.name.lower()
-    if name.endswith(".ply"):
-        return "ply"
-    if name.endswith(".splat"):
-        return "splat"
-    if name.endswith((".sog", "meta.json")):
-        return "sog"
-    raise InputError(path, f"unknown scene format {path.suffix or '(no extension)'!r}; "
-                           "expected .ply, .splat, or a SOG folder / meta.json / lod-meta.json / .sog")
+    """The reader key of ``path`` by content (see :mod:`harness.io.detect`); InputError otherwise."""
+    from harness.io.detect import detect
+
+    return detect(path).kind
+
+
+def _read(path: Path, kind: str, lod) -> GaussianScene:
+    if kind in ("ply", "compressed-ply"):
+        from harness.io.ply import read_ply
+
+        return read_ply(path)
+    if kind == "spz":
+        from harness.io.spz import read_spz
+
+        return read_spz(path)
+    if kind == "ksplat":
+        from harness.io.ksplat import read_ksplat
+
+        return read_ksplat(path)
+    if kind == "splat":
+        from harness.io.splat import read_splat
+
+        return read_splat(path)
+    from harness.io.sog import read_sog
+
+    return read_sog(path, lod)
 
 
 def _first_row(mask: np.ndarray) -> int:
@@ -85,24 +101,18 @@ def check_scene(scene: GaussianScene, source, *, drop_nonfinite: bool = False) -
 def read_scene(path_or_name, *, lod: int | str | None = None, drop_nonfinite: bool = False) -> LoadResult:
     """Read and validate a scene given by path or name (see module docstring)."""
     from harness.io.datasets import resolve_scene
+    from harness.io.detect import detect
 
     path = resolve_scene(path_or_name)
-    fmt = detect_format(path)
-    if fmt != "sog" and lod not in (None, 0):
-        raise InputError(path, f"has no LOD levels (asked for level {lod})")
     try:
-        if fmt == "ply":
-            from harness.io.ply import read_ply
+        detected = detect(path)
+        fmt = detected.kind
+        if fmt != "sog" and lod not in (None, 0):
+            raise InputError(path, f"has no LOD levels (asked for level {lod})")
+        scene = _read(path, fmt, lod)
+        if fmt == "sog":
+            from harness.io.sog import lod_levels
 
-            scene = read_ply(path)
-        elif fmt == "splat":
-            from harness.io.splat import read_splat
-
-            scene = read_splat(path)
-        else:
-            from harness.io.sog import lod_levels, read_sog
-
-            scene = read_sog(path, lod)
             lod = (0 if lod is None else lod) if lod_levels(path) is not None else None
     except IsADirectoryError:
         raise InputError(path, "is a folder, expected a file") from None
@@ -112,7 +122,7 @@ def read_scene(path_or_name, *, lod: int | str | None = None, drop_nonfinite: bo
         raise InputError(path, f"cannot read: {err.strerror or err}") from None
     scene, dropped = check_scene(scene, path, drop_nonfinite=drop_nonfinite)
     scene = scene.with_meta(source=str(path), format=fmt)
-    return LoadResult(scene, path, fmt, lod if fmt == "sog" else None, dropped)
+    return LoadResult(scene, path, fmt, lod if fmt == "sog" else None, dropped, detected.name)
 
 
 def load_scene(path_or_name, *, lod: int | str | None = None, drop_nonfinite: bool = False) -> GaussianScene:
@@ -124,19 +134,26 @@ def load_scene(path_or_name, *, lod: int | str | None = None, drop_nonfinite: bo
 
 
 def write_scene(scene: GaussianScene, path, *, comments=None, sibr_layout: bool = False) -> Path:
-    """Write ``.ply`` (lossless) or ``.splat`` (lossy export) atomically; returns the path.
+    """Write ``.ply`` (lossless), ``.splat`` or ``.compressed.ply`` (lossy, Morton-reordered)
+    atomically; returns the path.
 
-    A ``.ply`` keeps the scene's header comments (``scene.meta``; ``comments`` replaces those after
-    the ``format`` line); ``sibr_layout`` see :mod:`harness.io.ply`.
+    A ``.ply`` or ``.compressed.ply`` keeps the scene's header comments (``scene.meta``; ``comments``
+    replaces those after the ``format`` line); ``sibr_layout`` applies to ``.ply``, see
+    :mod:`harness.io.ply`.
     """
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in WRITABLE:
-        raise InputError(path, f"cannot write {suffix or 'files without an extension'}; use .ply or .splat")
+        raise InputError(path, f"cannot write {suffix or 'files without an extension'}; "
+                               "use .ply, .compressed.ply or .splat")
     if not path.parent.is_dir():
         raise InputError(path, "output folder does not exist")
     try:
-        if suffix == ".ply":
+        if path.name.lower().endswith(".compressed.ply"):
+            from harness.io.compressed_ply import write_compressed_ply
+
+            write_compressed_ply(scene, path, comments=comments)
+        elif suffix == ".ply":
             from harness.io.ply import write_ply
 
             write_ply(scene, path, comments=comments, sibr_layout=sibr_layout)
@@ -156,7 +173,8 @@ def _stats(x: np.ndarray) -> dict:
     return {"min": float(x.min()), "max": float(x.max()), "mean": float(x.mean()), "median": float(np.median(x))}
 
 
-def describe_scene(scene: GaussianScene, path=None, *, fmt: str | None = None, lod=None) -> dict:
+def describe_scene(scene: GaussianScene, path=None, *, fmt: str | None = None, lod=None,
+                   format_name: str | None = None) -> dict:
     """The facts ``harness info`` prints: counts, SH degree, bounding box, opacity/scale stats, memory.
 
     ``memory_bytes`` is the scene's arrays in memory; ``file_bytes`` is everything under ``path``
@@ -166,6 +184,7 @@ def describe_scene(scene: GaussianScene, path=None, *, fmt: str | None = None, l
     info = {
         "path": None if path is None else str(path),
         "format": fmt,
+        "format_name": format_name or fmt,
         "lod": lod,
         "splats": len(scene),
         "sh_degree": scene.sh_degree,

@@ -30,16 +30,14 @@ import numpy as np
 
 from harness.core.errors import InputError
 from harness.core.scene import SH_C0, GaussianScene, normalized_quats, sigmoid
+from harness.io.codecs import LOGIT_OF_ALPHA_BYTE
 from harness.io.files import atomic_write_chunks
 
 SPLAT_RECORD = np.dtype([("pos", "<f4", (3,)), ("scale", "<f4", (3,)), ("rgba", "u1", (4,)), ("rot", "u1", (4,))])
 assert SPLAT_RECORD.itemsize == 32
-_ALPHA_EPS = 0.25 / 255.0
 _BYTES = np.arange(256, dtype=np.float64)
 # byte -> value tables, computed in float64 and rounded once to float32
 _DC_OF_BYTE = ((_BYTES / 255.0 - 0.5) / SH_C0).astype(np.float32)
-_ALPHA_OF_BYTE = np.clip(_BYTES / 255.0, _ALPHA_EPS, 1.0 - _ALPHA_EPS)
-_LOGIT_OF_BYTE = np.log(_ALPHA_OF_BYTE / (1.0 - _ALPHA_OF_BYTE)).astype(np.float32)
 _QUAT_OF_BYTE = ((_BYTES - 128.0) / 128.0).astype(np.float32)
 
 
@@ -60,7 +58,7 @@ def read_splat(path: str | Path) -> GaussianScene:
         means=rec["pos"],
         scales_log=scales_log,
         quats=_QUAT_OF_BYTE[rec["rot"]],
-        opacity_logit=_LOGIT_OF_BYTE[rgba[:, 3]],
+        opacity_logit=LOGIT_OF_ALPHA_BYTE[rgba[:, 3]],
         sh_dc=_DC_OF_BYTE[rgba[:, :3]],
     )
 

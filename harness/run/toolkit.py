@@ -91,7 +91,9 @@ class Toolkit:
     make_metrics: Callable = make_metrics
     check_metrics: Callable = check_metrics
     #: module names whose source versions each stage (cache-key "code" component)
-    reader_modules: tuple[str, ...] = ("harness.io.scenes", "harness.io.ply", "harness.io.splat", "harness.io.sog")
+    reader_modules: tuple[str, ...] = ("harness.io.scenes", "harness.io.ply", "harness.io.splat", "harness.io.sog",
+                                       "harness.io.detect", "harness.io.codecs", "harness.io.compressed_ply",
+                                       "harness.io.spz", "harness.io.ksplat")
     rig_modules: tuple[str, ...] = ("harness.views.rigs", "harness.core.cameras")
     #: whole packages: renderers and metrics import their shared code lazily, inside functions, so a
     #: module-level import closure would miss it (over-invalidation is the safe side)
