@@ -16,7 +16,9 @@ the base, and any axis given explicitly next to it overrides the bundle (``{read
 o_norm: rank}`` is paper-literal with rank-normalised opacity):
 
 * ``default``: the field defaults below, chosen by the pre-registered rule of
-  ``ctc_configs/reading.yaml`` (outcome in ``results/reading/selection.md``);
+  ``ctc_configs/reading.yaml`` (outcome in ``results/reading/selection.md``): paper-literal except
+  ``ell_def = nbhd-std`` (the only change that beat its incumbent beyond the CI on both selection
+  scenes);
 * ``paper-literal``: the most literal reading of every sentence (minmax normalisation, std/var
   *across descriptor dimensions* for ℓ, s, u, w = the distance-weighted kernel sum), with the μ
   erratum corrected (``score = ucb``: the sign-literal ``score = literal`` prunes the most
@@ -80,10 +82,10 @@ class StatisticsParams(Params):
         "paper-literal; v1 = the project's first reading); axes given explicitly override the bundle",
         reading="the paper leaves the statistics under-specified (L227-249, L313); see methods/betadesc/params.py")
     o_norm: Literal["sigmoid", "minmax", "robust", "rank"] = param(
-        "sigmoid", doc="opacity normalisation over the splats: sigmoid (stored logit → [0,1] only, v1), "
+        "minmax", doc="opacity normalisation over the splats: sigmoid (stored logit → [0,1] only, v1), "
         "minmax, robust (P5-P95 min-max, clipped), rank (uniform ranks, ties averaged)", reading=L239)
     stat_norm: Literal["robust", "minmax", "rank"] = param(
-        "robust", doc="normalisation of the raw s, ℓ, u over their population (voxels; splats without "
+        "minmax", doc="normalisation of the raw s, ℓ, u over their population (voxels; splats without "
         "descriptors): robust P5-P95 min-max clipped (v1), minmax, rank", reading=L227)
 
     @classmethod
@@ -108,11 +110,11 @@ class DescriptorParams(Params):
         "neighbourhood N(j) (v1); dims-std = std across the 33 dimensions of the voxel's own geometric block",
         reading=L233)
     s_def: Literal["nbhd-var", "dims-var"] = param(
-        "nbhd-var", doc="raw s before 1 − norm(·): nbhd-var = colour-histogram dispersion + band-power "
+        "dims-var", doc="raw s before 1 − norm(·): nbhd-var = colour-histogram dispersion + band-power "
         "variance over N(j) (v1); dims-var = variance across the appearance components [P_ℓ block | colour "
         "histogram] of the voxel's HSFH", reading=L236)
     u_def: Literal["dispersion", "std-geo", "std-hsfh"] = param(
-        "dispersion", doc="raw u before norm(·): dispersion = mean over angles of (1 − Σp²)/(10/11) (v1; "
+        "std-hsfh", doc="raw u before norm(·): dispersion = mean over angles of (1 − Σp²)/(10/11) (v1; "
         "a decreasing affine function of std-geo); std-geo = std across the 33 geometric dimensions; "
         "std-hsfh = std across the whole HSFH vector [g | P_ℓ | colour], each block summing to 1 per histogram",
         reading=L240)
@@ -121,7 +123,7 @@ class DescriptorParams(Params):
         "exp(−d²/2) of the distance (voxel units) to each voxel point (v1); trilinear = trilinear weights "
         "of the cell centres; nearest = the splat's own voxel", reading=L313)
     w_mode: Literal["clip-sum", "sum", "sum-median", "one"] = param(
-        "clip-sum", doc="aggregation weight w of Eq. 4 from the kernel mass ΣK around the splat: clip-sum "
+        "sum", doc="aggregation weight w of Eq. 4 from the kernel mass ΣK around the splat: clip-sum "
         "min(1, ΣK) (v1; ≈ 1 almost everywhere), sum ΣK (w·x = the distance-weighted sum of the "
         "neighbouring voxels' statistics), sum-median ΣK / median ΣK (ours), one (w = 1)", reading=L245)
 
