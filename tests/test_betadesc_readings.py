@@ -304,3 +304,43 @@ def test_descriptor_block_scale_is_unit_sum():
     assert np.all((np.abs(g - 1) < 1e-12) | (g == 0))
     np.testing.assert_allclose(full[:, 33:36].sum(axis=1), 1.0)
     np.testing.assert_allclose(full[:, 36:].reshape(-1, 3, 4).sum(axis=2), 1.0)
+
+
+# --------------------------------------------------------------------------- selectable everywhere
+def test_methods_command_shows_readings_and_labels_the_invented_presets(capsys):
+    import json
+
+    from harness.cli import main
+
+    assert main(["methods", "--json"]) == 0
+    rows = {r["name"]: r for r in json.loads(capsys.readouterr().out)}
+    p = rows["betadesc"]["params"]
+    assert "L240-242" in p["u_def"]["reading"] and "across dimensions" in p["u_def"]["reading"]
+    assert "own invention" in p["preset"]["doc"] and "L468" in p["preset"]["reading"]
+    assert p["reading"]["default"] == "default" and "paper-literal" in p["reading"]["type"]
+    assert main(["methods"]) == 0
+    assert "own invention" in capsys.readouterr().out.replace("\n", " ").replace("│", " ")
+
+
+def test_paper_literal_from_harness_prune_and_from_a_config(tmp_path, capsys):
+    import json
+
+    from harness.cli import main
+    from harness.io.scenes import write_scene
+    from harness.run.config import parse_config
+
+    src = tmp_path / "in.ply"
+    write_scene(random_scene(300, seed=8), src)
+    assert main(["prune", str(src), str(tmp_path / "out.ply"), "--ratio", "0.3", "--reading", "paper-literal",
+                 "--voxel", "0.05", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["params"]["reading"] == "paper-literal" and report["params"]["ell_def"] == "dims-std"
+    assert report["removed"] == 90
+    assert main(["prune", str(src), str(tmp_path / "o2.ply"), "--ratio", "0.3", "--reading", "v2"]) == 2
+    assert "--reading" in capsys.readouterr().err
+    cfg = parse_config({"scenes": ["x"], "ratios": [0.3], "methods": [
+        {"name": "betadesc", "params": {"reading": "paper-literal"}, "sweep": {"o_norm": ["rank"]}},
+        {"name": "betadesc-nodesc", "params": {"reading": "v1"}}]})
+    lit, nd = cfg.methods
+    assert lit.params.o_norm == "rank" and lit.params.s_def == "dims-var" and lit.variant == "o_norm=rank"
+    assert nd.params.nodesc_def == "param-stats" and nd.params.o_norm == "sigmoid"
