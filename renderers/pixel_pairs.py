@@ -23,7 +23,8 @@ view's footprints are enumerated once (numba, CPU):
 3. :func:`composite_grad` / :func:`render_pairs`: the exact gradient of the image w.r.t. the opacities.
    With S_k = Σ_{m>k} c_m α_m T_m + T_final·bg (everything behind pair k),
    ∂C/∂α_k = c_k T_k − S_k / (1 − α_k), and ∂α_k/∂o = g_k unless the 0.99 clamp is active; skipped
-   pairs get no gradient (the α tests and the early-stop decision are not differentiated).
+   pairs get no gradient (the α tests and the early-stop decision are not differentiated). Optionally
+   also w.r.t. the per-splat colours: ∂C/∂c_j = Σ_pairs α_k T_k (ConfSplat's SH saliency needs it).
 
 The image equals ``renderers.reference.rasterize(..., footprint="box")`` up to float rounding, except
 that the reference retires a tile once all its pixels have T < 1e-7 (effects below 1e-7); the tests
@@ -215,9 +216,11 @@ def _forward(start, splat, gauss, op, colors, bg, early_stop, stats, image, t_fi
 
 
 @nb.njit(cache=True)
-def _backward(start, splat, gauss, op, colors, bg, t_final, t_pair, grad_img, grad_op):
-    """Back to front per pixel over the pairs :func:`_forward` composited (``t_pair`` ≥ 0)."""
+def _backward(start, splat, gauss, op, colors, bg, t_final, t_pair, grad_img, grad_op, grad_col):
+    """Back to front per pixel over the pairs :func:`_forward` composited (``t_pair`` ≥ 0);
+    ``grad_col`` (M, 3) receives dL/dcolour unless it has no rows."""
     amax = _F32_ALPHA_MAX
+    want_col = grad_col.shape[0] > 0
     for p in range(start.shape[0] - 1):
         g0, g1, g2 = grad_img[p, 0], grad_img[p, 1], grad_img[p, 2]
         behind = (g0 * bg[0] + g1 * bg[1] + g2 * bg[2]) * t_final[p]  # dL/dC · S, S = stuff behind
@@ -229,6 +232,11 @@ def _backward(start, splat, gauss, op, colors, bg, t_final, t_pair, grad_img, gr
             raw = op[j] * gauss[k]
             a = min(amax, raw)
             dc = (g0 * colors[j, 0] + g1 * colors[j, 1] + g2 * colors[j, 2]) * tk
+            if want_col:
+                wgt = a * tk
+                grad_col[j, 0] += g0 * wgt
+                grad_col[j, 1] += g1 * wgt
+                grad_col[j, 2] += g2 * wgt
             d_alpha = dc - behind / (1.0 - a)
             if raw < amax:
                 grad_op[j] += d_alpha * gauss[k]
@@ -243,18 +251,29 @@ class _Saved:
     t_final: np.ndarray
 
 
+def _colours(pairs: PixelPairs, colors) -> np.ndarray:
+    if colors is None:
+        return pairs.colors
+    colors = np.ascontiguousarray(colors, dtype=np.float32)
+    if colors.shape != pairs.colors.shape:
+        raise ValueError(f"colors must be {pairs.colors.shape}, got {colors.shape}")
+    return colors
+
+
 def composite(pairs: PixelPairs, opacities: np.ndarray | None = None, background=(0, 0, 0), *,
-              early_stop: bool = False, stats: bool = False, save: bool = False) -> PairOutput:
+              early_stop: bool = False, stats: bool = False, save: bool = False, colors=None) -> PairOutput:
     """Render the pairs with per-visible-splat ``opacities`` (M,) (default ``pairs.opacities``; must not
-    exceed them). Returns the image and, with ``stats``, the per-visible-splat statistics; ``save``
-    keeps the transmittances :func:`composite_grad` needs (in ``out.saved``)."""
+    exceed them) and ``colors`` (M, 3) (default ``pairs.colors``). Returns the image and, with ``stats``,
+    the per-visible-splat statistics; ``save`` keeps the transmittances :func:`composite_grad` needs
+    (in ``out.saved``)."""
     op = pairs.opacities if opacities is None else np.ascontiguousarray(opacities, dtype=np.float32)
+    cols = _colours(pairs, colors)
     npix = pairs.width * pairs.height
     m = len(pairs.ids) if stats else 0
     image = np.zeros((npix, 3), np.float64)
     saved = _Saved(np.empty(len(pairs) if save else 0, np.float64), np.zeros(npix, np.float64))
     opt, alt, hits = np.zeros(m), np.zeros(m), np.zeros(m, np.int64)
-    _forward(pairs.start, pairs.splat, pairs.gauss, op, pairs.colors, np.asarray(background, np.float64),
+    _forward(pairs.start, pairs.splat, pairs.gauss, op, cols, np.asarray(background, np.float64),
              early_stop, stats, image, saved.t_final, opt, alt, hits, saved.t_pair)
     out = PairOutput(image.astype(np.float32).reshape(pairs.height, pairs.width, 3))
     if stats:
@@ -265,35 +284,47 @@ def composite(pairs: PixelPairs, opacities: np.ndarray | None = None, background
 
 
 def composite_grad(pairs: PixelPairs, opacities: np.ndarray, grad_image: np.ndarray, background=(0, 0, 0), *,
-                   early_stop: bool = False, saved: _Saved | None = None) -> np.ndarray:
+                   early_stop: bool = False, saved: _Saved | None = None, colors=None,
+                   colour_grad: bool = False):
     """dL/d opacities (M,) float64 given dL/d image (H, W, 3) (see the module docstring); ``saved`` from
-    ``composite(..., save=True)`` with the same inputs skips the forward pass."""
+    ``composite(..., save=True)`` with the same inputs skips the forward pass. ``colour_grad``: return
+    ``(dL/d opacities, dL/d colours (M, 3))``."""
     op = np.ascontiguousarray(opacities, dtype=np.float32)
+    cols = _colours(pairs, colors)
     if saved is None:
-        saved = composite(pairs, op, background, early_stop=early_stop, save=True).saved
+        saved = composite(pairs, op, background, early_stop=early_stop, save=True, colors=cols).saved
     grad = np.zeros(len(pairs.ids), np.float64)
+    gcol = np.zeros((len(pairs.ids) if colour_grad else 0, 3), np.float64)
     gi = np.ascontiguousarray(grad_image, dtype=np.float64).reshape(-1, 3)
-    _backward(pairs.start, pairs.splat, pairs.gauss, op, pairs.colors, np.asarray(background, np.float64),
-              saved.t_final, saved.t_pair, gi, grad)
-    return grad
+    _backward(pairs.start, pairs.splat, pairs.gauss, op, cols, np.asarray(background, np.float64),
+              saved.t_final, saved.t_pair, gi, grad, gcol)
+    return (grad, gcol) if colour_grad else grad
 
 
 class _PairRender(torch.autograd.Function):
     @staticmethod
-    def forward(ctx, opacities, pairs, background, early_stop):
+    def forward(ctx, opacities, colors, pairs, background, early_stop):
         op = opacities.detach().to("cpu", torch.float32).numpy()
-        out = composite(pairs, op, background, early_stop=early_stop, save=opacities.requires_grad)
+        cols = None if colors is None else colors.detach().to("cpu", torch.float32).numpy()
+        grads = opacities.requires_grad or (colors is not None and colors.requires_grad)
+        out = composite(pairs, op, background, early_stop=early_stop, save=grads, colors=cols)
         ctx.pairs, ctx.background, ctx.early_stop, ctx.op, ctx.saved = pairs, background, early_stop, op, out.saved
+        ctx.cols = cols
         return torch.from_numpy(out.image).to(opacities.device)
 
     @staticmethod
     def backward(ctx, grad_image):
+        want_col = ctx.needs_input_grad[1]
         g = composite_grad(ctx.pairs, ctx.op, grad_image.detach().cpu().numpy(), ctx.background,
-                           early_stop=ctx.early_stop, saved=ctx.saved)
-        return torch.from_numpy(g).to(grad_image.device, grad_image.dtype), None, None, None
+                           early_stop=ctx.early_stop, saved=ctx.saved, colors=ctx.cols, colour_grad=want_col)
+        g_op, g_col = g if want_col else (g, None)
+        to = dict(device=grad_image.device, dtype=grad_image.dtype)
+        return (torch.from_numpy(g_op).to(**to), None if g_col is None else torch.from_numpy(g_col).to(**to),
+                None, None, None)
 
 
 def render_pairs(pairs: PixelPairs, opacities: torch.Tensor, background=(0, 0, 0), *,
-                 early_stop: bool = False) -> torch.Tensor:
-    """(H, W, 3) float32 image, differentiable w.r.t. ``opacities`` (M,) (per visible splat)."""
-    return _PairRender.apply(opacities, pairs, tuple(float(v) for v in background), early_stop)
+                 early_stop: bool = False, colors: torch.Tensor | None = None) -> torch.Tensor:
+    """(H, W, 3) float32 image, differentiable w.r.t. ``opacities`` (M,) (per visible splat) and, when
+    given, ``colors`` (M, 3) (default: the pairs' own colours, not differentiated)."""
+    return _PairRender.apply(opacities, colors, pairs, tuple(float(v) for v in background), early_stop)

@@ -241,15 +241,35 @@ def _plane_pole_floaters() -> tuple[GaussianScene, np.ndarray]:
     return scene, np.r_[np.zeros(n1), np.ones(n2), np.full(n3, 2)]
 
 
+def _removed(scene, label, ratio, **params):
+    keep = select_by_ratio(get_pruner("betadesc").score(scene, PruneContext(params=params)), ratio).keep
+    return [int((~keep & (label == c)).sum()) for c in range(3)]
+
+
 def test_keeps_thin_structure_and_the_literal_sign_removes_it_first():
+    # the v1 reading (the default before issue 13), by parameters
     scene, label = _plane_pole_floaters()
 
     def removed(ratio, **params):
-        keep = select_by_ratio(get_pruner("betadesc").score(scene, PruneContext(params=params)), ratio).keep
-        return [int((~keep & (label == c)).sum()) for c in range(3)]
+        return _removed(scene, label, ratio, reading="v1", **params)
 
     plane, pole, floaters = removed(0.3)
     assert pole == 0 and plane > 1000  # the redundant plane goes, the pole stays
     assert removed(0.1, score="literal")[1] == 300  # the paper's literal sign removes the pole first
     _, pole_oh, floaters_oh = removed(0.3, preset="opacity-heavy")
     assert pole_oh == 0 and floaters_oh >= 285 > floaters  # opacity emphasis also clears the floaters
+
+
+def test_the_literal_u_reads_a_plane_as_distinctive():
+    """Characterisation of the selected default (and paper-literal): u = std across descriptor
+    dimensions is high for the peaked FPFH histograms of a plane and low for a pole, so on this scene
+    the pole and the faint floaters go before the redundant plane (v1's dispersion u did the reverse)."""
+    from methods.betadesc.pipeline import components
+
+    scene, label = _plane_pole_floaters()
+    for reading in ("default", "paper-literal"):
+        plane, pole, floaters = _removed(scene, label, 0.3, reading=reading)
+        assert (pole, floaters) == (300, 300) and plane == 780
+        c = components(scene, get_pruner("betadesc").parse_params({"reading": reading}))
+        assert c.u[label == 0].mean() > 0.8 > 0.4 > c.u[label == 1].mean()
+    assert _removed(scene, label, 0.3, u_def="dispersion")[1] < 30

@@ -1,4 +1,5 @@
-"""`harness methods [--json]`: the registered pruners, what they need and their typed parameters."""
+"""`harness methods [--json] [--docs]`: the registered pruners, what they need and their typed parameters
+(a reading parameter of the paper also shows its documentation; `--json` adds the sentence it reads)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,10 @@ HELP = "list the registered pruners (name, label, group, needs, parameters with 
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--json", action="store_true", help="print one JSON list")
+    parser.add_argument("--json", action="store_true", help="print one JSON list (with each parameter's doc and "
+                        "the paper sentence a reading parameter reads)")
+    parser.add_argument("--docs", action="store_true", help="show every parameter's documentation in the table "
+                        "(reading parameters always show theirs)")
 
 
 def describe() -> list[dict]:
@@ -19,7 +23,8 @@ def describe() -> list[dict]:
              "ablation": None if s.ablation is None else {"descriptors": s.ablation.descriptors,
                                                           "beta": s.ablation.beta},
              "summary": s.summary,
-             "params": {p.name: {"type": p.describe(), "default": p.default, "doc": p.doc}
+             "params": {p.name: {"type": p.describe(), "default": p.default, "doc": p.doc,
+                                 **({"reading": p.reading} if p.reading else {})}
                         for p in s.params.specs()}}
             for s in list_pruners()]
 
@@ -36,7 +41,8 @@ def run(args) -> int:
     for col in ("name", "group", "needs", "parameters", "summary"):
         table.add_column(col, overflow="fold")
     for r in rows:
-        params = "\n".join(f"{k} = {v['default']!r}  ({v['type']})" for k, v in r["params"].items()) or "-"
+        params = "\n".join(f"{k} = {v['default']!r}  ({v['type']})" + (f"\n  [dim]{v['doc']}[/]" if args.docs or "reading" in v else "")
+                           for k, v in r["params"].items()) or "-"
         table.add_row(f"{r['name']}\n[dim]{r['label']}[/]", r["group"], ", ".join(r["needs"]) or "-", params,
                       r["summary"])
     Console(width=160).print(table)

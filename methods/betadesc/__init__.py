@@ -2,18 +2,22 @@
 
 * ``betadesc``: HSFH neighbourhood descriptors at voxel level (voxel = fraction of the bounding-
   box diagonal), statistics s, ℓ, u interpolated to the splats with weight w, per-splat opacity o,
-  Eq. 6 evidence → Beta(A, B) retention posterior → score (default μ + γσ, μ = A/(A+B), the
+  Eq. 4 evidence → Beta(A, B) retention posterior → score (default μ + γσ, μ = A/(A+B), the
   erratum reading; ``score="literal"`` gives the paper's literal B/(A+B) + γσ).
-* ``betadesc-nodesc``: the same Beta model, but s, ℓ, u come from each splat's own parameters
-  (log-scale anisotropy for ℓ = 1 − u, colour/SH dispersion for s; see :mod:`.statistics`), w = 1 — no
-  neighbourhood, no voxels, no FPFH.
+* ``betadesc-nodesc``: the same Beta model and the same reading without neighbourhood descriptors.
+  Default ``nodesc_def="opacity-only"``: the s, ℓ, u terms are dropped, so the score is a monotone
+  function of the (normalised) opacity and ranks exactly like the ``opacity`` baseline up to ties —
+  this is what "without descriptors" leaves when the ablation may not carry information the full
+  method lacks. ``nodesc_def="param-stats"`` (the v1 ablation) replaces s, ℓ, u by per-splat proxies
+  (scale anisotropy, colour variance) that the full method does not use.
 * ``betadesc-nobeta``: the same descriptor statistics and evidence, ranked deterministically by
   the net evidence A − B (no posterior mean, no σ: evidence magnitude is not turned into
   confidence and uncertainty earns no bonus).
-* ``betadesc-nodesc-nobeta``: per-splat statistics ranked by A − B.
+* ``betadesc-nodesc-nobeta``: the no-descriptor statistics ranked by A − B.
 
-Camera-agnostic: when the context holds cameras (and ``view_weight`` > 0) the edge proxy of
-:mod:`.view_aware` adds retention evidence; otherwise it is off.
+Every variant takes the reading parameters of :mod:`.params` (``reading`` bundle: default,
+paper-literal, v1) with the same defaults. Camera-agnostic: when the context holds cameras (and
+``view_weight`` > 0) the edge proxy of :mod:`.view_aware` adds retention evidence; otherwise it is off.
 """
 
 from __future__ import annotations

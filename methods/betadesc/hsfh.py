@@ -42,7 +42,7 @@ class HSFH:
 
     def descriptor(self) -> np.ndarray:
         """The concatenated HSFH vector per voxel: [g (33) | f̄ (L+1) | h (3·B)]."""
-        return np.concatenate([self.geometric, self.spectrum, self.colour.reshape(self.grid.m, -1)], axis=1)
+        return np.concatenate([self.geometric, self.spectrum, self.colour.reshape(len(self.colour), -1)], axis=1)
 
     def adjacency(self) -> sparse.csr_matrix:
         m = self.grid.m

@@ -23,12 +23,18 @@ from methods.betadesc.grid import SplatGrid, cell_keys
 
 
 @numba.njit(cache=True)
-def _interpolate(t, splat_voxel, cells, neighbour, points, values, out, weight):
+def _interpolate(t, splat_voxel, cells, neighbour, points, values, out, weight, mode):
+    """mode 0 gauss, 1 trilinear, 2 nearest; ``weight`` receives the raw kernel mass ΣK."""
     n = t.shape[0]
     c = values.shape[1]
     acc = np.empty(c)
     for i in range(n):
         j0 = splat_voxel[i]
+        if mode == 2:
+            for q in range(c):
+                out[i, q] = values[j0, q]
+            weight[i] = 1.0
+            continue
         # stencil side per axis: cells floor(t − ½) + {0, 1} = own cell + {−1, 0} or {0, +1}
         s0 = 0 if t[i, 0] - cells[j0, 0] < 0.5 else 1
         s1 = 0 if t[i, 1] - cells[j0, 1] < 0.5 else 1
@@ -43,16 +49,21 @@ def _interpolate(t, splat_voxel, cells, neighbour, points, values, out, weight):
                     j = neighbour[j0, slot]
                     if j < 0:
                         continue
-                    r0 = t[i, 0] - points[j, 0]
-                    r1 = t[i, 1] - points[j, 1]
-                    r2 = t[i, 2] - points[j, 2]
-                    kern = np.exp(-0.5 * (r0 * r0 + r1 * r1 + r2 * r2))
+                    if mode == 0:
+                        r0 = t[i, 0] - points[j, 0]
+                        r1 = t[i, 1] - points[j, 1]
+                        r2 = t[i, 2] - points[j, 2]
+                        kern = np.exp(-0.5 * (r0 * r0 + r1 * r1 + r2 * r2))
+                    else:
+                        kern = ((1.0 - abs(t[i, 0] - cells[j, 0] - 0.5))
+                                * (1.0 - abs(t[i, 1] - cells[j, 1] - 0.5))
+                                * (1.0 - abs(t[i, 2] - cells[j, 2] - 0.5)))
                     ksum += kern
                     for q in range(c):
                         acc[q] += kern * values[j, q]
         for q in range(c):
             out[i, q] = acc[q] / ksum
-        weight[i] = min(1.0, ksum)
+        weight[i] = ksum
 
 
 def neighbour_table(grid: SplatGrid) -> tuple[np.ndarray, np.ndarray]:
@@ -70,14 +81,36 @@ def neighbour_table(grid: SplatGrid) -> tuple[np.ndarray, np.ndarray]:
     return cells, np.where(found, j, -1).astype(np.int64)
 
 
-def interpolate_to_splats(grid: SplatGrid, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per-splat values (N, C) and aggregation weights w (N,) from per-voxel ``values`` (M, C)."""
+KERNELS = {"gauss": 0, "trilinear": 1, "nearest": 2}
+W_MODES = ("clip-sum", "sum", "sum-median", "one")
+
+
+def aggregation_weight(mass: np.ndarray, mode: str) -> np.ndarray:
+    """w of Eq. 4 from the kernel mass ΣK per splat (see the module docstring)."""
+    mass = np.asarray(mass, dtype=np.float64)
+    if mode == "clip-sum":
+        return np.minimum(1.0, mass)
+    if mode == "sum":
+        return mass.copy()
+    if mode == "sum-median":
+        return mass / np.median(mass) if mass.size else mass.copy()
+    if mode == "one":
+        return np.ones_like(mass)
+    raise ValueError(f"unknown w_mode {mode!r}; known: {', '.join(W_MODES)}")
+
+
+def interpolate_to_splats(grid: SplatGrid, values: np.ndarray, kernel: str = "gauss",
+                          w_mode: str = "clip-sum") -> tuple[np.ndarray, np.ndarray]:
+    """Per-splat values (N, C) and aggregation weights w (N,) from per-voxel ``values`` (M, C);
+    the defaults are the v1 reading (Gaussian kernel, w = min(1, ΣK))."""
+    if kernel not in KERNELS:
+        raise ValueError(f"unknown kernel {kernel!r}; known: {', '.join(KERNELS)}")
     values = np.ascontiguousarray(values, dtype=np.float64)
     n = len(grid.t)
     out = np.zeros((n, values.shape[1]))
-    weight = np.zeros(n)
+    mass = np.zeros(n)
     if n:
         cells, neighbour = neighbour_table(grid)
         _interpolate(np.ascontiguousarray(grid.t), grid.splat_voxel, cells, neighbour,
-                     np.ascontiguousarray(grid.points), values, out, weight)
-    return out, weight
+                     np.ascontiguousarray(grid.points), values, out, mass, KERNELS[kernel])
+    return out, aggregation_weight(mass, w_mode)

@@ -1,16 +1,102 @@
 """BetaDescPrune's parameters, grouped by stage; each variant takes the groups its stages use.
 
-* descriptors (HSFH neighbourhoods): ``voxel``, ``radius_voxels``, ``max_nn``, ``colour_bins``;
-* evidence (Eq. 4 coefficients and the optional view-aware edge term): ``preset``, ``view_weight``;
+* statistics (every variant): ``reading`` (a named bundle of the reading choices below), ``o_norm``,
+  ``stat_norm``;
+* descriptors (HSFH neighbourhoods): ``voxel``, ``radius_voxels``, ``max_nn``, ``colour_bins`` and the
+  readings of ℓ, s, u, the voxel → splat ``kernel`` and the aggregation weight ``w_mode``;
+* no-descriptor statistics (the two ablations without descriptors): ``nodesc_def``;
+* evidence (Eq. 4 coefficients and the optional view-aware edge term): ``preset``, ``coeff_order``,
+  ``view_weight``;
 * Beta posterior and score: ``prior``, ``score``, ``gamma``, ``z``, ``q``.
+
+**The reading matrix.** The paper (``/work/shared/paper``, "L123" = its LaTeX line 123) leaves most of
+the statistics under-specified. Every such choice is a parameter whose ``reading`` metadata quotes
+the sentence it reads; ``harness methods`` prints them. ``reading`` picks a bundle of these choices as
+the base, and any axis given explicitly next to it overrides the bundle (``{reading: paper-literal,
+o_norm: rank}`` is paper-literal with rank-normalised opacity):
+
+* ``default``: the field defaults below, chosen by the pre-registered rule of
+  ``ctc_configs/reading.yaml`` (outcome in ``results/reading/selection.md``): paper-literal except
+  ``ell_def = nbhd-std`` (the only change that beat its incumbent beyond the CI on both selection
+  scenes);
+* ``paper-literal``: the most literal reading of every sentence (minmax normalisation, std/var
+  *across descriptor dimensions* for ℓ, s, u, w = the distance-weighted kernel sum), with the μ
+  erratum corrected (``score = ucb``: the sign-literal ``score = literal`` prunes the most
+  retention-worthy splats first, see :mod:`.scores`);
+* ``v1``: the project's first reading (results before issue 13 are re-made with it).
+
+Variants share the reading: an ablation takes the same bundle and the same values of the axes it
+has, so it differs from the full method only in the component the ablation removes.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal, Mapping
 
 from harness.core.params import Params, param
+
+L227 = ("L227-229: \"we compute a set of normalized scalar statistics s_i, ℓ_i, o_i, u_i ∈ [0,1] derived "
+        "from descriptor aggregation over its spatial neighborhood N(i)\"")
+L233 = ("L233-235: \"ℓ_i measures low geometric contrast, computed as the inverse normalized standard "
+        "deviation of the geometric descriptor block, such that homogeneous neighbourhoods yield high values\"")
+L236 = ("L236-238: \"s_i measures low-frequency appearance consistency, computed as the inverse normalized "
+        "variance of appearance-related descriptor components\"")
+L239 = "L239: \"o_i denotes the normalized splat opacity\" (with L227: all four are \"normalized … ∈ [0,1]\")"
+L240 = ("L240-242: \"u_i denotes a geometry uniqueness score, computed from the variability of descriptor "
+        "components across dimensions, with higher values indicating structurally distinctive neighbourhoods\"")
+L245 = ("L245: \"These statistics are accumulated as soft evidence in the Beta model using distance-weighted "
+        "aggregation in equation (4), where w denotes an aggregation weight\"")
+L313 = ("L313: \"Descriptors and statistics are computed at voxel level and interpolated to individual splats "
+        "by distance-based weighting\"")
+L248 = ("L248-249 (Eq. 4): \"B_i ← B_i + w(0.50 s_i + 0.35 ℓ_i + 0.20(1−o_i)) + 0.20(1−u_i), "
+        "A_i ← A_i + w(0.55 o_i) + 0.50 u_i\" (no initial A_i, B_i is given anywhere)")
+L254 = ("L254: \"The weighting coefficients (0.50, 0.35, 0.20) for B_i and (0.55, 0.50) for A_i … reflect the "
+        "relative importance of geometric homogeneity, appearance consistency, opacity, and structural "
+        "distinctiveness\" (prose order ℓ, s; Eq. 4 puts 0.50 on s)")
+L468 = ("L468: \"four preset configurations: baseline (B-coefficients: 0.50, 0.35, 0.20; A-coefficients: "
+        "0.55, 0.50), flat, opacity-heavy, and structure-heavy\" (values given for baseline only)")
+L384 = ("L384: \"(ii) pruning without descriptors but with Beta modelling\" (the statistics without "
+        "descriptors are not defined)")
+
+#: named bundles of reading choices (``reading`` parameter); ``default`` = the field defaults
+READINGS: dict[str, dict[str, Any]] = {
+    "default": {},
+    "paper-literal": {
+        "o_norm": "minmax", "stat_norm": "minmax", "u_def": "std-hsfh", "ell_def": "dims-std",
+        "s_def": "dims-var", "w_mode": "sum", "kernel": "gauss", "prior": 1.0, "coeff_order": "eq4",
+        "nodesc_def": "opacity-only", "preset": "baseline", "score": "ucb",
+    },
+    "v1": {
+        "o_norm": "sigmoid", "stat_norm": "robust", "u_def": "dispersion", "ell_def": "nbhd-std",
+        "s_def": "nbhd-var", "w_mode": "clip-sum", "kernel": "gauss", "prior": 1.0, "coeff_order": "eq4",
+        "nodesc_def": "param-stats", "preset": "baseline", "score": "ucb",
+    },
+}
+
+
+@dataclass(frozen=True)
+class StatisticsParams(Params):
+    reading: Literal["default", "paper-literal", "v1"] = param(
+        "default", doc="base bundle of reading choices (default = the rule-selected field defaults; "
+        "paper-literal; v1 = the project's first reading); axes given explicitly override the bundle",
+        reading="the paper leaves the statistics under-specified (L227-249, L313); see methods/betadesc/params.py")
+    o_norm: Literal["sigmoid", "minmax", "robust", "rank"] = param(
+        "minmax", doc="opacity normalisation over the splats: sigmoid (stored logit → [0,1] only, v1), "
+        "minmax, robust (P5-P95 min-max, clipped), rank (uniform ranks, ties averaged)", reading=L239)
+    stat_norm: Literal["robust", "minmax", "rank"] = param(
+        "minmax", doc="normalisation of the raw s, ℓ, u over their population (voxels; splats without "
+        "descriptors): robust P5-P95 min-max clipped (v1), minmax, rank", reading=L227)
+
+    @classmethod
+    def parse(cls, values: Mapping[str, Any] | None = None):
+        """The bundle named by ``values['reading']`` (default ``default``) under ``values``."""
+        if isinstance(values, Mapping):
+            name = values.get("reading", "default")
+            bundle = READINGS.get(name, {}) if isinstance(name, str) else {}
+            names = set(cls.names())
+            values = {**{k: v for k, v in bundle.items() if k in names}, **values}
+        return super().parse(values)
 
 
 @dataclass(frozen=True)
@@ -19,19 +105,52 @@ class DescriptorParams(Params):
     radius_voxels: float = param(5.0, gt=0, doc="FPFH neighbourhood radius, in voxels")
     max_nn: int = param(100, ge=1, doc="most neighbours per FPFH neighbourhood")
     colour_bins: int = param(8, ge=1, le=256, doc="bins per channel of the neighbourhood colour histogram")
+    ell_def: Literal["nbhd-std", "dims-std"] = param(
+        "nbhd-std", doc="raw ℓ before 1 − norm(·): nbhd-std = std of the geometric block over the "
+        "neighbourhood N(j) (v1); dims-std = std across the 33 dimensions of the voxel's own geometric block",
+        reading=L233)
+    s_def: Literal["nbhd-var", "dims-var"] = param(
+        "dims-var", doc="raw s before 1 − norm(·): nbhd-var = colour-histogram dispersion + band-power "
+        "variance over N(j) (v1); dims-var = variance across the appearance components [P_ℓ block | colour "
+        "histogram] of the voxel's HSFH", reading=L236)
+    u_def: Literal["dispersion", "std-geo", "std-hsfh"] = param(
+        "std-hsfh", doc="raw u before norm(·): dispersion = mean over angles of (1 − Σp²)/(10/11) (v1; "
+        "a decreasing affine function of std-geo); std-geo = std across the 33 geometric dimensions; "
+        "std-hsfh = std across the whole HSFH vector [g | P_ℓ | colour], each block summing to 1 per histogram",
+        reading=L240)
+    kernel: Literal["gauss", "trilinear", "nearest"] = param(
+        "gauss", doc="voxel → splat interpolation over the 2×2×2 stencil of occupied cells: gauss = "
+        "exp(−d²/2) of the distance (voxel units) to each voxel point (v1); trilinear = trilinear weights "
+        "of the cell centres; nearest = the splat's own voxel", reading=L313)
+    w_mode: Literal["clip-sum", "sum", "sum-median", "one"] = param(
+        "sum", doc="aggregation weight w of Eq. 4 from the kernel mass ΣK around the splat: clip-sum "
+        "min(1, ΣK) (v1; ≈ 1 almost everywhere), sum ΣK (w·x = the distance-weighted sum of the "
+        "neighbouring voxels' statistics), sum-median ΣK / median ΣK (ours), one (w = 1)", reading=L245)
+
+
+@dataclass(frozen=True)
+class NoDescStatisticsParams(Params):
+    nodesc_def: Literal["opacity-only", "param-stats"] = param(
+        "opacity-only", doc="statistics without descriptors: opacity-only = the s, ℓ, u terms are dropped "
+        "(no information the full method lacks; the ranking is then monotone in opacity), param-stats = "
+        "per-splat proxies from scale anisotropy and colour variance (v1; information the full method lacks)",
+        reading=L384)
 
 
 @dataclass(frozen=True)
 class EvidenceParams(Params):
     preset: Literal["baseline", "flat", "opacity-heavy", "structure-heavy"] = param(
-        "baseline", doc="evidence coefficients: baseline = the paper's; the others are this project's own")
+        "baseline", doc="evidence coefficients: baseline = the paper's Eq. 4; flat, opacity-heavy and "
+        "structure-heavy are this project's own invention (the paper names them without values)", reading=L468)
+    coeff_order: Literal["eq4", "prose"] = param(
+        "eq4", doc="eq4: 0.50 on s and 0.35 on ℓ as Eq. 4 writes; prose: swapped, as L254 lists them", reading=L254)
     view_weight: float = param(0.0, ge=0, doc="weight of the optional view-aware edge evidence (needs cameras; "
-                               "0 = camera-agnostic, the paper's setting)")
+                               "0 = camera-agnostic, the paper's setting; the weight is ours)")
 
 
 @dataclass(frozen=True)
 class BetaParams(Params):
-    prior: float = param(1.0, gt=0, doc="Beta prior A0 = B0")
+    prior: float = param(1.0, gt=0, doc="Beta prior A0 = B0 (not given in the paper; 1 = uniform)", reading=L248)
     score: Literal["ucb", "lcb", "quantile", "literal"] = param(
         "ucb", doc="ranking score: ucb μ+γσ (erratum reading), lcb μ−zσ, quantile BetaInvCDF(q), literal B/(A+B)+γσ")
     gamma: float = param(0.25, ge=0, doc="uncertainty weight γ of the ucb / literal scores")
@@ -40,20 +159,20 @@ class BetaParams(Params):
 
 
 @dataclass(frozen=True)
-class BetaDescParams(DescriptorParams, EvidenceParams, BetaParams):
+class BetaDescParams(StatisticsParams, DescriptorParams, EvidenceParams, BetaParams):
     """The full method: descriptors, evidence and the Beta score."""
 
 
 @dataclass(frozen=True)
-class NoDescParams(EvidenceParams, BetaParams):
+class NoDescParams(StatisticsParams, NoDescStatisticsParams, EvidenceParams, BetaParams):
     """No neighbourhood descriptors: evidence and the Beta score."""
 
 
 @dataclass(frozen=True)
-class NoBetaParams(DescriptorParams, EvidenceParams):
+class NoBetaParams(StatisticsParams, DescriptorParams, EvidenceParams):
     """Descriptors and evidence, ranked by net evidence (no Beta score)."""
 
 
 @dataclass(frozen=True)
-class EvidenceOnlyParams(EvidenceParams):
+class EvidenceOnlyParams(StatisticsParams, NoDescStatisticsParams, EvidenceParams):
     """Neither descriptors nor the Beta score."""

@@ -1,12 +1,23 @@
-"""BetaDescPrune end to end: statistics → Eq. 6 evidence → score, for the method and its ablations.
+"""BetaDescPrune end to end: statistics → Eq. 4 evidence → score, for the method and its ablations.
 
 Stages (timed when a caller wraps the run in :func:`harness.core.timing.record_stages`):
 ``voxels`` grid · ``descriptors`` normals + FPFH + neighbourhood appearance · ``statistics``
 ℓ, s, u (+ o) · ``interpolate`` voxel → splat · ``views`` optional camera features ·
 ``scores`` evidence and ranking score.
+
+Every reading choice comes from ``params`` (:mod:`methods.betadesc.params`); the ablations read the
+same attributes, so they share the full method's reading of everything they keep:
+
+* without descriptors, ``nodesc_def="opacity-only"`` drops the s, ℓ, u terms of Eq. 4 (w = 1); its
+  ranking is then a monotone function of opacity alone. ``"param-stats"`` (v1) uses per-splat
+  proxies (:func:`methods.betadesc.statistics.splat_statistics`) instead — information the full
+  method does not have;
+* without Beta, the score is the net evidence A − B of the same (A, B) (the prior cancels).
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -24,40 +35,77 @@ from methods.betadesc.statistics import (
 )
 
 
+@dataclass(frozen=True)
+class Components:
+    """Every per-splat quantity of one run (for diagnostics): statistics, evidence and the score.
+
+    ``voxel`` is each splat's voxel index (−1 without descriptors)."""
+
+    s: np.ndarray
+    ell: np.ndarray
+    o: np.ndarray
+    u: np.ndarray
+    w: np.ndarray
+    a: np.ndarray
+    b: np.ndarray
+    score: np.ndarray
+    voxel: np.ndarray
+
+
+def _nodesc_opacity_only(params) -> bool:
+    return getattr(params, "nodesc_def", "param-stats") == "opacity-only"
+
+
 def statistics(scene: GaussianScene, params, descriptors: bool) -> tuple[np.ndarray, ...]:
-    """Per-splat (s, ℓ, o, u, w): from HSFH neighbourhoods, or per splat (w = 1) without them."""
+    """Per-splat (s, ℓ, o, u, w, voxel index): from HSFH neighbourhoods, or per splat (w = 1)."""
+    n = len(scene)
     with stage("statistics"):
-        o = opacity_statistic(scene)
+        o = opacity_statistic(scene, params.o_norm)
     if not descriptors:
         with stage("statistics"):
-            ell, s, u = splat_statistics(scene).T
-        return s, ell, o, u, np.ones(len(scene))
+            if _nodesc_opacity_only(params):
+                ell = s = u = np.zeros(n)
+            else:
+                ell, s, u = splat_statistics(scene, params.stat_norm).T
+        return s, ell, o, u, np.ones(n), np.full(n, -1, dtype=np.int64)
     with stage("voxels"):
         grid = build_grid(scene.means, params.voxel)
     with stage("descriptors"):
         desc = compute_hsfh(scene, params.voxel, params.radius_voxels,
                             params.max_nn, params.colour_bins, grid=grid)
     with stage("statistics"):
-        per_voxel = voxel_statistics(desc)
+        per_voxel = voxel_statistics(desc, ell_def=params.ell_def, s_def=params.s_def,
+                                     u_def=params.u_def, norm=params.stat_norm)
     with stage("interpolate"):
-        per_splat, w = interpolate_to_splats(grid, per_voxel)
+        per_splat, w = interpolate_to_splats(grid, per_voxel, kernel=params.kernel, w_mode=params.w_mode)
     ell, s, u = per_splat.T
-    return s, ell, o, u, w
+    return s, ell, o, u, w, grid.splat_voxel
 
 
-def posterior(scene: GaussianScene, params, cameras, descriptors: bool,
-              prior: float) -> tuple[np.ndarray, np.ndarray]:
-    """Beta parameters (A, B) per splat (Eq. 6, plus the edge proxy when cameras are given)."""
-    s, ell, o, u, w = statistics(scene, params, descriptors)
+def coefficients(params, descriptors: bool) -> ev.Coefficients:
+    c = ev.preset(params.preset, params.coeff_order)
+    return ev.opacity_only(c) if not descriptors and _nodesc_opacity_only(params) else c
+
+
+def components(scene: GaussianScene, params, cameras=None, *, descriptors: bool = True,
+               beta: bool = True) -> Components:
+    """Every per-splat quantity of the run (:class:`Components`); ``score`` is what :func:`run` returns."""
+    s, ell, o, u, w, voxel = statistics(scene, params, descriptors)
     edge, edge_weight = 0.0, 0.0
     if cameras and params.view_weight > 0:
         from methods.betadesc.view_aware import edge_proxy
 
         with stage("views"):
             edge, edge_weight = edge_proxy(scene, cameras, o), params.view_weight
+    prior = getattr(params, "prior", 1.0)  # the Beta-free ablations: A − B does not depend on it
     with stage("scores"):
-        return ev.evidence(s, ell, o, u, w, ev.preset(params.preset), prior=prior,
+        a, b = ev.evidence(s, ell, o, u, w, coefficients(params, descriptors), prior=prior,
                            edge=edge, edge_weight=edge_weight)
+        if not beta:
+            score = a - b
+        else:
+            score = beta_score(a, b, params.score, gamma=params.gamma, z=params.z, q=params.q)
+    return Components(s=s, ell=ell, o=o, u=u, w=np.asarray(w, np.float64), a=a, b=b, score=score, voxel=voxel)
 
 
 def run(scene: GaussianScene, params, cameras=None, *, descriptors: bool = True,
@@ -65,9 +113,4 @@ def run(scene: GaussianScene, params, cameras=None, *, descriptors: bool = True,
     """Scores (N,) float64, higher = keep. ``beta=False`` ranks by net evidence A − B."""
     if len(scene) == 0:
         return np.zeros(0)
-    prior = getattr(params, "prior", 1.0)  # the Beta-free ablations keep the default prior
-    a, b = posterior(scene, params, cameras, descriptors, prior)
-    with stage("scores"):
-        if not beta:
-            return a - b
-        return beta_score(a, b, params.score, gamma=params.gamma, z=params.z, q=params.q)
+    return components(scene, params, cameras, descriptors=descriptors, beta=beta).score

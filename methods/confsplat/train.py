@@ -14,21 +14,46 @@ lr 1e-3 for both (batch size 1: lr·√1), eps 1e-15, betas (0.9, 0.999); that i
 
 Pruning-only variant (DESIGN.md "Baselines"): every other parameter is frozen and the target of each
 training view is the **unpruned** render of the same scene (computed once, no grad), so the gate learns
-which splats the scene's own images need. Score = c. Left out: their saliency rank loss
-(``rank_weight``) and the co-training of geometry, which need a training run.
+which splats the scene's own images need. Score = c. Left out: the co-training of geometry and SH,
+which needs a training run.
+
+**Saliency rank loss** (their ``trainer.py``; two versions, both parameters here):
+
+* saliency: after every backward, S_j += mean_{k,ch} |∂L/∂c^SH_{j,k,ch}| over the splat's K = (d+1)²
+  SH coefficients (``sh0`` and ``shN`` grads). With frozen SH we compute it from the colour gradient of
+  the pair renderer: colour_j = max(Σ_k Y_k(dir_j) c_{j,k} + ½, 0), so |∂L/∂c_{j,k,ch}| =
+  |Y_k(dir_j)|·|∂L/∂colour_{j,ch}| (0 where the clamp is active), and the mean over (k, ch) is
+  (mean_k |Y_k|)·(mean_ch |∂L/∂colour_ch|). Splats a view does not see get 0.
+* every ``rank_interval`` (25) steps from ``rank_start_step``, *before* the step's backward: H = the
+  K = min(``rank_pairs``, N) most salient splats, L = the K least salient (each sorted; ties by lowest
+  index, where their ``topk`` is unspecified), paired by rank; loss += ``rank_weight`` ·
+  mean_k relu(m + c_{L_k} − c_{H_k}); then the buffer is zeroed (the step's own saliency is added after).
+  Weight 1.0, 2048 pairs. Margin m and start: **1.0 from step 0 in the code of the paper's era**
+  (``e801512``, 2025-07-06; with c ∈ (0, 1) the hinge is always active: a constant push of 1/K per
+  pair and step) — the default here — and **0.10 from step 1000 at HEAD** (``e7343b2``; HEAD's 1000 is
+  a warm-up of their 30k joint steps, which a post-hoc run on a trained scene is past, and literally
+  it would switch the loss off in a 600-step run). A rank step whose buffer is all zero (the very first
+  at step 0) is skipped, as HEAD's guard does (the 2025 code would pair arbitrary tied splats).
+
+  Two consequences worth knowing (both tested): with N ≤ ``rank_pairs`` every splat is in both halves
+  and, the margin-1.0 hinge being always active, its −1/K and +1/K cancel exactly (a no-op on scenes
+  under 2048 splats); and under Adam a rank step is a rare spike in a splat's gradient that inflates
+  its second moment, so for splats whose other gradients are small (the unseen ones: only the
+  regularisers) it *damps* the following steps — over ~100 steps they fall less far than without
+  the loss, although each rank step's gradient points down for them.
 
 Readings decided here:
 
 * Rendering: the reference rasterizer's projection and α tests at reduced resolution
-  (``train_longest_side``, default 128) through :mod:`renderers.pixel_pairs`, whose image and opacity gradient equal the tile
+  (``train_longest_side``, default 128) through :mod:`renderers.pixel_pairs`, whose image, opacity and colour gradients equal the tile
   rasterizer's (tested) at a fraction of the cost; black background; ``early_stop`` false as the
   harness renderers. SSIM is the 3DGS window (11×11, σ = 1.5, zero padding) of
   :func:`harness.metrics.ssim.ssim_map` with a differentiable banded-matmul blur (:func:`blur_matmul`),
   on unclamped images as their training loss.
 * One view per step (their batch size 1), in a fixed order: one permutation of the training views per
-  epoch from ``numpy.random.default_rng(seed)``. ``iterations`` steps, or fewer if the optimisation
-  loop (set-up excluded) exceeds ``time_budget_s``; only the iteration budget is deterministic, so
-  the defaults are sized for the iteration budget to bind.
+  epoch from ``numpy.random.default_rng(seed)``. ``iterations`` steps; no wall-clock budget by default.
+  With ``time_budget_s`` set, fewer if the optimisation loop (set-up excluded) exceeds it: the result
+  then records ``stopped_by_budget`` and the ``iterations`` done (a lower bound; logged as a warning).
 * A splat invisible from every training view never enters a rendered pair, so its image gradient is
   exactly zero; only the sparsity and entropy terms move it (c falls from 0.5), while splats the
   images need rise above 0.5.
@@ -55,6 +80,7 @@ from renderers.pixel_pairs import (
     torch_threads,
 )
 from renderers.projection import SplatTensors, project_gaussians
+from renderers.sh import sh_basis
 
 log = logging.getLogger(__name__)
 
@@ -67,6 +93,9 @@ class _View:
     ids: torch.Tensor  # (M,) scene index of the visible splats
     base: torch.Tensor  # (M,) sigmoid(opacity_logit) of those splats
     target: torch.Tensor  # (H, W, 3) unpruned render
+    colors: torch.Tensor  # (M, 3) the pairs' colours (SH colour + ½, clamped at 0)
+    sal_scale: torch.Tensor  # (M,) mean_k |Y_k(dir)| over the K SH coefficients (saliency factor)
+    unclamped: torch.Tensor  # (M, 3) colour above the clamp at 0 (the SH gradient passes)
 
 
 @dataclass
@@ -75,6 +104,9 @@ class ConfidenceResult:
     losses: list[float] = field(default_factory=list)  # total loss of every step (its view)
     views: list[int] = field(default_factory=list)  # the view of every step
     iterations: int = 0
+    stopped_by_budget: bool = False
+    rank_steps: int = 0  # rank-loss steps applied
+    rank_losses: list[float] = field(default_factory=list)
     setup_s: float = 0.0
     optimise_s: float = 0.0
 
@@ -97,8 +129,32 @@ def prepare_views(scene: GaussianScene, cameras, longest_side: int, *, early_sto
             proj = project_gaussians(st, view)
         pairs = build_pairs(proj)
         target = torch.from_numpy(composite(pairs, early_stop=early_stop).image)
-        views.append(_View(pairs, torch.from_numpy(pairs.ids), torch.from_numpy(pairs.opacities), target))
+        ids = torch.from_numpy(pairs.ids)
+        dirs = st.means[ids.to(st.device)].double().cpu() - torch.as_tensor(view.center, dtype=torch.float64)
+        dirs = dirs / torch.linalg.vector_norm(dirs, dim=-1, keepdim=True).clamp_min(1e-30)
+        scale = sh_basis(dirs, st.sh_degree).abs().mean(dim=1).float()
+        colors = torch.from_numpy(pairs.colors)
+        views.append(_View(pairs, ids, torch.from_numpy(pairs.opacities), target, colors, scale, colors > 0))
     return views
+
+
+def rank_pairs(saliency: torch.Tensor, k: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """(H, L): the ``k`` most and least salient indices, each sorted, ties by lowest index."""
+    k = min(k, saliency.numel())
+    hi = torch.sort(saliency, descending=True, stable=True).indices[:k]
+    lo = torch.sort(saliency, stable=True).indices[:k]
+    return hi, lo
+
+
+def view_saliency(v: _View, colour_grad: torch.Tensor) -> torch.Tensor:
+    """mean_{k,ch} |∂L/∂c^SH_{j,k,ch}| of the view's visible splats from dL/dcolour (M, 3) (module doc)."""
+    return (colour_grad.abs() * v.unclamped).mean(dim=1) * v.sal_scale
+
+
+def rank_loss(c: torch.Tensor, saliency: torch.Tensor, k: int, margin: float) -> torch.Tensor:
+    """mean_k relu(margin + c[L_k] − c[H_k]) over the rank-paired most/least salient splats."""
+    hi, lo = rank_pairs(saliency, k)
+    return F.relu(margin + c[lo] - c[hi]).mean()
 
 
 def _band(n: int, taps: np.ndarray, dtype) -> torch.Tensor:
@@ -156,12 +212,16 @@ def optimise_confidence(scene: GaussianScene, cameras, params=None, *, seed: int
             a = torch.full((n,), float(p["init"]), dtype=torch.float32, requires_grad=True)
             b = torch.full((n,), float(p["init"]), dtype=torch.float32, requires_grad=True)
             opt = torch.optim.Adam([a, b], lr=float(p["lr"]), eps=1e-15, betas=(0.9, 0.999))
+            rank_w = float(p["rank_weight"])
+            saliency = torch.zeros(n, dtype=torch.float64)
+            budget = p["time_budget_s"]
             t1 = time.perf_counter()
             queue: list[int] = []
             for it in range(int(p["iterations"])):
-                if it and time.perf_counter() - t1 > float(p["time_budget_s"]):
-                    log.warning("confsplat: time budget %.0f s reached after %d of %d iterations",
-                                float(p["time_budget_s"]), it, int(p["iterations"]))
+                if it and budget is not None and time.perf_counter() - t1 > float(budget):
+                    result.stopped_by_budget = True
+                    log.warning("confsplat: time budget %.0f s reached after %d of %d iterations: the result is "
+                                "a lower bound (%d iterations)", float(budget), it, int(p["iterations"]), it)
                     break
                 if not queue:
                     queue = [int(i) for i in order_rng.permutation(len(views))]
@@ -169,13 +229,23 @@ def optimise_confidence(scene: GaussianScene, cameras, params=None, *, seed: int
                 v = views[vi]
                 result.views.append(vi)
                 c, al, be = beta_gate(a, b)
-                img = render_pairs(v.pairs, v.base * c[v.ids], early_stop=early_stop)
+                colors = v.colors.clone().requires_grad_(True) if rank_w > 0 else None
+                img = render_pairs(v.pairs, v.base * c[v.ids], early_stop=early_stop, colors=colors)
                 loss = image_loss(img, v.target, lam) + lam_s * c.mean()
                 if lam_e:
                     loss = loss + lam_e * torch.distributions.Beta(al, be).entropy().mean()
+                if rank_w > 0 and it >= int(p["rank_start_step"]) and it % int(p["rank_interval"]) == 0:
+                    if bool((saliency > 0).any()):
+                        lr_ = rank_loss(c, saliency, int(p["rank_pairs"]), float(p["rank_margin"]))
+                        loss = loss + rank_w * lr_
+                        result.rank_steps += 1
+                        result.rank_losses.append(float(lr_.detach()))
+                    saliency.zero_()
                 opt.zero_grad(set_to_none=True)
                 loss.backward()
                 opt.step()
+                if colors is not None:
+                    saliency.index_add_(0, v.ids, view_saliency(v, colors.grad).double())
                 result.losses.append(float(loss.detach()))
                 result.iterations = it + 1
             result.optimise_s = time.perf_counter() - t1
