@@ -162,3 +162,28 @@ def test_the_checks_can_fail():
     modules = project_modules()
     lazy = imports_of("harness.commands.prune", modules["harness.commands.prune"], modules)
     assert any(d.startswith("methods") for d in lazy)  # imported inside run(), still seen
+
+
+def test_every_imported_name_exists():
+    """`from a.b import c` anywhere in the project (inside functions too) names something a.b has:
+    a lazy import of a name that was moved or renamed fails here, not in a user's run."""
+    import importlib
+
+    modules = project_modules()
+    bad = []
+    for name, path in sorted(modules.items()):
+        package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if not isinstance(node, ast.ImportFrom):
+                continue
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")
+                base = ".".join(anchor[: len(anchor) - node.level + 1] + ([base] if base else []))
+            if base.split(".")[0] not in ROOTS:
+                continue
+            mod = importlib.import_module(base)
+            for alias in node.names:
+                if not hasattr(mod, alias.name) and f"{base}.{alias.name}" not in modules:
+                    bad.append(f"{name}: from {base} import {alias.name}")
+    assert not bad, "imports of names that do not exist:\n" + "\n".join(bad)

@@ -2,7 +2,7 @@
 
 1. **Scoring time**: every registered pruner (or ``--methods``) scores ``--scene`` (default
    bonsai-7k-mini) once; camera-aware pruners get the training views of the scene's default rig
-   (:func:`harness.views.rigs.default_rig`, 48 training views at 1024 px; each pruner resizes them to its own
+   (:func:`harness.views.rigs.scene_rig`, 48 training views at 1024 px; each pruner resizes them to its own
    ``longest_side``). Wall and process CPU seconds per method, with the load average, since the
    machine is shared.
 2. **Quality** (``--quality``): at ``--ratio`` (default 30 %) for lightgs, confsplat, opacity, random
@@ -107,8 +107,9 @@ def _markdown(scene_name: str, n: int, n_train: int, timings: dict, quality: dic
 def run(args) -> int:
     from harness.benchmarks._common import write_result
     from harness.core.errors import InputError
+    from harness.io.datasets import identify
     from harness.io.scenes import load_scene
-    from harness.views.rigs import default_rig
+    from harness.views.rigs import scene_rig
     from methods import list_pruners
 
     logging.getLogger("methods").setLevel(logging.INFO)  # confsplat reports its iterations
@@ -121,7 +122,7 @@ def run(args) -> int:
         raise InputError("--methods", f"unknown pruner(s) {', '.join(unknown)}; known: {', '.join(known)}")
     if not 0.0 <= args.ratio < 1.0:
         raise InputError("--ratio", f"must be in [0, 1), got {args.ratio}")
-    rig = default_rig(args.scene, scene, seed=args.seed)
+    rig = scene_rig(identify(args.scene), scene, seed=args.seed)
     timings, scores = _score_all(scene, rig, names, args.seed)
     quality = _quality(scene, rig, scores, args.ratio, max(1, args.test_views), args.renderer) if args.quality else None
     payload = {"scene": args.scene, "splats": len(scene), "rig": rig.rig, "train_views": len(rig.train),

@@ -34,11 +34,12 @@ def _measure(backend: str, scene_name: str, views: int, device) -> dict:
     import torch
 
     from harness.benchmarks._common import peak_rss_mb
+    from harness.io.datasets import identify
     from harness.io.scenes import load_scene
-    from harness.views.rigs import default_rig
+    from harness.views.rigs import scene_rig
 
     scene = load_scene(scene_name)
-    cams = default_rig(scene_name, scene).test[:views]
+    cams = scene_rig(identify(scene_name), scene).test[:views]
     try:
         from renderers import get_renderer
 

@@ -118,6 +118,7 @@ def run(args) -> int:
     )
     from harness.core.errors import InputError
     from harness.core.paths import results_dir
+    from harness.io.datasets import identify
     from harness.io.scenes import load_scene
     from harness.metrics.lpips_vgg import LpipsVGG
     from harness.report.machine import describe_machine as machine
@@ -139,7 +140,7 @@ def run(args) -> int:
     rows, default_scores = prune_knobs(scene, families, args.repeats)
     print(f"  pruning knobs: {len(rows)} settings")
     pruned = scene.subset(select_by_ratio(default_scores, 0.3).keep)
-    cams = scene_rig(str(args.scene), scene, n_train=0, n_test=args.views, longest_side=max(sides)).test
+    cams = scene_rig(identify(args.scene), scene, n_train=0, n_test=args.views, longest_side=max(sides)).test
     ev = Evaluator(scene, pruned, cams, LpipsVGG(device="cpu"), LpipsVGG(device="cpu", precision="bfloat16"))
     try:
         rows += eval_knobs(ev, sides, lp_sides, r_side)

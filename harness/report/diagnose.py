@@ -128,10 +128,11 @@ def diagnose(scene: GaussianScene, method: str, params: dict, ratio: float, sign
 def training_views(name: str, scene: GaussianScene, *, n_train: int = 16, n_test: int = 12,
                    longest_side: int = 384, seed: int = 0):
     """The training cameras of the scene's default rig (as ``harness run`` builds them)."""
-    from harness.views.rigs import default_rig
+    from harness.io.datasets import identify
+    from harness.views.rigs import scene_rig
 
-    return list(default_rig(name, scene, n_train=n_train, n_test=n_test, longest_side=longest_side,
-                            seed=seed).train)
+    return list(scene_rig(identify(name), scene, n_train=n_train, n_test=n_test, longest_side=longest_side,
+                          seed=seed).train)
 
 
 def lightgs_significance(scene: GaussianScene, cameras, *, longest_side: int = 512,

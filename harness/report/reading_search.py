@@ -1,7 +1,8 @@
 """The pre-registered greedy selection of BetaDescPrune's reading (rule: ``ctc_configs/reading.yaml``).
 
 Pure functions over a run config's raw mapping and the tidy results of its runs; the driver that
-runs the stages is ``tools/reading_search.py``.
+runs the stages is ``harness bench reading`` (:mod:`harness.benchmarks.reading`; named
+tools/reading_search.py when the rule was pre-registered in commit 70c2edb).
 
 * :func:`search_space` reads the rule's start (the ``params`` of the first sweep entry of
   ``method``) and the axes (one per sweep entry, in file order; the start's value first).
