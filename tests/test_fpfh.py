@@ -156,17 +156,16 @@ def test_fpfh_matches_open3d_on_grape_small():
     if not path.exists():
         pytest.skip(f"shared data folder absent ({path})")
     from harness.io.scenes import load_scene
+    from methods.betadesc.grid import build_grid
     from methods.betadesc.normals import voxel_normals
-    from methods.betadesc.voxel import voxel_downsample
 
     scene = load_scene(path)
-    diag = float(np.linalg.norm(np.ptp(scene.means.astype(np.float64), axis=0)))
-    grid = voxel_downsample(scene.means, 0.015 * diag)
-    normals = voxel_normals(grid, scene.quats, scene.scales_log)
-    radius = 5 * grid.voxel
+    grid = build_grid(scene.means, 0.015)  # coordinates in voxels
+    normals = voxel_normals(grid, scene.quats, scene.scales_log, 5.0)
+    radius = 5.0
     ours = compute_fpfh(grid.points, normals, radius, 64)
     ref = _o3d_fpfh(grid.points, normals, radius, 64)
-    assert len(grid) > 200
+    assert grid.m > 200
     assert np.abs(ours - ref).max() <= TOL
 
 

@@ -122,12 +122,13 @@ def _fpfh_vs_open3d(scene_name: str, repeats: int) -> dict:
     from methods import get_pruner
     from methods.betadesc import backend
     from methods.betadesc.grid import build_grid
+    from methods.betadesc.normals import voxel_normals
 
     params = get_pruner("betadesc").parse_params()
     scene = load_scene(scene_name)
     grid = build_grid(scene.means, params.voxel)
     radius, max_nn = params.radius_voxels, params.max_nn
-    normals = backend.voxel_normals(grid, scene.quats, scene.scales_log, radius)
+    normals = voxel_normals(grid, scene.quats, scene.scales_log, radius)
 
     def ours_fpfh():  # search + FPFH, as the pipeline runs them
         return backend.fpfh(grid.points, normals, backend.neighbourhood(grid.points, radius, max_nn))

@@ -11,9 +11,9 @@ Splat i lies in cell ``floor(t_i)``; occupied cells are numbered in increasing o
 Exactness: every per-voxel sum is a sum of *integer-valued* float64 numbers (quantities in [-1, 1]
 quantised to a fixed point of 2⁻²⁴ before summing). Such sums are exact below 2⁵³ (2²⁹ members),
 so they do not depend on summation order: permuting the splats permutes nothing at
-voxel level, and results are bit-identical for any thread count. (This is why the pipeline does
-not use :mod:`methods.betadesc.voxel`, whose voxel points are float sums in splat order and so
-move by rounding when the splats are permuted.)
+voxel level, and results are bit-identical for any thread count. This is the project's one voxel
+grid: descriptors, normals (:func:`methods.betadesc.normals.voxel_normals`), interpolation and the
+benchmarks all use it.
 """
 
 from __future__ import annotations
@@ -89,9 +89,11 @@ def occupied_cells(key: np.ndarray, n_cells: int) -> tuple[np.ndarray, np.ndarra
 
 def build_grid(means: np.ndarray, voxel: float) -> SplatGrid:
     """Voxelise splat centres with edge ``voxel × bounding-box diagonal``."""
-    if not voxel > 0:
+    if not (np.isfinite(voxel) and voxel > 0):
         raise ValueError(f"voxel must be a positive fraction of the bounding-box diagonal, got {voxel}")
     x = np.asarray(means, dtype=np.float64)
+    if x.ndim != 2 or x.shape[1] != 3 or len(x) == 0 or not np.all(np.isfinite(x)):
+        raise ValueError(f"need a non-empty (N, 3) array of finite splat centres, got shape {x.shape}")
     lo = x.min(axis=0)
     hi = x.max(axis=0)
     diag = float(np.linalg.norm(hi - lo))

@@ -26,6 +26,7 @@ from scipy import sparse
 from harness.core.scene import SH_C0, GaussianScene
 from methods.betadesc import backend
 from methods.betadesc.grid import FIXED, SplatGrid, build_grid
+from methods.betadesc.normals import voxel_normals
 
 BINS_PER_ANGLE = 11
 
@@ -86,7 +87,7 @@ def compute_hsfh(scene: GaussianScene, voxel: float, radius_voxels: float, max_n
                          f"{radius_voxels}, {max_nn}, {bins}")
     grid = build_grid(scene.means, voxel) if grid is None else grid
     m = grid.m
-    normals = backend.voxel_normals(grid, scene.quats, scene.scales_log, radius_voxels)
+    normals = voxel_normals(grid, scene.quats, scene.scales_log, radius_voxels)
     nbh = backend.neighbourhood(grid.points, radius_voxels, max_nn)
     geometric = normalise_fpfh(backend.fpfh(grid.points, normals, nbh))
     indptr, indices = backend.csr(nbh)

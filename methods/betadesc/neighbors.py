@@ -38,8 +38,6 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
-from methods.betadesc.voxel import as_points
-
 _MAX_CELLS = 1 << 22  # dense grid size cap (32 MiB of int64 cell starts)
 _GUESS_GROWTH = 1.3  # first-try ball: 1.3 × the previous query's k-th d²
 _RETRY_GROWTH = 3.0  # a ball with too few points is retried with 3× the d² bound (at most r²)
@@ -335,6 +333,16 @@ def _hybrid_kernel(points, lo, h, dims, order, starts, r2, max_nn, slack, out_id
                 n = _scan_ball(q, points, spx, spy, spz, order, lo, h, dims, starts, rr2, slack, buf_d, buf_r)
             kth = _finish_query(q, buf_d, buf_r, n, max_nn, rr2, tmp_d, tmp_r, out_idx, out_cnt)
             guess = kth if kth < math.inf else r2
+
+
+def as_points(points) -> np.ndarray:
+    """``points`` as a contiguous float64 (N, 3) array; ValueError for another shape or NaN/inf."""
+    p = np.ascontiguousarray(points, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise ValueError(f"points must be (N, 3), got {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise ValueError("points contain NaN or inf")
+    return p
 
 
 def hybrid_search(points: np.ndarray, radius: float, max_nn: int) -> Neighborhood:

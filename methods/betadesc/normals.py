@@ -4,26 +4,19 @@ Per splat the normal is the column of R (quaternion wxyz, normalised) belonging 
 (``argmin scales_log``; the first axis wins an exact tie): a trained splat on a surface is a flat
 disc whose thin axis is the surface normal. Its sign is meaningless.
 
-Per voxel, the sign-invariant aggregate is the principal eigenvector of the weighted scatter
-``C = Σ wᵢ nᵢ nᵢᵀ`` over the members (the axis best aligned with all member normals, i.e. the
-minimiser of Σ wᵢ (1 − (n·nᵢ)²)); ``weights`` default to 1 and a voxel whose weights sum to 0 uses
-1 for its members. The eigenvector's sign is then made canonical (largest-magnitude component
-positive) before orientation, so the result does not depend on LAPACK's sign choice.
+Per voxel (the cells of :mod:`methods.betadesc.grid`), the sign-invariant aggregate is the
+principal eigenvector of the members' mean tensor ``T = mean nᵢ nᵢᵀ`` (the axis best aligned with all
+member normals, i.e. the minimiser of Σ (1 − (n·nᵢ)²)), its sign made canonical (largest-magnitude
+component positive) so that the result does not depend on LAPACK's sign choice.
 
 Orientation matters because FPFH is not sign invariant: flipping one normal of a pair changes
-α, φ and θ, and flipping *all* normals mirrors the α and θ histograms. Conventions (``orient``):
-
-* ``"mst"`` (default, Hoppe et al. 1992, as open3d's ``orient_normals_consistent_tangent_plane``):
-  on the graph of each point's ``orient_nn`` nearest neighbours within ``orient_radius``, a minimum
-  spanning tree with edge cost ``2 − |nᵢ·nⱼ|`` (in [1, 2]: the +1 keeps zero costs out of scipy's
-  sparse graph and does not change which tree is minimal), traversed breadth first from one root
-  per connected component; a child is flipped when ``n_child·n_parent < 0``. Each root is the
-  component's point farthest from the cloud centroid, oriented away from the centroid — where the
-  radial direction is most reliable. Neighbouring normals on a smooth surface then agree, which is
-  what the SPFH pair angles need; cost ~ O(M k log M) in scipy + one search.
-* ``"centroid"``: every normal points away from the centroid of the voxel points (``n·(p − c) ≥ 0``).
-  Cheap, but inconsistent wherever the surface is tangent to the radial direction.
-* ``"none"``: the canonical signs only.
+α, φ and θ, and flipping *all* normals mirrors the α and θ histograms. :func:`orient_mst` (Hoppe
+et al. 1992, as open3d's ``orient_normals_consistent_tangent_plane``): on the graph of each point's
+``ORIENT_NN`` nearest neighbours within the radius, a minimum spanning tree with edge cost
+``2 − |nᵢ·nⱼ|`` (in [1, 2]: the +1 keeps zero costs out of scipy's sparse graph and does not change
+which tree is minimal), traversed breadth first from one root per connected component; a child is
+flipped when ``n_child·n_parent < 0``. Each root is the component's point farthest from the cloud
+centroid, oriented away from the centroid — where the radial direction is most reliable.
 """
 
 from __future__ import annotations
@@ -39,10 +32,9 @@ from scipy.sparse.csgraph import (
     minimum_spanning_tree,
 )
 
+from methods.betadesc.grid import SplatGrid
 from methods.betadesc.neighbors import hybrid_search
-from methods.betadesc.voxel import VoxelGrid
 
-ORIENTATIONS = ("mst", "centroid", "none")
 #: neighbours (besides the point itself) of the orientation graph
 ORIENT_NN = 10
 
@@ -125,58 +117,27 @@ def _quat_axes(quat, s):
     return out
 
 
-@nb.njit(cache=True, fastmath=False)
-def _scatter(nrm, s2v, w, m):
-    """C_v = Σ wᵢ nᵢnᵢᵀ per voxel, in splat-index order; voxels with Σw = 0 use wᵢ = 1."""
-    wsum = np.zeros(m)
-    for i in range(len(s2v)):
-        wsum[s2v[i]] += w[i]
-    c = np.zeros((m, 3, 3))
-    for i in range(len(s2v)):
-        v = s2v[i]
-        wi = w[i] if wsum[v] > 0.0 else 1.0
-        for a in range(3):
-            for b in range(3):
-                c[v, a, b] += wi * nrm[i, a] * nrm[i, b]
-    return c
+_PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
 
 
-def voxel_normals(
-    grid: VoxelGrid,
-    rotations: np.ndarray,
-    scales_log: np.ndarray,
-    weights: np.ndarray | None = None,
-    orient: str = "mst",
-    orient_radius: float | None = None,
-    orient_nn: int = ORIENT_NN,
-) -> np.ndarray:
-    """Unit normals (M, 3) float64 of the voxel points (see the module docstring).
-
-    ``weights`` (N,) non-negative, e.g. opacities; ``orient_radius`` (default 5 voxels) and
-    ``orient_nn`` define the MST graph of ``"mst"``.
-    """
-    if orient not in ORIENTATIONS:
-        raise ValueError(f"orient must be one of {ORIENTATIONS}, got {orient!r}")
-    n_splat = len(grid.splat_to_voxel)
-    nrm = splat_normals(rotations, scales_log)
-    if len(nrm) != n_splat:
-        raise ValueError(f"{len(nrm)} splat normals for a grid of {n_splat} splats")
-    w = np.ones(n_splat) if weights is None else np.ascontiguousarray(weights, dtype=np.float64)
-    if w.shape != (n_splat,) or not np.all(np.isfinite(w)) or np.any(w < 0):
-        raise ValueError("weights must be (N,) finite and non-negative")
-    if len(grid) == 0:
+def voxel_normals(grid: SplatGrid, quats: np.ndarray, scales_log: np.ndarray, radius: float) -> np.ndarray:
+    """Consistently oriented unit normals (M, 3) of the voxel points: the principal eigenvector of
+    the members' mean tensor ``T_j = mean_i n_i n_iᵀ`` (summed with the grid's exact fixed-point sums,
+    so a permutation of the splats leaves every normal bit-identical), canonical sign, then MST
+    orientation with radius ``radius`` (voxels)."""
+    if len(scales_log) != len(grid.t):
+        raise ValueError(f"{len(scales_log)} splats for a grid of {len(grid.t)}")
+    if grid.m == 0:
         return np.zeros((0, 3))
-    _, vecs = np.linalg.eigh(_scatter(nrm, grid.splat_to_voxel, w, len(grid)))
-    out = np.ascontiguousarray(vecs[:, :, 2])
-    big = np.abs(out).argmax(axis=1)
-    out *= np.where(out[np.arange(len(out)), big] < 0, -1.0, 1.0)[:, None]
-    if orient == "centroid":
-        away = np.einsum("ij,ij->i", out, grid.points - grid.points.mean(axis=0))
-        out *= np.where(away < 0, -1.0, 1.0)[:, None]
-    elif orient == "mst":
-        radius = 5.0 * grid.voxel if orient_radius is None else float(orient_radius)
-        out = orient_mst(grid.points, out, radius, orient_nn)
-    return out
+    n = splat_normals(quats, scales_log)
+    mean = grid.voxel_mean(np.stack([n[:, a] * n[:, b] for a, b in _PAIRS], axis=1))
+    tensor = np.empty((grid.m, 3, 3))
+    for c, (a, b) in enumerate(_PAIRS):
+        tensor[:, a, b] = tensor[:, b, a] = mean[:, c]
+    normals = np.ascontiguousarray(np.linalg.eigh(tensor)[1][:, :, 2])
+    big = normals[np.arange(grid.m), np.abs(normals).argmax(axis=1)]
+    normals *= np.where(big < 0, -1.0, 1.0)[:, None]
+    return orient_mst(grid.points, normals, radius)
 
 
 def orient_mst(points: np.ndarray, normals: np.ndarray, radius: float, k: int = ORIENT_NN) -> np.ndarray:
