@@ -83,22 +83,25 @@ def summary(values, near, metric: str) -> dict:
             "n": int(v.size), "n_near_identical": int(near.sum())}
 
 
-def paired(cur: pd.DataFrame, ref: pd.DataFrame, metric: str, keys=("frame", "view")) -> dict:
-    """Mean paired difference cur − ref of ``metric`` over the views both have (matched on
-    ``keys``), its bootstrap CI, the number of pairs used and of pairs left out as near-identical.
-    ``cur`` and ``ref`` carry a boolean ``near`` column (:func:`near_identical`)."""
+def paired_diffs(cur: pd.DataFrame, ref: pd.DataFrame, metric: str, keys=("frame", "view")) -> tuple[np.ndarray, int]:
+    """Per-view differences cur − ref of ``metric`` over the views both have (matched on ``keys``)
+    and the number of pairs left out as near-identical (dB metrics). ``cur`` and ``ref`` carry a
+    boolean ``near`` column (:func:`near_identical`)."""
     keys = [k for k in keys if k in cur and k in ref]
-    a = cur[keys + [metric, "near"]]
-    b = ref[keys + [metric, "near"]]
-    j = a.merge(b, on=keys, suffixes=("", "_ref"))
+    j = cur[keys + [metric, "near"]].merge(ref[keys + [metric, "near"]], on=keys, suffixes=("", "_ref"))
     d = (pd.to_numeric(j[metric], errors="coerce") - pd.to_numeric(j[f"{metric}_ref"], errors="coerce")).to_numpy()
     excluded = (j["near"] | j["near_ref"]).to_numpy(dtype=bool) if is_db(metric) else np.zeros(len(j), bool)
-    use = ~excluded & np.isfinite(d)
-    d = d[use]
+    return d[~excluded & np.isfinite(d)].astype(np.float64), int(excluded.sum())
+
+
+def paired(cur: pd.DataFrame, ref: pd.DataFrame, metric: str, keys=("frame", "view")) -> dict:
+    """Mean paired difference (:func:`paired_diffs`), its bootstrap CI, the number of pairs used and
+    of pairs left out as near-identical."""
+    d, excluded = paired_diffs(cur, ref, metric, keys)
     lo, hi = bootstrap_ci(d)
     return {"delta": float(d.mean()) if d.size else np.nan, "ci_low": lo, "ci_high": hi,
             "delta_median": float(np.median(d)) if d.size else np.nan,
-            "n_pairs": int(d.size), "n_pairs_excluded": int(excluded.sum())}
+            "n_pairs": int(d.size), "n_pairs_excluded": excluded}
 
 
 def verdict(ci_low: float, ci_high: float, higher_is_better: bool) -> str:
