@@ -75,11 +75,14 @@ def as_table(result) -> Table | Missing:
 @dataclass
 class Written:
     """What writing a run's outputs produced: files, and one line per table or plot that could not
-    be made (``missing``) or was made without some of its parts (``warnings``)."""
+    be made (``missing``) or was made without some of its parts (``warnings``); ``built``: the
+    tables as built (``{name: Table | Missing}``), for the report page."""
 
     paths: list = field(default_factory=list)
     missing: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    built: dict = field(default_factory=dict)
 
     def __add__(self, other: "Written") -> "Written":
-        return Written(self.paths + other.paths, self.missing + other.missing, self.warnings + other.warnings)
+        return Written(self.paths + other.paths, self.missing + other.missing, self.warnings + other.warnings,
+                       {**self.built, **other.built})

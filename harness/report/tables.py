@@ -210,7 +210,8 @@ def write_tables(df: pd.DataFrame, out_dir: str | Path, names, **opts) -> Writte
     s = summarise(df)
     out = Written([out_dir / "summary.csv"])
     atomic_write_text(out.paths[0], s.to_csv(index=False))
-    for name, t in build_tables(df, names, **opts).items():
+    out.built = build_tables(df, names, **opts)
+    for name, t in out.built.items():
         if isinstance(t, Missing):
             out.missing.append(f"table {name} not written: {t.reason}")
             for ext in ("md", "csv", "tex"):
