@@ -66,13 +66,13 @@ def test_page_is_self_contained_and_its_difference_images_are_faithful(tmp_path)
     page = write_report(tmp_path, df, meta).read_text()
     assert not re.search(r"(src|href)=['\"](?!data:|#)", page)  # nothing outside the page
     assert "http://" not in page and "https://" not in page
-    assert page.count("type='range'") == 5  # one slider per scene × method × ratio
+    assert page.count("type='range' min='0'") == 5  # one slider per scene × method × ratio (+ the width control)
     diffs = re.findall(r"class='diff' alt='difference ([^']*)' src='([^']*)'", page)
     assert len(diffs) == 5
     by_alt = dict(diffs)
     got = _decode(by_alt["BetaDescPrune, 30% pruned"])
-    want = np.minimum(255, np.abs(pruned[("betadesc", 0.3)].astype(int) - ref.astype(int)) * AMPLIFY)
-    assert np.array_equal(got, want)  # lossless PNG of the amplified difference
+    want = np.minimum(255, np.abs(pruned[("betadesc", 0.3)].astype(int) - ref.astype(int)).max(axis=2) * AMPLIFY)
+    assert np.array_equal(got[..., 0], want) and np.array_equal(got[..., 1], want)  # lossless, grey
     assert not _decode(by_alt["LightGSPrune, 10% pruned"]).any()  # identical pair: black
     assert "PSNR inf (identical)" in page
 
@@ -80,7 +80,7 @@ def test_page_is_self_contained_and_its_difference_images_are_faithful(tmp_path)
 def test_page_shows_tables_with_cis_missing_tables_and_the_run_record(tmp_path):
     df, meta, *_ = _run_folder(tmp_path)
     page = write_report(tmp_path, df, meta).read_text()
-    assert re.search(r"31\.83 \(Δ \+[0-9.]+ \[\+[0-9.]+, \+[0-9.]+\]\)", page)  # mean (Δ [CI])
+    assert re.search(r"31\.83<br><small>Δ \+[0-9.]+ \[\+[0-9.]+, \+[0-9.]+\]</small>", page)  # mean, Δ [CI]
     assert "class='better'" in page  # betadesc above random with a CI above 0
     assert "Not made from these results: no ablation variant measured at 20%" in page
     assert "scene &lt;A&gt;" in page and "scene <A>" not in page  # labels escaped

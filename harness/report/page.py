@@ -26,28 +26,33 @@ from harness.report.record import _slug
 from harness.report.tabledata import Missing, Table
 
 CSS = """
+:root{--w:240px}
 body{font:14px/1.45 system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:0;color:#1d2327;background:#fafafa}
 header{background:#22303c;color:#fff;padding:14px 24px}header h1{margin:0;font-size:20px}
 header p{margin:4px 0 0;color:#c9d3dc}nav{padding:6px 24px;background:#e9eef2;position:sticky;top:0;z-index:5}
 nav a{margin-right:16px;color:#22303c}main{padding:8px 24px 40px}h2{border-bottom:2px solid #ccd5dd;padding-top:12px}
 table{border-collapse:collapse;margin:6px 0 14px;font-size:12.5px;background:#fff}
 th,td{border:1px solid #d5dde3;padding:3px 7px;text-align:right;white-space:nowrap}
-th{background:#eef2f5}td.k{text-align:left;font-weight:600}td.better{background:#dff3e1}td.worse{background:#f8dede}
+th{background:#eef2f5}td.k{text-align:left;font-weight:600}td small{color:#444}td.better{background:#dff3e1}td.worse{background:#f8dede}
 .notes{color:#555;font-size:12px;margin:0 0 10px}.warn{background:#fff4d6;border:1px solid #e8c96b;padding:8px 12px}
 .scroll{overflow-x:auto}.plots img{max-width:100%;border:1px solid #ddd;margin:4px 0;background:#fff}
 details{background:#fff;border:1px solid #d5dde3;margin:8px 0;padding:4px 10px}summary{font-weight:600;cursor:pointer}
-table.imgs td,table.imgs th{vertical-align:top;text-align:left;white-space:normal;background:#fff}table.imgs th{width:150px;max-width:150px;vertical-align:middle}table.imgs tr:first-child th{vertical-align:bottom}table.imgs td figure{vertical-align:top}.cmp{margin:0;width:240px}
-.slider{position:relative;width:240px;background-size:100% 100%;border:1px solid #999;overflow:hidden}
+table.imgs td,table.imgs th{vertical-align:top;text-align:left;white-space:normal;background:#fff}table.imgs th{width:150px;max-width:150px;vertical-align:middle}table.imgs tr:first-child th{vertical-align:bottom}table.imgs td figure{vertical-align:top}.cmp{margin:0;width:var(--w)}
+.slider{position:relative;width:var(--w);background-size:100% 100%;border:1px solid #999;overflow:hidden}
 .slider img{position:absolute;inset:0;width:100%;height:100%;clip-path:inset(0 0 0 50%)}
 .slider .bar{position:absolute;top:0;bottom:0;left:50%;width:2px;background:#ffcc00;pointer-events:none}
 .slider input{position:absolute;left:0;right:0;bottom:4px;width:96%;margin:0 2%}
 .tag{position:absolute;top:3px;font-size:11px;background:rgba(0,0,0,.55);color:#fff;padding:0 4px}
-.tag.l{left:3px}.tag.r{right:3px}.diff{width:240px;display:block;border:1px solid #999;margin-top:4px}
+.tag.l{left:3px}.tag.r{right:3px}.diff{width:var(--w);display:block;border:1px solid #999;margin-top:4px}
 figcaption{font-size:12px;color:#333}.refimg{width:150px;border:1px solid #999}
 pre{background:#fff;border:1px solid #ddd;padding:8px;overflow-x:auto;font-size:12px;max-height:420px}
 """
 
 JS = """
+var w = document.getElementById('imgw');
+if (w) w.addEventListener('input', function () {
+  document.documentElement.style.setProperty('--w', w.value + 'px');
+});
 document.querySelectorAll('.slider input').forEach(function (s) {
   function set() {
     var box = s.parentNode, v = s.value + '%';
@@ -78,6 +83,17 @@ def _tint(text: str, heading: str) -> str:
     return "better" if up == ("↓" not in heading) else "worse"
 
 
+def _cell(text: str) -> str:
+    """A cell's text, its Δ and CI on a second, smaller line (narrow columns)."""
+    if " (Δ " in text and text.endswith(")"):
+        main, rest = text.split(" (", 1)
+        return f"{esc(main)}<br><small>{esc(rest[:-1])}</small>"
+    if " [" in text:
+        main, ci = text.split(" [", 1)
+        return f"{esc(main)}<br><small>[{esc(ci)}</small>"
+    return esc(text)
+
+
 def html_table(disp: pd.DataFrame, heading: str = "") -> str:
     names = [n or "" for n in disp.index.names]
     cols = [" · ".join(str(x) for x in c if str(x)) if isinstance(c, tuple) else str(c) for c in disp.columns]
@@ -93,7 +109,7 @@ def html_table(disp: pd.DataFrame, heading: str = "") -> str:
             out.append(f"<td class='k'>{'' if same else esc(k)}</td>")
         for v in vals:
             cls = _tint(str(v), heading or str(key[0]))
-            out.append(f"<td class='{cls}'>{esc(v)}</td>" if cls else f"<td>{esc(v)}</td>")
+            out.append(f"<td class='{cls}'>{_cell(str(v))}</td>" if cls else f"<td>{_cell(str(v))}</td>")
         out.append("</tr>")
         prev = key
     out.append("</tbody></table></div>")
@@ -133,9 +149,11 @@ def images_html(scenes) -> str:
     if not scenes:
         return "<p class='warn'>no stored renders under images/ (runs before the report page kept only a few)</p>"
     out = [f"<p class='notes'>First held-out view of each scene. Slider: reference render (left) | pruned render "
-           f"(right), JPEG q{JPEG_QUALITY} viewing copies. Below: |pruned − reference| × {AMPLIFY} per RGB channel "
-           f"from the lossless renders (black = identical; ≥ {255 // AMPLIFY + 1} grey levels = full intensity). "
-           f"PSNR: this 8-bit pair.</p>"]
+           f"(right), JPEG q{JPEG_QUALITY} viewing copies. Below: the largest |pruned − reference| of the R, G, B "
+           f"channels × {AMPLIFY}, from the lossless renders (black = identical; a difference of "
+           f"≥ {255 // AMPLIFY + 1} levels is white). "
+           f"PSNR: this 8-bit pair.</p><p><label>image width <input id='imgw' type='range' min='160' max='720' "
+           f"value='240'></label></p>"]
     for i, s in enumerate(scenes):
         ar = f"aspect-ratio:{s.width}/{s.height}"
         cls = f"ref-{_slug(s.scene)}".replace(".", "_")
@@ -231,7 +249,7 @@ def write_report(run_dir: str | Path, df: pd.DataFrame, meta: dict, built: dict 
     run_dir = Path(run_dir)
     if built is None:
         names = [n for n in (meta.get("tables") or list(BUILDERS)) if n in BUILDERS]
-        built = build_tables(df, names, **opts)
+        built = build_tables(df, names + ["versus"] * ("versus" not in names), **opts)
     warnings = [f"{n}: {t.reason}" for n, t in built.items() if isinstance(t, Missing)]
     warnings += [w for t in built.values() if isinstance(t, Table) for w in t.warnings]
     warnings += [m for m in missing if not m.startswith("table ")]  # tables: said above, from ``built``

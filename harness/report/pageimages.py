@@ -6,9 +6,10 @@ view (:func:`harness.report.record.image_name`). For each pair this module makes
 
 * the two images for the slider, as JPEG (quality :data:`JPEG_QUALITY`, no chroma subsampling) —
   a viewing copy that keeps the page small;
-* the amplified difference ``min(255, AMPLIFY · |pruned − reference|)`` per RGB channel, computed
-  from the lossless PNGs and stored as PNG, so it is faithful: black = identical, a difference of
-  ``255 / AMPLIFY`` ≈ 32 grey levels or more is full intensity;
+* the amplified difference ``min(255, AMPLIFY · max over R, G, B of |pruned − reference|)`` as a
+  grey image, computed from the lossless PNGs and stored as PNG, so it is faithful: black = identical,
+  a difference of ``255 / AMPLIFY`` ≈ 32 levels or more in any channel is white (one grey channel
+  rather than three: a third of the bytes, and the page embeds one per pruned render);
 * the PSNR of this 8-bit pair (dB, +inf when identical) and the largest channel difference.
 
 Everything is returned as ``data:`` URIs: the page needs no file beside it and no network.
@@ -68,11 +69,12 @@ def file_uri(path: Path) -> str:
 
 
 def difference(ref: np.ndarray, pruned: np.ndarray) -> tuple[np.ndarray, float, int]:
-    """(amplified |difference| uint8, PSNR in dB of the 8-bit pair, largest channel difference)."""
+    """(amplified max-channel |difference|, uint8 H×W; PSNR in dB of the 8-bit pair; largest
+    channel difference)."""
     d = np.abs(ref.astype(np.int16) - pruned.astype(np.int16))
     mse = float(np.mean((d.astype(np.float64) / 255.0) ** 2))
     psnr = np.inf if mse == 0 else 10.0 * np.log10(1.0 / mse)
-    return np.minimum(255, d * AMPLIFY).astype(np.uint8), psnr, int(d.max())
+    return np.minimum(255, d.max(axis=2) * AMPLIFY).astype(np.uint8), psnr, int(d.max())
 
 
 def _parse(name: str) -> tuple[str, str, float] | None:
