@@ -94,3 +94,15 @@ def test_a_plot_that_cannot_be_drawn_says_why(tmp_path):
     assert w.paths == [] and len(w.missing) == 2
     assert w.missing[0].startswith("plot figure1 not drawn: no stored render of betadesc at 10% / 30% / 50% / 70%")
     assert w.missing[1].startswith("plot figure3 not drawn: no stored renders of betadesc-nobeta and betadesc at 20%")
+
+
+def test_om_and_bytes_panels_when_the_results_carry_them(figures, tmp_path, monkeypatch):
+    from harness.metrics.registry import METRICS, MetricSpec, register_metric
+
+    monkeypatch.setattr(METRICS, "_entries", dict(METRICS._entries))
+    register_metric(MetricSpec("psnr_om", "OM-PSNR", True, 2, "test"))
+    df = _rows().assign(psnr_om=lambda d: d["psnr"] - 1.0, bytes=lambda d: 1000 * (1 - d["ratio"]))
+    plots.plot_curves(df, tmp_path)
+    axes = figures["curves_grape-small.png"].axes
+    assert [ax.get_ylabel() for ax in axes] == ["PSNR (↑)", "OM-PSNR (↑)", "LPIPS (↓)", "PSNR (↑)"]
+    assert axes[-1].get_xlabel() == "pruned .ply size (MiB)"

@@ -92,12 +92,12 @@ def test_comparison_markdown_is_one_table_per_metric_and_csv_is_tidy(tmp_path):
     assert not csv.columns.str.startswith("Unnamed").any()
 
 
-def test_comparison_takes_new_metric_columns_from_the_registry():
+def test_comparison_takes_new_metric_columns_from_the_registry(monkeypatch):
     from harness.metrics.registry import METRICS, MetricSpec, register_metric
 
-    if "t_psnr_om" not in METRICS:
-        register_metric(MetricSpec("t_psnr", "T-PSNR", True, 2, "test"))
-        register_metric(MetricSpec("t_psnr_om", "OM-T-PSNR", True, 2, "test"))
+    monkeypatch.setattr(METRICS, "_entries", dict(METRICS._entries))  # registrations undone after the test
+    register_metric(MetricSpec("t_psnr", "T-PSNR", True, 2, "test"))
+    register_metric(MetricSpec("t_psnr_om", "OM-T-PSNR", True, 2, "test"))
     df = _rows()
     df["t_psnr_om"], df["t_psnr"] = df["psnr"] - 1.0, df["psnr"]
     metrics = list(dict.fromkeys(_t("comparison", df).tidy["metric"]))
