@@ -128,8 +128,8 @@ def mean_text(r, digits: int) -> str:
 
 
 def delta_text(r, digits: int) -> str:
-    if not r["reference"] or r["reference"] == f"{r['method']}[{r['variant']}]":
-        return ""
+    if not r["reference"] or r["reference"] == f"{r['method']}[{r['variant']}]" or pd.isna(r["n_pairs"]):
+        return ""  # no reference row measured at this scene and ratio: nothing to compare with
     if pd.isna(r["delta"]):
         return "Δ –"
     ci = "" if pd.isna(r["ci_low"]) else f" [{fmt(r['ci_low'], digits, True)}, {fmt(r['ci_high'], digits, True)}]"
