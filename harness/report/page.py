@@ -43,7 +43,7 @@ table.imgs td,table.imgs th{vertical-align:top;text-align:left;white-space:norma
 .slider .bar{position:absolute;top:0;bottom:0;left:50%;width:2px;background:#ffcc00;pointer-events:none}
 .slider input{position:absolute;left:0;right:0;bottom:4px;width:96%;margin:0 2%}
 .tag{position:absolute;top:3px;font-size:11px;background:rgba(0,0,0,.55);color:#fff;padding:0 4px}
-.tag.l{left:3px}.tag.r{right:3px}.diff{width:var(--w);display:block;border:1px solid #999;margin-top:4px}
+.tag.l{left:3px}.tag.r{right:3px}.diff{width:var(--w);display:block;image-rendering:pixelated;border:1px solid #999;margin-top:4px}
 figcaption{font-size:12px;color:#333}.refimg{width:150px;border:1px solid #999}
 pre{background:#fff;border:1px solid #ddd;padding:8px;overflow-x:auto;font-size:12px;max-height:420px}
 """
