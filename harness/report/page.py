@@ -1,7 +1,7 @@
 """``<run>/report.html``: one self-contained page of a run (no network, no external file).
 
 Sections: the run at a glance (what is missing from it); the tables with their confidence
-intervals (:mod:`harness.report.paired`; a Δ whose 95 % CI excludes 0 is tinted green when it is
+intervals (:mod:`harness.report.cells`; a Δ whose 95 % CI excludes 0 is tinted green when it is
 better than the reference in the metric's direction, red when worse); the rate–quality curves and
 figures from ``<run>/plots/``; per scene × method × variant × ratio an image comparison of the first
 held-out view — a slider between the reference render (left) and the pruned one (right), and the

@@ -28,7 +28,7 @@ import pandas as pd
 
 from harness.core import ratios
 from harness.report import catalog, stats
-from harness.report.paired import prepare
+from harness.report.cells import prepare
 from harness.report.record import _slug, image_name
 from harness.report.tabledata import Written
 

@@ -7,7 +7,7 @@ draws as ``scipy.stats.bootstrap((x,), np.mean, method="percentile", rng=default
 table is the same every time it is rebuilt. With fewer than 2 values there is no interval (NaN).
 
 **Paired differences.** A method is compared with a reference row (the same scene and ratio; which
-row is the table's choice, see :mod:`harness.report.paired`) view by view: d = x(method, view) −
+row is the table's choice, see :mod:`harness.report.cells`) view by view: d = x(method, view) −
 x(reference, view) over the (frame, view) pairs both were measured on, then the mean of d and the
 bootstrap CI of that mean — one interval on the difference, not two independent intervals.
 

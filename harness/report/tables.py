@@ -11,7 +11,7 @@ comparison groups, each method's cell of the paper's ablation grid; which metric
 registry (every registered metric the results carry).
 
 * ``comparison``, ``ablation``, ``versus``, ``per_scene``: cells with per-view paired differences and
-  bootstrap CIs, :mod:`harness.report.paired`.
+  bootstrap CIs, :mod:`harness.report.cells`.
 * ``keep`` (Table 3): keep 0.7/0.5/0.3 (prune 30/50/70 %), pooled over scenes, betadesc-nodesc
   vs betadesc, and ΔPSNR = PSNR(no descriptors) − PSNR(with descriptors) — the paper's sign
   (negative when descriptors help). PSNR means exclude +inf pairs (counted in a note).
@@ -32,11 +32,11 @@ import pandas as pd
 
 from harness.core import ratios
 from harness.io.files import atomic_write_text
-from harness.report import catalog, paired
+from harness.report import catalog, cells
 from harness.report.summary import summarise
 from harness.report.tabledata import Missing, Table, Written, as_table
 
-KEEPS = paired.KEEPS
+KEEPS = cells.KEEPS
 #: the runtime table's overhead percentage needs at least this many seconds in its denominator
 MIN_BASE_S = 1.0
 #: the paper's sensitivity knobs (Table 4): swept parameter -> row group
@@ -175,9 +175,9 @@ def table_runtime(s: pd.DataFrame):
     return Table(disp, notes, tidy.reset_index(drop=True))
 
 
-BUILDERS = {"comparison": paired.table_comparison, "ablation": paired.table_ablation, "keep": table_keep,
-            "sensitivity": table_sensitivity, "runtime": table_runtime, "per_scene": paired.table_per_scene,
-            "versus": paired.table_versus}
+BUILDERS = {"comparison": cells.table_comparison, "ablation": cells.table_ablation, "keep": table_keep,
+            "sensitivity": table_sensitivity, "runtime": table_runtime, "per_scene": cells.table_per_scene,
+            "versus": cells.table_versus}
 #: builders that read the summary (one row per cell) rather than the per-view results
 _USES_SUMMARY = {"runtime"}
 TITLES = {"comparison": "Comparison at low (10 %), mid (20 %) and high (30 %) pruning (paper Table 1)",
