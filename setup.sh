@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Idempotent set-up on a fresh Debian machine (root, Python 3.11, no GPU, package registries only):
-#   1. system packages: headless OpenGL through EGL (Mesa llvmpipe), libusb -- skipped when present
+#   1. system packages: headless OpenGL through EGL (Mesa llvmpipe), libusb, and chromium (the report
+#      page's browser test) -- skipped when present
 #   2. a virtual environment .venv with this package, its test and bench extras -- skipped when up to date
 #   3. numba kernels compiled once (python -m methods.warmup)                 -- cached, seconds when done
 #   4. the named scenes and the LPIPS-VGG weights (`harness fetch`)         -- verified, no-op when present
@@ -22,6 +23,15 @@ if ! sys_ok; then
   SUDO=""; [ "$(id -u)" = 0 ] || SUDO="sudo"
   $SUDO apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq libegl1 libegl-mesa0 libgl1-mesa-dri libusb-1.0-0 >/dev/null
+fi
+
+# Debian's chromium: tests/test_report_page.py opens report.html in it (headless); skipped there when absent
+if ! command -v chromium >/dev/null 2>&1; then
+  echo "setup: installing chromium (headless browser for the report page's test)"
+  SUDO=""; [ "$(id -u)" = 0 ] || SUDO="sudo"
+  { $SUDO apt-get update -qq &&
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq chromium >/dev/null; } ||
+    echo "setup: chromium could not be installed; the report page's browser test will be skipped"
 fi
 
 stamp=.venv/.installed-$(sha256sum pyproject.toml | cut -c1-16)

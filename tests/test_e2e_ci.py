@@ -37,8 +37,13 @@ def test_ci_config_end_to_end(tmp_path):
     assert (df["status"] == "ok").all() and set(df["scene"]) == {"grape-small", "luigi"}
     assert set(df["method"]) >= {"betadesc", "lightgs", "confsplat", "opacity", "random"}
     assert df["lpips"].between(0, 1).all() and (df["ssim"] <= 1).all()
-    for name in ("comparison.md", "comparison.tex", "comparison.csv", "keep.md", "summary.csv"):
+    for name in ("comparison.md", "comparison.tex", "comparison.csv", "keep.md", "summary.csv", "ablation.md",
+                 "versus.csv"):
         assert (tmp_path / "out" / "tables" / name).stat().st_size > 0
+    assert "warning:" not in first.stdout  # every table and plot ci.yaml lists is made
+    page = (tmp_path / "out" / "report.html").read_text()
+    # one image comparison (slider) per scene × method × variant × ratio
+    assert page.count("type='range' min='0'") == df.groupby(["scene", "method", "variant", "ratio"]).ngroups
     assert (tmp_path / "out" / "plots" / "figure1.png").exists()
     assert len(list((tmp_path / "out" / "contact_sheets").glob("*.png"))) == 2
 

@@ -5,11 +5,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from harness.cli import main
 from harness.report.results import read_results, to_frame, write_results
 from harness.report.summary import summarise
+from harness.report.tabledata import Missing
 from harness.report.tables import build_tables, write_tables
 
 
@@ -47,44 +49,125 @@ def test_summary_excludes_inf_and_counts_it():
     assert "confsplat" not in set(s["method"])  # skipped rows never enter means
 
 
+def _t(name, df=None, **opts):
+    return build_tables(_rows() if df is None else df, [name], **opts)[name]
+
+
+def _cell(tidy, **where):
+    m = tidy
+    for k, v in where.items():
+        m = m[np.isclose(m[k], v)] if isinstance(v, float) else m[m[k] == v]
+    assert len(m) == 1, where
+    return m.iloc[0]
+
+
 def test_comparison_layout_and_values():
-    num, disp, notes = build_tables(_rows(), ["comparison"])["comparison"]
-    assert list(num.columns.get_level_values("method").unique()) == ["LightGSPrune", "BetaDescPrune"]
-    assert list(num.columns.get_level_values("level")[:3]) == ["Low", "Mid", "High"]
-    psnr = num.loc[("scene A", "PSNR (↑)")]
-    assert psnr[("Our Method", "BetaDescPrune", "Low")] == pytest.approx(31.0)
-    assert psnr[("Our Method", "BetaDescPrune", "High")] == pytest.approx(26.0)
-    assert disp.loc[("scene A", "PSNR (↑)"), ("Camera-Aware Methods", "LightGSPrune", "Mid")] == "inf"
-    assert any("exclude 3 identical" in n for n in notes)
+    t = _t("comparison", reference="lightgs")
+    assert list(t.disp.columns.get_level_values("method").unique()) == ["LightGSPrune", "BetaDescPrune"]
+    assert list(t.disp.columns.get_level_values("level")[:3]) == ["Low", "Mid", "High"]
+    low = _cell(t.tidy, method="betadesc", ratio=0.1, metric="psnr", scene="a")
+    assert low["mean"] == pytest.approx(31.0) and low["n"] == 2 and low["reference"] == "lightgs[default]"
+    # lightgs at 10 %: 40 and inf -> the inf view is near-identical: left out of the mean and of Δ
+    lg = _cell(t.tidy, method="lightgs", ratio=0.1, metric="psnr")
+    assert lg["mean"] == 40.0 and lg["n_near_identical"] == 1 and math.isinf(lg["median"])
+    assert low["delta"] == pytest.approx(30.0 - 40.0) and low["n_pairs"] == 1 and low["n_pairs_excluded"] == 1
+    assert t.disp.loc[("scene A", "PSNR (↑)"), ("Camera-Aware Methods", "LightGSPrune", "Mid")] == "≥100‡"
+    assert t.disp.loc[("scene A", "PSNR (↑)"), ("Our Method", "BetaDescPrune", "High")] == "26.00"
+    assert any("‡" in n and "100 dB" in n for n in t.notes)
 
 
-def test_ablation_marks_best_per_row():
-    _, disp, _ = build_tables(_rows(), ["ablation"])["ablation"]
-    row = disp.loc[("scene A", "PSNR (↑)")]
+def test_comparison_markdown_is_one_table_per_metric_and_csv_is_tidy(tmp_path):
+    """Issue 16: comparison.md had 17 flattened columns, comparison.csv three header rows."""
+    write_tables(_rows(), tmp_path, ["comparison"], reference="lightgs")
+    md = (tmp_path / "tables" / "comparison.md").read_text()
+    assert [ln for ln in md.splitlines() if ln.startswith("#### ")] == ["#### PSNR (↑)", "#### SSIM (↑)",
+                                                                       "#### LPIPS (↓)"]
+    headers = [ln for ln in md.splitlines() if ln.startswith("| Dataset")]
+    assert headers and all(h == "| Dataset | Method | Low (10%) | Mid (20%) | High (30%) |" for h in headers)
+    assert "|  | BetaDescPrune | 31.00 (Δ -10.00) |" in md  # one pair (the inf one left out): no interval
+    csv = pd.read_csv(tmp_path / "tables" / "comparison.csv")
+    assert {"scene", "method", "variant", "ratio", "metric", "mean", "ci_low", "ci_high", "n",
+            "n_near_identical", "delta", "reference"} <= set(csv.columns)
+    assert len(csv) == len(csv.drop_duplicates(["scene", "method", "variant", "ratio", "metric"]))
+    assert not csv.columns.str.startswith("Unnamed").any()
+
+
+def test_comparison_takes_new_metric_columns_from_the_registry(monkeypatch):
+    from harness.metrics.registry import METRICS, MetricSpec, register_metric
+
+    monkeypatch.setattr(METRICS, "_entries", dict(METRICS._entries))  # registrations undone after the test
+    register_metric(MetricSpec("t_psnr", "T-PSNR", True, 2, "test"))
+    register_metric(MetricSpec("t_psnr_om", "OM-T-PSNR", True, 2, "test"))
+    df = _rows()
+    df["t_psnr_om"], df["t_psnr"] = df["psnr"] - 1.0, df["psnr"]
+    metrics = list(dict.fromkeys(_t("comparison", df).tidy["metric"]))
+    assert metrics.index("t_psnr_om") == metrics.index("t_psnr") + 1  # OM beside full-frame
+
+
+def test_ablation_marks_best_per_row_and_compares_with_the_full_method():
+    t = _t("ablation")
+    row = t.disp.loc[("scene A", "PSNR (↑)")]
     assert row[("With Descriptors", "Beta")] == "**28.00**"
     assert row[("No Descriptors", "No Beta")] == "20.00"
-    assert disp.loc[("scene A", "LPIPS (↓)"), ("With Descriptors", "Beta")].startswith("**")
+    assert t.disp.loc[("scene A", "LPIPS (↓)"), ("With Descriptors", "Beta")].startswith("**")
+    nb = _cell(t.tidy, method="betadesc-nodesc-nobeta", metric="psnr")
+    assert nb["reference"] == "betadesc[default]" and nb["delta"] == pytest.approx(-8.0)
+    assert nb["ci_low"] == nb["ci_high"] == pytest.approx(-8.0)  # two identical differences
+    assert t.warnings == []
+
+
+def test_ablation_that_cannot_be_made_says_which_variants_are_missing():
+    df = _rows()
+    df = df[~((df["ratio"] - 0.2).abs() < 1e-9)]
+    t = _t("ablation", df)
+    assert isinstance(t, Missing)
+    assert "betadesc-nodesc-nobeta, betadesc-nodesc, betadesc-nobeta, betadesc at 20%" in t.reason
+    assert "they ran at 10%, 30%, 50%, 70%" in t.reason
+    part = _t("ablation", _rows()[lambda d: d["method"] != "betadesc-nobeta"])
+    assert part.warnings == ["ablation: missing betadesc-nobeta at 20%"]
 
 
 def test_keep_table_delta_uses_the_papers_sign():
-    num, _, _ = build_tables(_rows(), ["keep"])["keep"]
-    assert list(num.index) == ["30%", "50%", "70%"]
+    t = _t("keep")
+    num = t.tidy.set_index(["Prune %", "side", "quantity"])["value"]
     # prune 30%: no-desc 24, with desc (25+27)/2 = 26 -> ΔPSNR = 24 - 26 = -2
-    assert num.loc["30%", ("ΔPSNR", "(dB)")] == pytest.approx(-2.0)
-    assert num.loc["70%", ("ΔPSNR", "(dB)")] == pytest.approx(0.0)
+    assert num[("30%", "ΔPSNR", "(dB)")] == pytest.approx(-2.0)
+    assert num[("70%", "ΔPSNR", "(dB)")] == pytest.approx(0.0)
 
 
-def test_per_scene_gain_and_sensitivity():
+def test_per_scene_gain_sensitivity_and_runtime():
     t = build_tables(_rows(), ["per_scene", "sensitivity", "runtime"])
-    gains = t["per_scene"][0]
-    assert gains.loc["scene A", "prune 30%"] == pytest.approx(2.0)
-    assert gains.loc["scene A", "prune 70%"] == pytest.approx(0.0)
-    sens, _, notes = t["sensitivity"]
-    assert list(sens.index.get_level_values("variant")) == ["default", "preset=flat", "voxel=0.02"]
-    assert "(a)" in notes[0]
-    assert sens.loc[("baseline", "default"), "PSNR (↑)"] == pytest.approx(26.0)
-    rt = t["runtime"][0]
-    assert rt.loc["scene A", "desc. overhead (s)"] == pytest.approx(0.5)
+    g = t["per_scene"].tidy
+    assert _cell(g, scene="a", ratio=0.3, metric="psnr")["delta"] == pytest.approx(2.0)
+    assert _cell(g, scene="a", ratio=0.7, metric="psnr")["delta"] == pytest.approx(0.0)
+    sens = t["sensitivity"]
+    assert "(a)" in sens.notes[0]
+    sv = sens.tidy.set_index(["knob", "variant", "column"])["value"]
+    assert list(dict.fromkeys(sens.tidy["variant"])) == ["default", "preset=flat", "voxel=0.02"]
+    assert sv[("baseline", "default", "PSNR (↑)")] == pytest.approx(26.0)
+    rt = t["runtime"]
+    assert rt.disp.loc["scene A", "desc. overhead (s)"] == "0.50"
+    assert set(rt.tidy.columns) >= {"scene", "method", "score_s"}
+
+
+def test_runtime_overhead_percentage_needs_a_denominator_of_a_second():
+    """Issue 16: '23264.4 %' from a 0.01 s denominator."""
+    df = _rows()
+    assert _t("runtime", df).disp.loc["scene A", "desc. overhead (%)"] == "33.3"  # 0.5 / 1.5 s
+    df.loc[df["method"] == "betadesc-nodesc", "score_s"] = 0.01
+    t = _t("runtime", df)
+    assert t.disp.loc["scene A", "desc. overhead (%)"] == "–"
+    assert t.disp.loc["scene A", "desc. overhead (s)"] == "1.99"
+    assert any("under 1 s" in n for n in t.notes)
+
+
+def test_versus_pools_scenes_and_counts_verdicts():
+    t = _t("versus", reference="betadesc-nodesc")
+    row = _cell(t.tidy, scene="*", method="betadesc", variant="default", ratio=0.3, metric="psnr")
+    assert row["delta"] == pytest.approx(2.0) and row["n_pairs"] == 2 and row["verdict"] == "better"
+    psnr = dict(t.sections)["PSNR (↑)"]
+    assert psnr.loc[("BetaDescPrune", "30%"), "better / worse / unclear"] == "1 / 0 / 0"
+    assert isinstance(_t("versus", reference="nope"), Missing)
 
 
 def test_files_and_tables_command_regenerates_without_cache(tmp_path, monkeypatch):
@@ -92,12 +175,12 @@ def test_files_and_tables_command_regenerates_without_cache(tmp_path, monkeypatc
     write_results(df, tmp_path)
     assert read_results(tmp_path)["psnr"].isna().sum() == 1
     monkeypatch.setenv("HARNESS_CACHE", str(tmp_path / "no-cache-used"))
-    assert main(["tables", str(tmp_path), "--plots", "curves"]) == 0
+    assert main(["tables", str(tmp_path), "--plots", "curves", "--tables", "comparison", "ablation"]) == 0
     tex = (tmp_path / "tables" / "comparison.tex").read_text()
     assert r"\multicolumn{3}{c|}{Low}" not in tex and r"\multicolumn{3}{c|}{LightGSPrune}" in tex
     assert r"\multirow{3}{*}{scene A}" in tex and "PSNR ($\\uparrow$)" in tex
     md = (tmp_path / "tables" / "ablation.md").read_text()
-    assert "| scene A | PSNR (↑) |" in md
+    assert "| scene A | 20.00 (Δ -8.00 [-8.00, -8.00]) |" in md
     assert (tmp_path / "plots" / "curves_scene_A.png").stat().st_size > 1000
     assert not (tmp_path / "no-cache-used" / "stages").exists()
 
@@ -115,3 +198,16 @@ def test_csv_round_trip_keeps_inf(tmp_path):
     assert np.isinf(back["psnr"]).sum() == np.isinf(df["psnr"]).sum() == 3
     write_tables(back, tmp_path, ["comparison"])
     assert (tmp_path / "tables" / "comparison.csv").exists()
+
+
+def test_tables_command_says_why_a_table_is_missing_and_exits_2(tmp_path, capsys):
+    """Issue 16: `harness tables --tables ablation` exited 0 and wrote nothing."""
+    df = _rows()
+    write_results(df[~((df["ratio"] - 0.2).abs() < 1e-9)], tmp_path)
+    (tmp_path / "tables").mkdir()
+    (tmp_path / "tables" / "ablation.md").write_text("stale")
+    assert main(["tables", str(tmp_path), "--tables", "ablation", "comparison", "--plots"]) == 2
+    err = [ln for ln in capsys.readouterr().err.splitlines() if "not written" in ln]
+    assert len(err) == 1 and err[0].startswith("harness: table ablation not written: no ablation variant measured")
+    assert not (tmp_path / "tables" / "ablation.md").exists()  # no stale table beside the new ones
+    assert (tmp_path / "tables" / "comparison.md").exists()

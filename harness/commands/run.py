@@ -1,14 +1,17 @@
 """`harness run CONFIG [--workers N] [--out DIR] [--force] [--cache DIR]`: the CTC-style evaluation.
 
 Reads and validates the YAML config (:mod:`harness.run.config`), runs the staged, cached plan
-(:mod:`harness.run.runner`), writes tidy results, the paper's tables and plots, contact sheets and
-``run.json`` into the output folder, and prints a summary saying where everything is. Scenes whose
-files are absent are skipped with a message (exit status 0); a stage that fails on some scene is
-recorded in the results and run.json and makes the exit status 1.
+(:mod:`harness.run.runner`), writes tidy results, the paper's tables and plots, contact sheets,
+``run.json`` and ``report.html`` (:mod:`harness.report.page`) into the output folder, and prints a
+summary saying where everything is. Scenes whose files are absent are skipped with a message (exit status 0); a stage that fails on some scene is
+recorded in the results and run.json and makes the exit status 1. A table or plot of the config
+that these results cannot make is a ``warning:`` line of the summary naming what is missing (the
+exit status stays 0: the measurements are complete).
 """
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -31,6 +34,7 @@ def run(args) -> int:
     from harness.core.errors import InputError
     from harness.core.paths import cache_dir
     from harness.report.outputs import write_outputs
+    from harness.report.page import write_report
     from harness.report.record import (
         contact_sheets,
         copy_images,
@@ -63,15 +67,18 @@ def run(args) -> int:
     sheets = contact_sheets(runner.items, runner.cache, runner._ref_key, out_dir, config.protocol.background)
     written = write_outputs(out_dir, df, config.tables, config.plots)
     run_json = write_run_json(out_dir, config, result, workers=workers, cache_root=cache_root, argv=sys.argv[1:])
+    report = write_report(out_dir, df, json.loads(run_json.read_text()), built=written.built, missing=written.missing)
     paths = {"results": pq, "results (csv)": csv, "tables": out_dir / "tables", "plots": out_dir / "plots",
              "images": images,
              "contact sheets": f"{out_dir / 'contact_sheets'} (coverage per view: "
                                + "; ".join(f"{k} " + " ".join(f"{100 * c:.0f}%" for c in v) for k, v in sheets.items())
                                + ")",
              "run record": run_json,
+             "report page": report,
              "stage cache": cache_root}
     for line in summary_lines(result, df, paths):
         print(line)
-    if written:
-        print(f"wrote {len(written)} table/plot files")
+    for line in written.warnings + written.missing:  # what the config asked for and these results cannot show
+        print(f"warning: {line}")
+    print(f"wrote {len(written.paths)} table/plot files")
     return 1 if result.errors else 0

@@ -1,8 +1,15 @@
-"""`harness tables RUN_DIR`: rebuild a run's tables and plots from its stored results (no recomputation)."""
+"""`harness tables RUN_DIR`: rebuild a run's tables and plots from its stored results (no recomputation).
+
+Prints the files written. A requested table or plot that these results cannot make (e.g. the
+ablation when the ablation variants were not run at 20 %) is one line on stderr saying what is
+missing; the others are still written, and the exit status is then 2 (as for any other input that
+cannot give what was asked).
+"""
 
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 NAME = "tables"
@@ -13,6 +20,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("run_dir", help="output folder of `harness run` (holds results.parquet)")
     parser.add_argument("--tables", nargs="*", default=None, help="table names (default: those of run.json)")
     parser.add_argument("--plots", nargs="*", default=None, help="plot names (default: those of run.json)")
+    parser.add_argument("--reference", default=None,
+                        help="method every other is compared with per view (comparison and versus tables; "
+                             "default: random)")
 
 
 def run(args) -> int:
@@ -37,7 +47,11 @@ def run(args) -> int:
     for name in plots:
         if name not in PLOTS:
             raise InputError("--plots", f"unknown plot {name!r}; known: {', '.join(PLOTS)}")
-    written = write_outputs(run_dir, df, tables, plots)
-    for p in written:
+    written = write_outputs(run_dir, df, tables, plots, reference=args.reference)
+    for p in written.paths:
         print(p)
-    return 0
+    for line in written.warnings:
+        print(f"harness: warning: {line}", file=sys.stderr)
+    for line in written.missing:
+        print(f"harness: {line}", file=sys.stderr)
+    return 2 if written.missing else 0

@@ -11,6 +11,9 @@ from methods.registry import GROUPS, PRUNERS, ablation_grid
 
 #: the comparison table's groups (ablations have their own table)
 COMPARISON_GROUPS = tuple(g for g in GROUPS if g != "ablation")
+#: the method every other is compared with, view by view, in the comparison and versus tables
+#: (``harness tables/report --reference`` picks another)
+DEFAULT_REFERENCE = "random"
 
 
 def _spec(name: str):
@@ -80,6 +83,22 @@ def proposed_method() -> str | None:
 def metric_columns(present) -> list[tuple[str, str, int]]:
     """(name, heading, digits) of the registered metrics among ``present``, registry order."""
     return [(m.name, m.heading, m.digits) for m in METRICS if m.name in set(present)]
+
+
+def display_metrics(present) -> list[tuple[str, str, int]]:
+    """:func:`metric_columns` with each occupancy-masked variant (``x_om…``) right after its
+    full-frame metric (``x…``): OM-PSNR beside PSNR."""
+    cols = metric_columns(present)
+    names = [c[0] for c in cols]
+    base = {n: n.replace("_om", "", 1) for n in names if "_om" in n and n.replace("_om", "", 1) in names}
+    out = [c for c in cols if c[0] not in base]
+    for c in cols:
+        if c[0] in base:
+            at = next(i for i, o in enumerate(out) if o[0] == base[c[0]])
+            while at + 1 < len(out) and base.get(out[at + 1][0]) == base[c[0]]:
+                at += 1
+            out.insert(at + 1, c)
+    return out
 
 
 def higher_is_better(metric: str) -> bool:

@@ -2,7 +2,11 @@
 
 LaTeX: one header line per column level with ``\\multicolumn`` spans over equal neighbours, the
 first row level as ``\\multirow`` (needs ``\\usepackage{multirow}``), ``**x**`` markdown bold
-becomes ``\\textbf{x}``; ↑/↓ become ``$\\uparrow$``/``$\\downarrow$``; % and Δ are escaped.
+becomes ``\\textbf{x}``; ↑/↓ become ``$\\uparrow$``/``$\\downarrow$``; %, Δ, ‡, ≥, · and τ are escaped.
+
+Markdown: one table per section of a :class:`~harness.report.tabledata.Table` (each with one header
+row), or — for a plain display frame with two column levels — a header row of parent labels (once per
+span) and a bold first row of the child labels.
 """
 
 from __future__ import annotations
@@ -20,16 +24,47 @@ def _names(index) -> list[str]:
     return [str(n) if n is not None else "" for n in index.names]
 
 
-def to_markdown(disp: pd.DataFrame, title: str, notes=()) -> str:
+def _md_row(cells) -> str:
+    return "| " + " | ".join(str(c).replace("|", "\\|") for c in cells) + " |"
+
+
+def _md_table(disp: pd.DataFrame) -> list[str]:
+    """One markdown table; column levels beyond the first give a second header line, written as a
+    bold first row (GitHub has one header row), and a parent label is written once per span."""
     rows = _levels(disp.index)
-    head = _names(disp.index) + [" ".join(str(x) for x in c if str(x)) for c in _levels(disp.columns)]
-    lines = [f"### {title}", "", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    cols = _levels(disp.columns)
+    n_idx = len(_names(disp.index))
+    depth = len(cols[0]) if cols else 1
+    if depth == 1:
+        lines = [_md_row(_names(disp.index) + [c[0] for c in cols])]
+    else:
+        top = [c[0] if i == 0 or cols[i - 1][0] != c[0] else "" for i, c in enumerate(cols)]
+        lines = [_md_row(_names(disp.index) + top)]
+    lines.append("|" + "---|" * (n_idx + len(cols)))
+    if depth > 1:
+        lines.append(_md_row([""] * n_idx + [f"**{' · '.join(str(x) for x in c[1:] if str(x))}**" for c in cols]))
     prev = None
     for r, vals in zip(rows, disp.itertuples(index=False)):
-        shown = [("" if prev is not None and i == 0 and r[0] == prev[0] else str(x)) for i, x in enumerate(r)]
-        lines.append("| " + " | ".join(shown + [str(v) for v in vals]) + " |")
+        shown = [("" if prev is not None and i < len(r) - 1 and r[: i + 1] == prev[: i + 1] else str(x))
+                 for i, x in enumerate(r)]
+        lines.append(_md_row(shown + [str(v) for v in vals]))
         prev = r
-    lines += [""] + [f"_{n}_" for n in notes]
+    return lines
+
+
+def to_markdown(table, title: str, notes=()) -> str:
+    """A :class:`~harness.report.tabledata.Table` (one table per section) or a display DataFrame."""
+    if hasattr(table, "sections"):
+        notes = table.notes
+        parts = [(s, d) for s, d in table.sections] or [("", table.disp)]
+    else:
+        parts = [("", table)]
+    lines = [f"### {title}", ""]
+    for sub, disp in parts:
+        if sub:
+            lines += [f"#### {sub}", ""]
+        lines += _md_table(disp) + [""]
+    lines += [f"_{n}_" for n in notes]
     return "\n".join(lines).rstrip() + "\n"
 
 
@@ -38,7 +73,8 @@ def _tex(text) -> str:
     t = re.sub(r"\*\*(.+?)\*\*", r"\\textbf{\1}", t)
     t = t.replace("%", r"\%").replace("_", r"\_").replace("&", r"\&")
     return (t.replace("↑", r"$\uparrow$").replace("↓", r"$\downarrow$").replace("Δ", r"$\Delta$")
-            .replace("–", "--").replace("−", "$-$").replace("×", r"$\times$"))
+            .replace("–", "--").replace("−", "$-$").replace("×", r"$\times$").replace("‡", r"$^\ddagger$")
+            .replace("≥", r"$\geq$").replace("·", r"$\cdot$").replace("τ", r"$\tau$"))
 
 
 def _spans(values: list) -> list[tuple[str, int]]:

@@ -21,8 +21,6 @@ import shutil
 import time
 from pathlib import Path
 
-import numpy as np
-
 from harness.io.files import atomic_write_text
 from harness.report.machine import (
     cpu_seconds,
@@ -112,9 +110,14 @@ def summary_lines(result, df, paths: dict) -> list[str]:
     lines.append("stage seconds: " + ", ".join(f"{k} {v:.1f}" for k, v in result.stage_s.items())
                  + f"; CPU seconds (all processes) {cpu_seconds():.1f}")
     if ok:
-        finite = df.loc[(df["status"] == "ok") & np.isfinite(df["psnr"].astype(float)), "psnr"]
-        lines.append(f"PSNR over measured pairs: mean {finite.mean():.2f} dB "
-                     f"({int((df['status'] == 'ok').sum() - len(finite))} identical pairs with PSNR = inf excluded)")
+        from harness.report.stats import NEAR_IDENTICAL_DB, near_identical
+
+        m = df[df["status"] == "ok"]
+        near = near_identical(m, [c for c in m.columns if "psnr" in c])
+        informative = m.loc[~near, "psnr"].astype(float)
+        lines.append(f"PSNR over measured pairs: mean {informative.mean():.2f} dB, median "
+                     f"{m['psnr'].astype(float).median():.2f} dB ({int(near.sum())} near-identical pairs, "
+                     f"PSNR >= {NEAR_IDENTICAL_DB:g} dB or inf, left out of the mean)")
     for s in result.skips:
         what = s.scene if s.method == "*" else f"{s.scene} / {s.method}[{s.variant}]"
         lines.append(f"skipped {what}: {s.reason}")

@@ -1,31 +1,30 @@
-"""The paper's tables from tidy results (pandas), as markdown, csv and LaTeX.
+"""The paper's tables from tidy results (pandas), as markdown, tidy csv and LaTeX.
 
-Means are over all measured image pairs of a cell (every view of every frame of a sequence). PSNR
-= +inf (pruned render identical to the reference) is excluded from PSNR means and counted in
-``n_inf`` (``summary.csv``; a note under each table); a cell whose pairs are all identical shows
-``inf``. Only ``status == ok`` rows enter.
+Each builder returns a :class:`harness.report.tabledata.Table` — or a
+:class:`~harness.report.tabledata.Missing` saying why it cannot be made from these results (which
+variants or ratios are missing); ``write_tables`` writes ``tables/<name>.md`` (one small table per
+group), ``.csv`` (long format, one header row) and ``.tex`` (the paper's wide layout) and reports the
+missing ones (their stale files are removed). Only ``status == ok`` rows enter.
 
 Which methods go where is asked of the pruner registry (:mod:`harness.report.catalog`): labels,
-comparison groups, and each method's cell of the paper's ablation grid.
+comparison groups, each method's cell of the paper's ablation grid; which metrics, of the metric
+registry (every registered metric the results carry).
 
-* ``comparison`` (Table 1): per scene × metric, each method's default variant at Low/Mid/High =
-  10/20/30 % pruning, grouped as the registry groups them (camera-aware methods, simple baselines,
-  the paper's method, other registered methods).
-* ``ablation`` (Table 2): at 20 %, No/With Descriptors × No Beta/Beta (betadesc-nodesc-nobeta,
-  betadesc-nodesc, betadesc-nobeta, betadesc). Bold: best per row.
+* ``comparison``, ``ablation``, ``versus``, ``per_scene``: cells with per-view paired differences and
+  bootstrap CIs, :mod:`harness.report.cells`.
 * ``keep`` (Table 3): keep 0.7/0.5/0.3 (prune 30/50/70 %), pooled over scenes, betadesc-nodesc
   vs betadesc, and ΔPSNR = PSNR(no descriptors) − PSNR(with descriptors) — the paper's sign
-  (negative when descriptors help).
+  (negative when descriptors help). PSNR means exclude +inf pairs (counted in a note).
 * ``sensitivity``: betadesc variants at keep 0.7 — coefficient presets and voxel sizes (variants
   named ``preset=…`` / ``voxel=…``; the default variant is the baseline row).
 * ``runtime``: scoring seconds per scene of every method's default variant, with the descriptor
-  overhead betadesc − betadesc-nodesc (absolute and %).
-* ``per_scene``: per-scene descriptor gain PSNR(betadesc) − PSNR(betadesc-nodesc) at each keep
-  fraction (positive = descriptors help; the paper's "+4.04 dB" sense).
+  overhead betadesc − betadesc-nodesc in seconds and in % of betadesc-nodesc's time — "–" when that
+  time is under :data:`MIN_BASE_S` (a percentage of timer noise means nothing).
 """
 
 from __future__ import annotations
 
+import inspect
 from pathlib import Path
 
 import numpy as np
@@ -33,11 +32,13 @@ import pandas as pd
 
 from harness.core import ratios
 from harness.io.files import atomic_write_text
-from harness.report import catalog
+from harness.report import catalog, cells
 from harness.report.summary import summarise
+from harness.report.tabledata import Missing, Table, Written, as_table
 
-LEVELS = (("Low", 0.1), ("Mid", 0.2), ("High", 0.3))
-KEEPS = (0.7, 0.5, 0.3)
+KEEPS = cells.KEEPS
+#: the runtime table's overhead percentage needs at least this many seconds in its denominator
+MIN_BASE_S = 1.0
 #: the paper's sensitivity knobs (Table 4): swept parameter -> row group
 SENSITIVITY_KNOBS = {"preset": "coefficients (presets other than baseline: ours)", "voxel": "voxel size"}
 
@@ -53,12 +54,6 @@ def _metrics() -> list[tuple[str, str, int]]:
 
 
 
-def _cell(s: pd.DataFrame, scene, method, ratio, variant="default"):
-    m = s[(s["label"] == scene) & (s["method"] == method) & (s["variant"] == variant)
-          & _at(s, ratio)]
-    return None if m.empty else m.iloc[0]
-
-
 def _fmt(v, digits: int) -> str:
     if v is None or (isinstance(v, float) and np.isnan(v)):
         return "–"
@@ -67,50 +62,7 @@ def _fmt(v, digits: int) -> str:
     return f"{v:.{digits}f}"
 
 
-def _inf_note(s: pd.DataFrame) -> list[str]:
-    k = int(s["n_inf"].sum()) if len(s) else 0
-    return [f"PSNR means exclude {k} identical-image pair(s) (PSNR = inf); counts per cell in summary.csv."] if k else []
-
-
 # --------------------------------------------------------------------------- tables
-def table_comparison(s: pd.DataFrame):
-    cols = [(grp, catalog.method_label(m), lvl, m, r) for grp, m in catalog.comparison_methods(s["method"])
-            for lvl, r in LEVELS]
-    if not cols:
-        return None
-    idx, num, disp = [], [], []
-    for scene in dict.fromkeys(s["label"]):
-        for key, name, digits in _metrics():
-            cells = [_cell(s, scene, m, r) for *_, m, r in cols]
-            vals = [np.nan if c is None else c[key] for c in cells]
-            idx.append((scene, name))
-            num.append(vals)
-            disp.append([_fmt(v, digits) for v in vals])
-    mi = pd.MultiIndex.from_tuples([c[:3] for c in cols], names=["group", "method", "level"])
-    ri = pd.MultiIndex.from_tuples(idx, names=["Dataset", "Metric"])
-    return pd.DataFrame(num, ri, mi), pd.DataFrame(disp, ri, mi), _inf_note(s)
-
-
-def table_ablation(s: pd.DataFrame, ratio: float = 0.2):
-    present = [a for a in catalog.ablation_cells()
-               if not s[(s["method"] == a[2]) & _at(s, ratio)].empty]
-    if not present:
-        return None
-    idx, num, disp = [], [], []
-    for scene in dict.fromkeys(s["label"]):
-        for key, name, digits in _metrics():
-            vals = [np.nan if (c := _cell(s, scene, m, ratio)) is None else c[key] for *_, m in present]
-            finite = [v for v in vals if np.isfinite(v)]
-            best = (max(finite) if catalog.higher_is_better(key) else min(finite)) if finite else None
-            idx.append((scene, name))
-            num.append(vals)
-            disp.append([f"**{_fmt(v, digits)}**" if best is not None and v == best else _fmt(v, digits)
-                         for v in vals])
-    mi = pd.MultiIndex.from_tuples([a[:2] for a in present], names=["descriptors", "beta"])
-    ri = pd.MultiIndex.from_tuples(idx, names=["Dataset", "Metric"])
-    return pd.DataFrame(num, ri, mi), pd.DataFrame(disp, ri, mi), _inf_note(s[_at(s, ratio)])
-
-
 def _pooled(df: pd.DataFrame, method: str, ratio: float, variant: str = "default") -> dict:
     ok = df[(df["status"] == "ok") & (df["method"] == method) & (df["variant"] == variant)
             & _at(df, ratio)]
@@ -135,7 +87,7 @@ def _common(df: pd.DataFrame, cells) -> tuple[pd.DataFrame, list[str]]:
 def table_keep(df: pd.DataFrame):
     pair = catalog.descriptor_pair()
     if pair is None:
-        return None
+        return Missing("no registered pair of betadesc with and without descriptors")
     without, full = pair
     rows, idx = [], []
     for k in KEEPS:
@@ -148,10 +100,11 @@ def table_keep(df: pd.DataFrame):
         rows.append([a["psnr"], a["ssim"], a["lpips"], b["psnr"], b["ssim"], b["lpips"], a["psnr"] - b["psnr"],
                      a["n"], b["n"]])
     if not rows:
-        return None
+        return Missing(f"needs {without} and {full} at keep {' / '.join(f'{k:g}' for k in KEEPS)} "
+                       "on a common scene; neither was measured at those keep fractions")
     mi = pd.MultiIndex.from_tuples(
         [("No Descriptors", m) for _, m, _ in _metrics()] + [("With Descriptors", m) for _, m, _ in _metrics()]
-        + [("ΔPSNR", "(dB)"), ("pairs", "no desc."), ("pairs", "with desc.")])
+        + [("ΔPSNR", "(dB)"), ("pairs", "no desc."), ("pairs", "with desc.")], names=["side", "quantity"])
     num = pd.DataFrame(rows, pd.Index(idx, name="Prune %"), mi)
     digits = [2, 3, 3, 2, 3, 3, 2, 0, 0]
     disp = num.copy().astype(object)
@@ -175,7 +128,9 @@ def table_sensitivity(df: pd.DataFrame, keep: float = 0.7):
 
     variants = [v for v in dict.fromkeys(sub["variant"]) if v == "default" or knob(v)]
     if len(variants) < 2:
-        return None
+        return Missing(f"needs {method}'s default variant and at least one sweep variant "
+                       f"({' / '.join(f'{k}=…' for k in knobs)}) at keep {keep:g}; found "
+                       f"{', '.join(variants) or 'none'}")
     variants = sorted(variants, key=lambda v: (v != "default", knobs.index(knob(v)) if knob(v) else -1, v))
     df, common = _common(df, [(method, v, r) for v in variants])
     idx, rows = [], []
@@ -199,78 +154,76 @@ def table_sensitivity(df: pd.DataFrame, keep: float = 0.7):
 def table_runtime(s: pd.DataFrame):
     d = s[s["variant"] == "default"].drop_duplicates(["label", "method"])
     if d.empty:
-        return None
+        return Missing("no measured default variant")
     wide = d.pivot(index="label", columns="method", values="score_s")
     wide = wide[catalog.method_order(wide.columns)]
+    tidy = d[["scene", "label", "method", "score_s", "splats_in"]].copy()
+    tidy.insert(3, "method_label", [catalog.method_label(m) for m in tidy["method"]])
     wide.insert(0, "splats", d.drop_duplicates("label").set_index("label")["splats_in"].reindex(wide.index))
     pair = catalog.descriptor_pair()
+    notes = ["scoring seconds per scene (mean over frames), as measured by the run that computed them"]
     if pair is not None and pair[0] in wide and pair[1] in wide:
         without, full = pair
         wide["desc. overhead (s)"] = wide[full] - wide[without]
-        wide["desc. overhead (%)"] = 100 * wide["desc. overhead (s)"] / wide[without]
+        wide["desc. overhead (%)"] = (100 * wide["desc. overhead (s)"] / wide[without]).where(wide[without] >= MIN_BASE_S)
+        if wide["desc. overhead (%)"].isna().any():
+            notes.append(f"desc. overhead (%): – where {catalog.method_label(without)} took under {MIN_BASE_S:g} s "
+                         "(a percentage of so short a time says nothing); the seconds column still holds")
     wide.index.name = "scene"
     wide.columns = [catalog.method_label(c) + (" (s)" if c in d["method"].values else "") for c in wide.columns]
     disp = wide.copy().astype(object)
     for c in wide.columns:
         disp[c] = [str(int(v)) if c == "splats" and np.isfinite(v) else _fmt(v, 1 if "%" in c else 2) for v in wide[c]]
-    return wide, disp, ["scoring seconds per scene (mean over frames), as measured by the run that computed them"]
+    return Table(disp, notes, tidy.reset_index(drop=True))
 
 
-def table_per_scene(s: pd.DataFrame):
-    pair = catalog.descriptor_pair()
-    if pair is None:
-        return None
-    without, full = pair
-    rows, idx = [], []
-    for scene in dict.fromkeys(s["label"]):
-        gains = []
-        for k in KEEPS:
-            a, b = _cell(s, scene, without, ratios.from_keep(k)), _cell(s, scene, full, ratios.from_keep(k))
-            gains.append(np.nan if a is None or b is None else b["psnr"] - a["psnr"])
-        if not all(np.isnan(g) for g in gains):
-            idx.append(scene)
-            rows.append(gains)
-    if not rows:
-        return None
-    num = pd.DataFrame(rows, pd.Index(idx, name="scene"), [f"prune {ratios.percent(ratios.from_keep(k))}" for k in KEEPS])
-    disp = num.map(lambda v: "–" if np.isnan(v) else f"{v:+.2f}")
-    return num, disp, [f"descriptor gain in dB: PSNR({full}) − PSNR({without}); positive = descriptors help"]
-
-
-BUILDERS = {"comparison": table_comparison, "ablation": table_ablation, "keep": table_keep,
-            "sensitivity": table_sensitivity, "runtime": table_runtime, "per_scene": table_per_scene}
-_USES_RAW = {"keep", "sensitivity"}
+BUILDERS = {"comparison": cells.table_comparison, "ablation": cells.table_ablation, "keep": table_keep,
+            "sensitivity": table_sensitivity, "runtime": table_runtime, "per_scene": cells.table_per_scene,
+            "versus": cells.table_versus}
+#: builders that read the summary (one row per cell) rather than the per-view results
+_USES_SUMMARY = {"runtime"}
 TITLES = {"comparison": "Comparison at low (10 %), mid (20 %) and high (30 %) pruning (paper Table 1)",
           "ablation": "Ablation: descriptors × Beta at 20 % pruning (paper Table 2)",
           "keep": "Keep fractions 0.7 / 0.5 / 0.3 with and without descriptors (paper Table 3)",
           "sensitivity": "Sensitivity: coefficient presets and voxel sizes at keep 0.7",
-          "runtime": "Scoring runtime per scene", "per_scene": "Per-scene descriptor gains"}
+          "runtime": "Scoring runtime per scene", "per_scene": "Per-scene descriptor gains",
+          "versus": "Every method against the reference, per view"}
 
 
-def build_tables(df: pd.DataFrame, names) -> dict:
+def _call(fn, data, opts: dict):
+    """``fn(data, **the opts its signature names)`` (options such as ``reference=``)."""
+    params = inspect.signature(fn).parameters
+    return fn(data, **{k: v for k, v in opts.items() if k in params and v is not None})
+
+
+def build_tables(df: pd.DataFrame, names, **opts) -> dict[str, Table | Missing]:
+    """Each named table built from the results (a :class:`Missing` where it cannot be)."""
     s = summarise(df)
-    out = {}
-    for name in names:
-        t = BUILDERS[name](df if name in _USES_RAW else s)
-        if t is not None:
-            out[name] = t
-    return out
+    return {name: as_table(_call(BUILDERS[name], s if name in _USES_SUMMARY else df, opts)) for name in names}
 
 
-def write_tables(df: pd.DataFrame, out_dir: str | Path, names) -> list[Path]:
-    """Write ``tables/<name>.md|csv|tex`` for each table with data, plus ``tables/summary.csv``."""
+def write_tables(df: pd.DataFrame, out_dir: str | Path, names, **opts) -> Written:
+    """Write ``tables/<name>.md|csv|tex`` for each table that can be made, plus ``tables/summary.csv``;
+    the others are listed in ``missing`` (and their files from an earlier build removed)."""
     from harness.report.formats import to_latex, to_markdown
 
     out_dir = Path(out_dir) / "tables"
     out_dir.mkdir(parents=True, exist_ok=True)
     s = summarise(df)
-    written = [out_dir / "summary.csv"]
-    atomic_write_text(written[0], s.to_csv(index=False))
-    for name, (num, disp, notes) in build_tables(df, names).items():
-        title = TITLES[name]
-        for ext, text in (("md", to_markdown(disp, title, notes)), ("csv", num.to_csv()),
-                          ("tex", to_latex(disp, title, notes, label=f"table:{name}"))):
+    out = Written([out_dir / "summary.csv"])
+    atomic_write_text(out.paths[0], s.to_csv(index=False))
+    out.built = build_tables(df, names, **opts)
+    for name, t in out.built.items():
+        if isinstance(t, Missing):
+            out.missing.append(f"table {name} not written: {t.reason}")
+            for ext in ("md", "csv", "tex"):
+                (out_dir / f"{name}.{ext}").unlink(missing_ok=True)
+            continue
+        out.warnings += t.warnings
+        title = TITLES.get(name, name)
+        for ext, text in (("md", to_markdown(t, title)), ("csv", t.tidy.to_csv(index=False)),
+                          ("tex", to_latex(t.disp, title, t.notes, label=f"table:{name}"))):
             p = out_dir / f"{name}.{ext}"
             atomic_write_text(p, text)
-            written.append(p)
-    return written
+            out.paths.append(p)
+    return out

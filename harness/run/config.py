@@ -65,7 +65,7 @@ from harness.views import rigs
 from renderers import RENDERERS
 
 KINDS = ("forward-facing", "object-centric")
-TABLES = ("comparison", "ablation", "keep", "sensitivity", "runtime", "per_scene")
+TABLES = ("comparison", "ablation", "keep", "sensitivity", "runtime", "per_scene", "versus")
 PLOTS = ("curves", "figure1", "figure3")
 
 _ENV = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)(?::-([^}]*))?\}")

@@ -1,0 +1,108 @@
+"""Plots: near-identical points do not hijack the axis, legends sit outside, figure 1 gives the actual τ."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from harness.report import plots
+from harness.report.record import image_name
+from harness.report.results import to_frame
+
+
+def _rows(near=197.25):
+    rows = []
+    spec = {("random", 0.1): (36.0, 37.0), ("random", 0.3): (26.0, 27.0), ("lightgs", 0.1): (math.inf, near),
+            ("lightgs", 0.3): (65.0, 66.0), ("betadesc", 0.1): (29.0, 30.0), ("betadesc", 0.3): (22.0, 21.0),
+            ("betadesc", 0.5): (18.0, 19.0), ("betadesc", 0.7): (16.0, 15.0)}
+    for (m, r), vals in spec.items():
+        for v, p in enumerate(vals):
+            rows.append(dict(run="t", scene="grape", label="grape-small", kind="object-centric", frame="", method=m,
+                             variant="default", params="{}", ratio=r, keep=round(1 - r, 9), view=f"v{v}", status="ok",
+                             psnr=p, ssim=0.99, lpips=0.01 * r, splats_in=100, splats_out=int(100 * (1 - r)),
+                             tau=0.4 + r / 5 if m == "betadesc" else 0.0, score_s=0.1))
+    return to_frame(rows)
+
+
+@pytest.fixture
+def figures(monkeypatch):
+    """The figures plots would save, kept open for inspection."""
+    saved = {}
+
+    def keep(fig, path):
+        saved[path.name] = fig
+        return path
+
+    monkeypatch.setattr(plots, "_save", keep)
+    monkeypatch.setattr(plots._plt(), "close", lambda fig=None: None)
+    return saved
+
+
+def test_a_near_identical_point_does_not_stretch_the_psnr_axis(figures, tmp_path):
+    """Issue 16: one 192 dB point stretched grape-small's PSNR axis to 200."""
+    plots.plot_curves(_rows(), tmp_path)
+    fig = figures["curves_grape-small.png"]
+    psnr = fig.axes[0]
+    lo, hi = psnr.get_ylim()
+    assert hi < 80 and lo > 10  # informative range 15..66 dB, plus headroom for the ▲ marks
+    tri = [ln for ln in psnr.lines if ln.get_marker() == "^"]
+    assert len(tri) == 1 and tri[0].get_ydata()[0] == pytest.approx(0.96)  # on the top edge, axis coordinates
+    leg = fig.legends[0]
+    assert "every view ≥ 100 dB" in leg.get_texts()[-1].get_text()
+
+
+def test_a_high_but_informative_point_stays_on_the_scale(figures, tmp_path):
+    plots.plot_curves(_rows(near=92.0).assign(psnr=lambda d: d["psnr"].replace(math.inf, 92.0)), tmp_path)
+    assert figures["curves_grape-small.png"].axes[0].get_ylim()[1] > 92.0
+
+
+def test_the_legend_is_outside_every_axis(figures, tmp_path):
+    """Issue 16: luigi's legend hid a data point."""
+    plots.plot_curves(_rows(), tmp_path)
+    fig = figures["curves_grape-small.png"]
+    fig.canvas.draw()
+    r = fig.canvas.get_renderer()
+    box = fig.legends[0].get_window_extent(r)
+    assert all(ax.legend_ is None for ax in fig.axes)
+    for ax in fig.axes:
+        assert box.x0 >= ax.get_window_extent(r).x1 - 1
+
+
+def test_figure1_titles_give_the_actual_tau(figures, tmp_path):
+    """Issue 16: figure 1 labelled its columns 'τ ≈ 0.1' while τ (the score at the cut) was 0.48."""
+    df = _rows()
+    d = tmp_path / "images" / "grape"
+    d.mkdir(parents=True)
+    img = Image.fromarray(np.full((8, 8, 3), 128, np.uint8))
+    img.save(d / "input.png")
+    for r in (0.1, 0.3, 0.5, 0.7):
+        img.save(d / image_name("betadesc", "default", r))
+    w = plots.write_plots(df, tmp_path, ["figure1"])
+    assert w.missing == []
+    fig = figures["figure1.png"]
+    titles = [ax.get_title() for ax in fig.axes]
+    assert titles[1] == "10% pruned\nτ = 0.420" and titles[4] == "70% pruned\nτ = 0.540"
+    assert [ax.get_xlabel() for ax in fig.axes][1:] == ["τ = 0.420", "τ = 0.460", "τ = 0.500", "τ = 0.540"]
+    assert "≈" not in "".join(titles)
+
+
+def test_a_plot_that_cannot_be_drawn_says_why(tmp_path):
+    w = plots.write_plots(_rows(), tmp_path, ["figure1", "figure3"])
+    assert w.paths == [] and len(w.missing) == 2
+    assert w.missing[0].startswith("plot figure1 not drawn: no stored render of betadesc at 10% / 30% / 50% / 70%")
+    assert w.missing[1].startswith("plot figure3 not drawn: no stored renders of betadesc-nobeta and betadesc at 20%")
+
+
+def test_om_and_bytes_panels_when_the_results_carry_them(figures, tmp_path, monkeypatch):
+    from harness.metrics.registry import METRICS, MetricSpec, register_metric
+
+    monkeypatch.setattr(METRICS, "_entries", dict(METRICS._entries))
+    register_metric(MetricSpec("psnr_om", "OM-PSNR", True, 2, "test"))
+    df = _rows().assign(psnr_om=lambda d: d["psnr"] - 1.0, bytes=lambda d: 1000 * (1 - d["ratio"]))
+    plots.plot_curves(df, tmp_path)
+    axes = figures["curves_grape-small.png"].axes
+    assert [ax.get_ylabel() for ax in axes] == ["PSNR (↑)", "OM-PSNR (↑)", "LPIPS (↓)", "PSNR (↑)"]
+    assert axes[-1].get_xlabel() == "pruned .ply size (MiB)"

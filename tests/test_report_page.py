@@ -1,0 +1,117 @@
+"""report.html: self-contained, faithful difference images, tables with CIs, run record; and in a real
+headless Chromium: no console errors, every image decodes, the slider moves, the screenshot is not blank."""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+import math
+import re
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from harness.cli import main
+from harness.report.page import write_report
+from harness.report.pageimages import AMPLIFY
+from harness.report.record import image_name
+from harness.report.results import to_frame, write_results
+
+try:
+    from tests.browser import Browser, chromium
+except ImportError:  # run from inside tests/
+    from browser import Browser, chromium
+
+
+def _run_folder(tmp_path):
+    rows = []
+    for m, r, vals in (("random", 0.1, (30.0, 31.0, 29.5)), ("betadesc", 0.1, (32.0, 32.5, 31.0)),
+                       ("random", 0.3, (25.0, 26.0, 24.0)), ("betadesc", 0.3, (26.5, 27.0, 25.0)),
+                       ("lightgs", 0.1, (math.inf, 197.0, 150.0))):
+        for v, p in enumerate(vals):
+            rows.append(dict(run="t", scene="sc.a", label="scene <A>", kind="object-centric", frame="", method=m,
+                             variant="default", params="{}", ratio=r, keep=round(1 - r, 9), view=f"v{v}", status="ok",
+                             psnr=p, ssim=0.95, lpips=0.02, splats_in=100, splats_out=int(100 * (1 - r)), tau=0.5,
+                             score_s=0.2))
+    df = to_frame(rows)
+    write_results(df, tmp_path)
+    meta = {"name": "page-test", "commit": "abc123", "when": "2026-01-01T00:00:00", "machine": {"cpus": 2},
+            "stage_seconds": {"total": 12.5}, "cache_counts": {"score": {"hits": 1, "misses": 2}},
+            "config": {"name": "page-test", "ratios": [0.1, 0.3]}, "tables": ["comparison", "ablation", "versus"],
+            "plots": ["curves"], "argv": ["run", "x.yaml"]}
+    (tmp_path / "run.json").write_text(json.dumps(meta))
+    rng = np.random.default_rng(0)
+    ref = (rng.random((48, 64, 3)) * 255).astype(np.uint8)
+    d = tmp_path / "images" / "sc.a"
+    d.mkdir(parents=True)
+    Image.fromarray(ref).save(d / "input.png")
+    pruned = {}
+    for m, r, delta in (("random", 0.1, 20), ("betadesc", 0.1, 3), ("random", 0.3, 40), ("betadesc", 0.3, 9),
+                        ("lightgs", 0.1, 0)):
+        img = ref.copy()
+        img[10:20, 10:30] = np.clip(img[10:20, 10:30].astype(int) + delta, 0, 255).astype(np.uint8)
+        Image.fromarray(img).save(d / image_name(m, "default", r))
+        pruned[(m, r)] = img
+    return df, meta, ref, pruned
+
+
+def _decode(uri: str) -> np.ndarray:
+    return np.asarray(Image.open(io.BytesIO(base64.b64decode(uri.split(",", 1)[1]))).convert("RGB"))
+
+
+def test_page_is_self_contained_and_its_difference_images_are_faithful(tmp_path):
+    df, meta, ref, pruned = _run_folder(tmp_path)
+    page = write_report(tmp_path, df, meta).read_text()
+    assert not re.search(r"(src|href)=['\"](?!data:|#)", page)  # nothing outside the page
+    assert "http://" not in page and "https://" not in page
+    assert page.count("type='range' min='0'") == 5  # one slider per scene × method × ratio (+ the width control)
+    diffs = re.findall(r"class='diff' alt='difference ([^']*)' src='([^']*)'", page)
+    assert len(diffs) == 5
+    by_alt = dict(diffs)
+    got = _decode(by_alt["BetaDescPrune, 30% pruned"])
+    want = np.minimum(255, np.abs(pruned[("betadesc", 0.3)].astype(int) - ref.astype(int)).max(axis=2) * AMPLIFY)
+    assert np.array_equal(got[..., 0], want) and np.array_equal(got[..., 1], want)  # lossless, grey
+    assert not _decode(by_alt["LightGSPrune, 10% pruned"]).any()  # identical pair: black
+    assert "PSNR inf (identical)" in page
+
+
+def test_page_shows_tables_with_cis_missing_tables_and_the_run_record(tmp_path):
+    df, meta, *_ = _run_folder(tmp_path)
+    page = write_report(tmp_path, df, meta).read_text()
+    assert re.search(r"31\.83<br><small>Δ \+[0-9.]+ \[\+[0-9.]+, \+[0-9.]+\]</small>", page)  # mean, Δ [CI]
+    assert "class='better'" in page  # betadesc above random with a CI above 0
+    assert "Not made from these results: no ablation variant measured at 20%" in page
+    assert "scene &lt;A&gt;" in page and "scene <A>" not in page  # labels escaped
+    for text in ("abc123", "page-test", "harness run x.yaml", "1 / 2"):
+        assert text in page
+    assert "curves_scene__A_.png" in page  # drawn for the page when the folder has no plots
+
+
+def test_report_command_writes_the_page(tmp_path, capsys):
+    _run_folder(tmp_path)
+    assert main(["report", str(tmp_path), "--reference", "betadesc"]) == 0
+    assert capsys.readouterr().out.strip() == str(tmp_path / "report.html")
+    assert "against BetaDescPrune" in (tmp_path / "report.html").read_text()
+
+
+@pytest.mark.skipif(chromium() is None, reason="Debian's chromium is not installed (setup.sh installs it)")
+def test_page_in_headless_chromium(tmp_path):
+    df, meta, *_ = _run_folder(tmp_path)
+    page = write_report(tmp_path, df, meta)
+    with Browser(width=1280, height=900) as b:
+        b.open(page.as_uri())
+        b.evaluate("document.querySelectorAll('details').forEach(d => d.open = true)")
+        bad = b.evaluate("new Promise(r => setTimeout(() => r(Array.from(document.images)"
+                         ".filter(i => !(i.complete && i.naturalWidth > 0)).map(i => i.alt)), 300))")
+        n_img = b.evaluate("document.images.length")
+        clip = b.evaluate("(() => { const s = document.querySelector('.slider input'); s.value = 20;"
+                          " s.dispatchEvent(new Event('input')); return s.parentNode.querySelector('img').style.clipPath; })()")
+        shot = b.screenshot(tmp_path / "shot.png")
+        errors = list(b.errors)
+    assert errors == []
+    assert n_img >= 12 and bad == []  # 5 pruned + 5 differences + reference + curves
+    assert clip == "inset(0px 0px 0px 20%)"
+    px = np.asarray(Image.open(shot).convert("RGB"))
+    assert px.shape[0] > 500 and px.std() > 20 and len(np.unique(px.reshape(-1, 3), axis=0)) > 50  # not blank

@@ -1,0 +1,76 @@
+"""harness.report.stats: the bootstrap against scipy and by hand, paired differences, near-identical views."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy import stats as sst
+
+from harness.report import stats
+
+
+@pytest.mark.parametrize("n", [2, 3, 8, 25])
+def test_bootstrap_matches_scipy_percentile(n):
+    x = np.random.default_rng(n).normal(30.0, 2.0, n)
+    lo, hi = stats.bootstrap_ci(x)
+    ref = sst.bootstrap((x,), np.mean, method="percentile", n_resamples=10_000, confidence_level=0.95,
+                        rng=np.random.default_rng(0)).confidence_interval
+    assert lo == pytest.approx(ref.low, abs=1e-12) and hi == pytest.approx(ref.high, abs=1e-12)
+    assert lo <= x.mean() <= hi
+
+
+def test_paired_bootstrap_matches_scipy_paired():
+    rng = np.random.default_rng(7)
+    a = rng.normal(30, 3, 8)
+    b = a - 0.5 + rng.normal(0, 0.2, 8)
+    cur = pd.DataFrame({"frame": "", "view": [f"v{i}" for i in range(8)], "psnr": a, "near": False})
+    ref = cur.assign(psnr=b)
+    got = stats.paired(cur, ref, "psnr")
+    want = sst.bootstrap((a, b), lambda p, q, axis: np.mean(p - q, axis=axis), paired=True, vectorized=True,
+                         method="percentile", n_resamples=10_000, rng=np.random.default_rng(0)).confidence_interval
+    assert got["delta"] == pytest.approx(np.mean(a - b))
+    assert (got["ci_low"], got["ci_high"]) == (pytest.approx(want.low, abs=1e-12), pytest.approx(want.high, abs=1e-12))
+    assert got["n_pairs"] == 8 and got["ci_low"] > 0  # a consistent +0.5 dB shows as an interval above 0
+
+
+def test_bootstrap_by_hand_two_values():
+    # resampled means of {0, 1} are 0, 0.5, 1 with probabilities 1/4, 1/2, 1/4 -> the 95 % interval is [0, 1]
+    assert stats.bootstrap_ci([0.0, 1.0]) == (0.0, 1.0)
+    assert stats.bootstrap_ci([5.0, 5.0, 5.0]) == (5.0, 5.0)
+    assert all(math.isnan(v) for v in stats.bootstrap_ci([1.0]))
+    assert all(math.isnan(v) for v in stats.bootstrap_ci([1.0, math.inf]))
+
+
+def test_bootstrap_is_reproducible():
+    x = np.arange(10.0) ** 1.5
+    assert stats.bootstrap_ci(x) == stats.bootstrap_ci(x.copy())
+
+
+def test_near_identical_covers_inf_the_100_db_line_and_mpeg_cap():
+    df = pd.DataFrame({"psnr": [30.0, 99.9, 100.0, math.inf, np.nan, 40.0],
+                       "rgb_psnr": [30.0, 30.0, 30.0, 30.0, 30.0, 999.99], "ssim": [1.0] * 6})
+    assert stats.near_identical(df, ["psnr", "rgb_psnr", "ssim"]).tolist() == [False, False, True, True, False, True]
+    assert stats.near_identical(df, ["ssim"]).tolist() == [False] * 6
+
+
+def test_summary_and_paired_leave_near_identical_views_out_of_db_means():
+    cur = pd.DataFrame({"frame": "", "view": ["a", "b", "c"], "psnr": [30.0, 197.0, math.inf],
+                        "ssim": [0.9, 1.0, 1.0]})
+    cur["near"] = stats.near_identical(cur, ["psnr"])
+    s = stats.summary(cur["psnr"], cur["near"], "psnr")
+    assert s == {"mean": 30.0, "median": 197.0, "n": 3, "n_near_identical": 2}
+    assert stats.summary(cur["ssim"], cur["near"], "ssim")["mean"] == pytest.approx(2.9 / 3)
+    ref = cur.assign(psnr=[28.0, 35.0, 36.0], near=False)
+    p = stats.paired(cur, ref, "psnr")
+    assert p["delta"] == 2.0 and p["n_pairs"] == 1 and p["n_pairs_excluded"] == 2
+    assert stats.paired(cur, ref.iloc[:2], "ssim")["n_pairs"] == 2  # bounded metrics keep every pair
+
+
+def test_verdict():
+    assert stats.verdict(0.1, 0.5, True) == "better"
+    assert stats.verdict(0.1, 0.5, False) == "worse"
+    assert stats.verdict(-0.1, 0.5, True) == "unclear"
+    assert stats.verdict(np.nan, np.nan, True) == "unclear"
