@@ -25,8 +25,10 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-RESAMPLES = 10_000
-MAX_PSNR = 100.0
+from harness.report import stats
+
+RESAMPLES = stats.N_RESAMPLES
+MAX_PSNR = stats.NEAR_IDENTICAL_DB
 
 
 @dataclass(frozen=True)
@@ -54,19 +56,13 @@ class Paired:
 
 def bootstrap_ci(d: Sequence[float], *, resamples: int = RESAMPLES, seed: int = 0,
                  level: float = 0.95) -> tuple[float, float, float]:
-    """(mean, lo, hi): the mean of ``d`` and its percentile-bootstrap CI (resampling the entries)."""
+    """(mean, lo, hi): the mean of ``d`` and its percentile-bootstrap CI
+    (:func:`harness.report.stats.bootstrap_ci`, the one bootstrap of the house)."""
     d = np.asarray(d, dtype=np.float64)
     if d.size == 0:
         return math.nan, math.nan, math.nan
-    rng = np.random.default_rng(seed)
-    means = np.empty(resamples)
-    chunk = max(1, 2_000_000 // d.size)
-    for start in range(0, resamples, chunk):
-        k = min(chunk, resamples - start)
-        means[start:start + k] = d[rng.integers(0, d.size, (k, d.size))].mean(axis=1)
-    alpha = (1.0 - level) / 2.0
-    lo, hi = np.quantile(means, [alpha, 1.0 - alpha])
-    return float(d.mean()), float(lo), float(hi)
+    lo, hi = stats.bootstrap_ci(d, n_resamples=resamples, confidence=level, seed=seed)
+    return float(d.mean()), lo, hi
 
 
 def _params_equal(text: str, want: Mapping[str, Any]) -> bool:
