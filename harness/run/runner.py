@@ -38,6 +38,14 @@ from harness.run.tasks import (
     run_view,
 )
 from harness.run.toolkit import Toolkit
+from harness.run.verify import (
+    mask_check,
+    metrics_check,
+    prune_check,
+    render_ref_record_check,
+    score_array_check,
+    score_record_check,
+)
 from harness.run.versions import module_versions
 
 #: pruned sets per view task: small enough to balance two workers, large enough that the per-task
@@ -62,7 +70,7 @@ class Runner:
                  base_dir: Path | None = None):
         self.config = config
         self.out_dir = Path(out_dir)
-        self.cache = StageCache(cache_root, force=force)
+        self.cache = StageCache(cache_root, force=force, warn=lambda m: log(f"warning: {m}"))
         self.workers = max(1, int(workers))
         self.toolkit = toolkit or Toolkit()
         self.progress = progress  # a harness.run.progress.StageProgress or None
@@ -157,7 +165,7 @@ class Runner:
                                       "training cameras (give a rig or a cameras file with training views)"))
                     continue
                 key = self._score_key(item, mv, spec)
-                rec = self.cache.get_json("score", key)
+                rec = self._cached_scores(key, item.n_splats) if key not in pending else None
                 if rec is not None:
                     out[(i, mv.key)] = (key, rec)
                     continue
@@ -177,10 +185,24 @@ class Runner:
                 for ik in pending[res["key"]]:
                     out[ik] = (res["key"], {"error": res["error"]})
                 continue
-            rec = self.cache.load_json("score", res["key"])
+            n = items[pending[res["key"]][0][0]].n_splats
+            rec = self.cache.load_json("score", res["key"], check=score_record_check(n))
+            if rec is None or self.cache.load_array("score", res["key"], check=score_array_check(n)) is None:
+                rec = {"error": "the stored scores failed verification"}
+                self.errors.append(f"score {res['key'][:12]}: {rec['error']}")
             for ik in pending[res["key"]]:
                 out[ik] = (res["key"], rec)
         return out, skips
+
+    def _cached_scores(self, key: str, n: int):
+        """The score record when both it and its array pass verification (a hit), else None (a
+        miss: whichever entry is bad was discarded with a warning, and both are recomputed)."""
+        rec = None if self.cache.force else self.cache.get_json("score", key, count=False,
+                                                                check=score_record_check(n))
+        if rec is not None and self.cache.load_array("score", key, check=score_array_check(n)) is None:
+            rec = None
+        self.cache._count("score", rec is not None)
+        return rec
 
     def _prune_stage(self, items, scores):
         """{(item index, method key, ratio): prune record with mask digest}."""
@@ -196,16 +218,23 @@ class Runner:
                 if "error" in srec:
                     continue
                 arr = None
+                n = item.n_splats
                 for r in mv.ratios:
                     key = self.cache.key("prune", score=skey, ratio=r, code=code)
-                    rec = self.cache.get_json("prune", key)
+                    rec = self.cache.get_json("prune", key, check=prune_check(n, r))
+                    if rec is not None and self.cache.load_array(
+                            "masks", rec["mask"], check=mask_check(n, rec["splats_out"], rec["mask"])) is None:
+                        rec = None  # its mask was missing or bad (discarded): recompute both
                     if rec is None:
                         if arr is None:
-                            arr = self.cache.load_array("score", skey)
+                            arr = self.cache.load_array("score", skey, check=score_array_check(n))
+                            if arr is None:
+                                self.errors.append(f"prune {key[:12]}: scores {skey[:12]} failed verification")
+                                break
                         t0 = time.perf_counter()
                         sel = select_by_ratio(arr, r)
                         mask = digest_mask(sel.keep)
-                        if not self.cache.has("masks", mask, "npy"):
+                        if self.cache.load_array("masks", mask, check=mask_check(n, sel.kept, mask)) is None:
                             self.cache.put_array("masks", mask, np.packbits(sel.keep))
                         rec = {"mask": mask, "tau": sel.tau, "tau_quantile": sel.tau_quantile,
                                "splats_out": sel.kept, "seconds": time.perf_counter() - t0}
@@ -237,10 +266,11 @@ class Runner:
                 for mask in masks:
                     mkey = self._metrics_key(ref_key, mask)
                     # the first view's pruned render is kept as an image (figures, report page)
-                    measured = self.cache.get_json("metrics", mkey) is not None
+                    measured = self.cache.get_json("metrics", mkey, check=metrics_check(p.metrics)) is not None
                     if not measured or (v == 0 and not self.cache.has("images", mkey, "png")):
                         jobs.append(MaskJob(mkey, mask, v == 0))
-                have_ref = self.cache.get_json("render_ref", ref_key) is not None
+                have_ref = self.cache.get_json("render_ref", ref_key,
+                                               check=render_ref_record_check(cam.width, cam.height)) is not None
 
                 def task(jobs_, render_ref=False, ref_png=False, ref_key=ref_key, item=item, cam=cam):
                     return ViewTask(str(self.cache.root), ref_key, item.path, item.spec.lod, item.digest,
@@ -275,7 +305,8 @@ class Runner:
                          "variant": sk.variant, "status": sk.status, "reason": sk.reason})
         for i, item in enumerate(items):
             ref_keys = [self._ref_key(item, cam) for cam in item.test]
-            ref_recs = [self.cache.load_json("render_ref", k) or {} for k in ref_keys]
+            ref_recs = [self.cache.load_json("render_ref", k, check=render_ref_record_check(c.width, c.height)) or {}
+                        for k, c in zip(ref_keys, item.test)]
             if ref_keys:
                 images[(item.spec.name, item.frame, "input", "", 0.0)] = self.cache.path("images", ref_keys[0], "png")
             for mv in variants_for(item, self.config.methods):
@@ -291,12 +322,15 @@ class Runner:
                     if "error" in srec:
                         rows.append({**row0, "status": "error", "reason": srec["error"]})
                         continue
-                    prec = prunes[(i, mv.key, r)]
+                    prec = prunes.get((i, mv.key, r))
+                    if prec is None:  # its scores failed verification after they were computed
+                        rows.append({**row0, "status": "error", "reason": "pruning failed (see run.json errors)"})
+                        continue
                     row0.update(splats_out=prec["splats_out"], tau=prec["tau"], tau_quantile=prec["tau_quantile"],
                                 score_s=srec["seconds"], prune_s=prec["seconds"])
                     for v, (cam, rk, rrec) in enumerate(zip(item.test, ref_keys, ref_recs)):
                         mkey = self._metrics_key(rk, prec["mask"])
-                        m = self.cache.load_json("metrics", mkey)
+                        m = self.cache.load_json("metrics", mkey, check=metrics_check(p.metrics))
                         row = {**row0, "view": cam.name or f"view{v:02d}", "width": cam.width, "height": cam.height,
                                "render_ref_s": rrec.get("seconds")}
                         if m is None:
