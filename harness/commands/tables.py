@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 NAME = "tables"
@@ -23,14 +22,14 @@ def run(args) -> int:
 
     run_dir = Path(args.run_dir)
     df = read_results(run_dir)
-    meta = {}
-    if (run_dir / "run.json").exists():
-        try:
-            meta = json.loads((run_dir / "run.json").read_text())
-        except ValueError:
-            raise InputError(run_dir / "run.json", "is not valid JSON") from None
+    from harness.report.tracking import read_run_json
+
+    meta = read_run_json(run_dir / "run.json") if (run_dir / "run.json").exists() else {}
     tables = args.tables if args.tables is not None else meta.get("tables", list(TABLES))
     plots = args.plots if args.plots is not None else meta.get("plots", list(PLOTS))
+    for key, names in (("tables", tables), ("plots", plots)):
+        if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+            raise InputError(run_dir / "run.json", f"'{key}' must be a list of names, got {str(names)[:60]}")
     for name in tables:
         if name not in TABLES:
             raise InputError("--tables", f"unknown table {name!r}; known: {', '.join(TABLES)}")

@@ -239,7 +239,7 @@ def _read_ascii(path: Path, header: PlyHeader, vertex: PlyElement) -> np.ndarray
             bad = ~np.isfinite(col) | (col != np.round(col)) | (col < info.min) | (col > info.max)
             if bad.any():
                 row = int(np.flatnonzero(bad)[0])
-                raise InputError(path, f"ascii vertex {row}: property {name!r} ({code}) holds {col[row]!r}, "
+                raise InputError(path, f"ascii vertex {row}: property {name!r} ({code}) holds {float(col[row])!r}, "
                                        f"not an integer in [{info.min}, {info.max}]")
         out[name] = col
     return out

@@ -48,6 +48,14 @@ from harness.run.verify import (
 )
 from harness.run.versions import module_versions
 
+def _pool_worker_init(parent_pid: int, threads: int, imports, preload) -> None:
+    """Pool initializer: die with the driver (even on its ``kill -9``), then :func:`init_worker`."""
+    from harness.core.lifecycle import die_with_parent
+
+    die_with_parent(parent_pid)
+    init_worker(threads, imports, preload)
+
+
 #: pruned sets per view task: small enough to balance two workers, large enough that the per-task
 #: reference LPIPS features (one VGG pass) stay a small overhead
 CHUNK = 8
@@ -64,6 +72,20 @@ class RunResult:
     images: dict = field(default_factory=dict)  # (scene, method, variant, ratio) -> cache png path
 
 
+def _terminate(pool: ProcessPoolExecutor) -> None:
+    """Stop a pool now: cancel what is queued, SIGTERM then SIGKILL every worker, reap them."""
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in procs:
+        if p.is_alive():
+            p.terminate()
+    for p in procs:
+        p.join(timeout=2.0)
+        if p.is_alive():
+            p.kill()
+            p.join(timeout=2.0)
+
+
 class Runner:
     def __init__(self, config: RunConfig, *, out_dir: Path, cache_root: Path, workers: int = 1,
                  force: bool = False, toolkit: Toolkit | None = None, progress=None, log=print,
@@ -71,6 +93,9 @@ class Runner:
         self.config = config
         self.out_dir = Path(out_dir)
         self.cache = StageCache(cache_root, force=force, warn=lambda m: log(f"warning: {m}"))
+        from harness.io.files import sweep_stale_temps
+
+        sweep_stale_temps(self.cache.root, recursive=True)  # left by a killed run (kill -9 of a writer)
         self.workers = max(1, int(workers))
         self.toolkit = toolkit or Toolkit()
         self.progress = progress  # a harness.run.progress.StageProgress or None
@@ -98,8 +123,10 @@ class Runner:
                         bar.advance(weight(t))
         else:
             ctx = get_context("spawn")
-            with ProcessPoolExecutor(self.workers, mp_context=ctx, initializer=init_worker,
-                                     initargs=(self.threads, self.toolkit.imports, self.toolkit.preload)) as pool:
+            pool = ProcessPoolExecutor(self.workers, mp_context=ctx, initializer=_pool_worker_init,
+                                       initargs=(os.getpid(), self.threads, self.toolkit.imports,
+                                                 self.toolkit.preload))
+            try:
                 futures = {pool.submit(fn, t): t for t in tasks}
                 for fut in as_completed(futures):
                     try:
@@ -108,6 +135,10 @@ class Runner:
                         results.append(futures[fut].failed(f"worker failed: {type(err).__name__}: {err}"))
                     if bar:
                         bar.advance(weight(futures[fut]))
+            except BaseException:  # SIGTERM / Ctrl-C / an error here: the workers go with the run
+                _terminate(pool)
+                raise
+            pool.shutdown(wait=True)
         if bar:
             bar.finish()
         return results
@@ -141,6 +172,9 @@ class Runner:
         self._timed("render_metrics", self._view_stage, items, prunes)
         rows, images = self._timed("aggregate", self._rows, items, scores, prunes, skips)
         self.stage_s["total"] = time.perf_counter() - t_all
+        # content hashing of the inputs (every run; part of "load"): its cost, reported in run.json
+        self.stage_s["hash_inputs"] = self.cache.files.seconds
+        self.hashed_bytes = self.cache.files.hashed_bytes
         return RunResult(self.out_dir, rows, skips, self.errors, self.stage_s, self.cache.counts(), images)
 
     def _score_key(self, item: SceneItem, mv, spec) -> str:

@@ -323,11 +323,11 @@ def _(d):
 
 @case("B6", "bomb", "YAML billion laughs in a scene label")
 def _(d):
-    lines = ['a0: &a0 ["lol","lol","lol","lol","lol","lol","lol","lol","lol"]']
+    chain = ['&a0 ["lol","lol","lol","lol","lol","lol","lol","lol","lol"]']
     for i in range(1, 9):
-        lines.append(f"a{i}: &a{i} [" + ",".join([f"*a{i - 1}"] * 9) + "]")
-    text = "\n".join(lines) + "\nname: t\nscenes: [{name: s, source: s.ply, label: *a8}]\nmethods: [opacity]\n" \
-                              "ratios: [0.3]\n"
+        chain.append(f"&a{i} [" + ",".join([f"*a{i - 1}"] * 9) + "]")
+    text = "name: t\noutput: out\nratios: [0.3]\nmethods: [opacity]\nscenes:\n  - name: s\n    source: s.ply\n" \
+           "    label: [" + ", ".join(chain) + "]\n"
     return _run(d, text=text)
 
 
@@ -807,8 +807,13 @@ def run_case(c: Case, root: Path = ROOT, work: Path | None = None) -> dict:
     try:
         s = c.setup(d)
         before = {p: p.read_bytes() for p in s.unchanged if p.is_file()}
-        env = {**os.environ, "PYTHONPATH": str(root), "HARNESS_CACHE": str(d / "hcache"),
-               "PYTHONWARNINGS": "ignore"}
+        hcache = d / "hcache"  # a private harness cache; model weights and fetched scenes shared read-only
+        hcache.mkdir()
+        real = Path(os.environ.get("HARNESS_CACHE", Path.home() / ".cache" / "harness")).expanduser()
+        for sub in ("weights", "data"):
+            if (real / sub).is_dir():
+                (hcache / sub).symlink_to(real / sub)
+        env = {**os.environ, "PYTHONPATH": str(root), "HARNESS_CACHE": str(hcache), "PYTHONWARNINGS": "ignore"}
         t0 = time.perf_counter()
         proc = subprocess.Popen([PY, "-m", "harness", *s.argv], cwd=d, env=env, stdout=subprocess.PIPE,
                                 stderr=subprocess.PIPE, stdin=subprocess.DEVNULL, preexec_fn=_limits(s.fsize))
@@ -857,7 +862,11 @@ def classify(c: Case, s: Setup, rc, out: str, err: str, before: dict, d: Path) -
         return "accepted (exit 0)" + (" + wrote output" if wrote else "")
     if wrote:
         return f"exit {rc} + wrote output"
-    if rc == 2 and len(lines) == 1 and lines[0].startswith("harness: "):
+    # `harness run` prints its progress on stderr before a failure: the error is then its last line
+    # and the only `harness: ` line
+    errors = [ln for ln in lines if ln.startswith("harness: ")]
+    progress_ok = s.argv[0] == "run" and len(errors) == 1 and lines[-1] == errors[0]
+    if rc == 2 and ((len(lines) == 1 and lines[0].startswith("harness: ")) or progress_ok):
         return "clean"
     return f"exit {rc}, {len(lines)} stderr lines"
 
