@@ -136,7 +136,7 @@ def parse_json(text: str | bytes, source) -> object:
     try:
         return json.loads(text)
     except json.JSONDecodeError as err:
-        raise InputError(source, f"not a readable JSON file: {err}") from None
+        raise InputError(source, f"not a readable JSON file (not valid JSON: {err})") from None
     except RecursionError:
         raise InputError(source, "JSON nested too deeply") from None
 

@@ -74,15 +74,18 @@ def _entries(cache: Path, stage: str, ext: str) -> list[Path]:
 
 
 def _payload(p: Path) -> tuple[bytes, bytes]:
+    """(checksum header, payload) of an entry; the header is empty for the pre-issue-15 layout."""
     data = p.read_bytes()
-    return data[:70], data[70:]
+    return (data[:70], data[70:]) if data.startswith(b"HCE1 ") else (b"", data)
 
 
 def _resign(p: Path, payload: bytes) -> None:
-    sys.path.insert(0, str(ROOT))
-    from harness.run.cache import envelope
+    """Write ``payload`` with a valid checksum (the old layout had none: the payload alone)."""
+    import hashlib
 
-    p.write_bytes(envelope(payload))
+    if p.read_bytes().startswith(b"HCE1 "):
+        payload = b"HCE1 " + hashlib.sha256(payload).hexdigest().encode() + b"\n" + payload
+    p.write_bytes(payload)
 
 
 def _edit_json(p: Path, fn, resign=False) -> None:
@@ -174,10 +177,10 @@ CACHE_EXPERIMENTS = [
 
 
 def _host() -> str:
-    sys.path.insert(0, str(ROOT))
-    from harness.io.files import _host as h
+    import re
+    import socket
 
-    return h()
+    return re.sub(r"[^A-Za-z0-9-]", "-", socket.gethostname())[:40] or "host"
 
 
 def cache_experiments(root: Path, work: Path) -> list[dict]:
