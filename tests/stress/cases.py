@@ -871,13 +871,32 @@ def classify(c: Case, s: Setup, rc, out: str, err: str, before: dict, d: Path) -
     return f"exit {rc}, {len(lines)} stderr lines"
 
 
+def table(before: list[dict], after: list[dict]) -> str:
+    """Markdown case table: case -> before -> after (later entries of ``before`` override earlier)."""
+    b = {r["id"]: r for r in before}
+    rows = ["| case | what | before | after |", "|---|---|---|---|"]
+    for r in after:
+        was = b.get(r["id"], {}).get("outcome", "(not run)")
+        if was == "clean" and b[r["id"]].get("stderr"):
+            was = "clean: " + b[r["id"]]["stderr"].split(": ", 2)[-1][:60]
+        now = r["outcome"] + (": " + r["stderr"].split(": ", 2)[-1][:90] if r["outcome"] == "clean" else "")
+        rows.append(f"| {r['id']} | {r['what']} | {was} | {now} |".replace("\n", " "))
+    return "\n".join(rows)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--table", nargs="+", metavar="JSON", default=None,
+                    help="print the markdown table of BEFORE.json [BEFORE2.json ...] AFTER.json and exit")
     ap.add_argument("--root", default=str(ROOT))
     ap.add_argument("--only", default=None)
     ap.add_argument("--json", default=None)
     ap.add_argument("--skip-slow", action="store_true")
     args = ap.parse_args(argv)
+    if args.table:
+        *befores, after = [json.loads(Path(p).read_text()) for p in args.table]
+        print(table([r for b in befores for r in b], after))
+        return 0
     only = set(args.only.split(",")) if args.only else None
     results = []
     for c in CASES:
