@@ -14,10 +14,11 @@ is discarded and recomputed instead of used:
 * **prune** record: ``splats_out = N − round(r·N)`` (:func:`methods.targeting.removal_count`),
   hence ≤ N; ``mask`` a sha256; ``tau_quantile`` in [0, 1]; mask array: ``ceil(N/8)`` packed bytes
   whose set bits count ``splats_out``, padding bits zero, and whose digest is the mask key.
-* **render_ref** record: ``width``/``height`` those of the camera; array: float32 ``(H, W, 3)``, finite.
-* **metrics**: every requested metric present; PSNR a number in [0, +inf] (+inf: identical
-  renders, the only non-finite value allowed), SSIM finite in [−1, 1], LPIPS finite and ≥ 0, any
-  other metric finite; timings finite and ≥ 0.
+* **render_ref** record: ``width``/``height`` those of the camera; array: floats ``(H, W, 3|4)``
+  (colour, or colour + alpha), finite.
+* **metrics**: every requested metric present; PSNR (and any ``psnr*`` variant) a number in
+  [0, +inf] (+inf: identical renders, the only non-finite value allowed), SSIM finite in [−1, 1],
+  LPIPS finite and ≥ 0, any other metric finite; timings finite and ≥ 0.
 """
 
 from __future__ import annotations
@@ -159,8 +160,9 @@ def render_ref_record_check(width: int, height: int):
 def image_check(width: int, height: int):
     def check(img):
         img = np.asarray(img)
-        if img.shape != (height, width, 3) or img.dtype != np.float32:
-            return f"render of shape {img.shape} / {img.dtype}, expected ({height}, {width}, 3) float32"
+        if img.ndim != 3 or img.shape[:2] != (height, width) or img.shape[2] not in (1, 3, 4) \
+                or img.dtype.kind != "f":
+            return f"render of shape {img.shape} / {img.dtype}, expected ({height}, {width}, 3|4) floats"
         if not np.isfinite(img).all():
             return "render holds NaN/inf pixels"
         return None
@@ -177,9 +179,9 @@ def metrics_check(names):
             v = rec.get(k)
             if not _real(v) or math.isnan(v):
                 return f"{k} {v!r} is not a number"
-            if k == "psnr":
+            if k.startswith("psnr"):  # psnr and its per-channel variants: +inf for identical images
                 if v < 0:
-                    return f"psnr {v!r} is negative (images in [0, 1] give PSNR >= 0)"
+                    return f"{k} {v!r} is negative (images in [0, 1] give PSNR >= 0)"
             elif not math.isfinite(v):
                 return f"{k} {v!r} is not finite"
             elif k == "ssim" and not -1.0 <= v <= 1.0:
