@@ -40,7 +40,6 @@ so a level holds each stored splat at most once (no expansion beyond the referen
 from __future__ import annotations
 
 import io
-import json
 import posixpath
 import zipfile
 from pathlib import Path

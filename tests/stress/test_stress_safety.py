@@ -27,7 +27,7 @@ from harness.cli import main
 from harness.io.ply import write_ply
 from tests.scene_factory import random_scene
 from tests.stress.budget import n
-from tests.stress.cases import _png, _sog
+from tests.stress.cases import _sog
 
 pytestmark = [pytest.mark.stress]
 ROOT = Path(__file__).resolve().parents[2]
