@@ -48,6 +48,7 @@ from harness.run.verify import (
 )
 from harness.run.versions import module_versions
 
+
 def _pool_worker_init(parent_pid: int, threads: int, imports, preload) -> None:
     """Pool initializer: die with the driver (even on its ``kill -9``), then :func:`init_worker`."""
     from harness.core.lifecycle import die_with_parent
@@ -255,10 +256,11 @@ class Runner:
                 n = item.n_splats
                 for r in mv.ratios:
                     key = self.cache.key("prune", score=skey, ratio=r, code=code)
-                    rec = self.cache.get_json("prune", key, check=prune_check(n, r))
+                    rec = self.cache.get_json("prune", key, count=False, check=prune_check(n, r))
                     if rec is not None and self.cache.load_array(
                             "masks", rec["mask"], check=mask_check(n, rec["splats_out"], rec["mask"])) is None:
                         rec = None  # its mask was missing or bad (discarded): recompute both
+                    self.cache._count("prune", rec is not None)
                     if rec is None:
                         if arr is None:
                             arr = self.cache.load_array("score", skey, check=score_array_check(n))

@@ -66,7 +66,8 @@ def _metrics(run_dir: Path):
 
     df = pd.read_parquet(run_dir / "results.parquet")
     df = df[df["status"] == "ok"].sort_values(["method", "ratio", "view"])
-    return df[["method", "ratio", "view", "psnr", "ssim", "lpips", "splats_out"]].reset_index(drop=True)
+    return df[["method", "ratio", "view", "psnr", "ssim", "lpips", "splats_in", "splats_out", "width",
+               "height"]].reset_index(drop=True)
 
 
 def _entries(cache: Path, stage: str, ext: str) -> list[Path]:
@@ -183,7 +184,7 @@ def _host() -> str:
     return re.sub(r"[^A-Za-z0-9-]", "-", socket.gethostname())[:40] or "host"
 
 
-def cache_experiments(root: Path, work: Path) -> list[dict]:
+def cache_experiments(root: Path, work: Path, only: set | None = None) -> list[dict]:
     src_scene = Path(os.environ.get("HARNESS_SHARED_DATA", "/work/shared/data")) / "grape_small.ply"
     base = work / "base"
     base.mkdir(parents=True)
@@ -203,6 +204,8 @@ def cache_experiments(root: Path, work: Path) -> list[dict]:
     print(f"clean run {cold:.1f} s: {len(clean)} metric rows", flush=True)
     results = []
     for eid, what, damage, ratios in CACHE_EXPERIMENTS:
+        if only and eid not in only:
+            continue
         d = work / eid
         d.mkdir()
         shutil.copytree(base / "cache", d / "cache")
@@ -365,11 +368,14 @@ def main(argv=None) -> int:
     ap.add_argument("which", choices=("cache", "kill"))
     ap.add_argument("--root", default=str(ROOT))
     ap.add_argument("--json", default=None)
+    ap.add_argument("--only", default=None, help="cache experiment ids, comma-separated")
     args = ap.parse_args(argv)
     work = Path(tempfile.mkdtemp(prefix=f"exp-{args.which}-"))
     try:
-        fn = cache_experiments if args.which == "cache" else kill_experiments
-        res = fn(Path(args.root), work)
+        if args.which == "cache":
+            res = cache_experiments(Path(args.root), work, set(args.only.split(",")) if args.only else None)
+        else:
+            res = kill_experiments(Path(args.root), work)
     finally:
         shutil.rmtree(work, ignore_errors=True)
     if args.json:
