@@ -50,9 +50,19 @@ def _env(root: Path) -> dict:
         "HARNESS_SHARED_DATA", "/work/shared/data"), "PYTHONWARNINGS": "ignore"}
 
 
-def harness(root: Path, cwd: Path, *argv, timeout=900) -> subprocess.CompletedProcess:
-    return subprocess.run([PY, "-m", "harness", *argv], cwd=cwd, env=_env(root), capture_output=True, text=True,
-                          timeout=timeout, stdin=subprocess.DEVNULL)
+def harness(root: Path, cwd: Path, *argv, timeout=300) -> subprocess.CompletedProcess:
+    """Run the CLI; a run past ``timeout`` is killed (with its process group) and reported with
+    ``returncode`` None."""
+    proc = subprocess.Popen([PY, "-m", "harness", *argv], cwd=cwd, env=_env(root), stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, stdin=subprocess.DEVNULL, start_new_session=True)
+    try:
+        out, err = proc.communicate(timeout=timeout)
+        rc = proc.returncode
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        out, err = proc.communicate()
+        rc = None
+    return subprocess.CompletedProcess(proc.args, rc, out, err)
 
 
 def _study(d: Path, scene: Path, ratios="[0.1, 0.3]") -> Path:
@@ -221,7 +231,9 @@ def cache_experiments(root: Path, work: Path, only: set | None = None) -> list[d
         run_json = json.loads((d / "out" / "run.json").read_text()) if (d / "out" / "run.json").exists() else {}
         counts = run_json.get("cache_counts", {})
         tmp_left = [p for p in (d / "cache").rglob("*.tmp")]
-        if r.returncode != 0:
+        if r.returncode is None:
+            outcome = "hang (killed after 300 s)"
+        elif r.returncode != 0:
             outcome = f"exit {r.returncode}: {(r.stderr.strip().splitlines() or [''])[-1][:100]}"
         elif eid == "C15":
             changed = counts.get("load", {}).get("misses", 0) > 0 and counts.get("score", {}).get("hits", 1) == 0
@@ -292,12 +304,16 @@ def kill_experiments(root: Path, work: Path) -> list[dict]:
     scene_src = Path.home() / ".cache" / "harness" / "data" / "bonsai-7k-mini.splat"
     # -- prune: SIGTERM / SIGKILL at several instants; the output is written last (~70 MB .ply)
     for sig in (signal.SIGTERM, signal.SIGKILL):
-        for delay in (1.0, 1.6, 2.2, 2.8, 3.4):
+        for delay in (0.0, 0.02, 0.05, 0.1, 0.2):
             d = work / f"prune-{sig.name}-{delay}"
             d.mkdir(parents=True)
             proc = subprocess.Popen([PY, "-m", "harness", "prune", str(scene_src), str(d / "out.ply"), "--ratio",
                                      "0.3", "--method", "opacity"], cwd=d, env=_env(root),
                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL)
+            # wait until the output's temporary file exists (the write has begun), then signal
+            # ``delay`` seconds into the write
+            while proc.poll() is None and not list(d.glob(".out.ply.*")):
+                time.sleep(0.002)
             time.sleep(delay)
             proc.send_signal(sig)
             out, err = proc.communicate(timeout=60)
@@ -306,7 +322,8 @@ def kill_experiments(root: Path, work: Path) -> list[dict]:
             # the next command writing into the folder sweeps what a kill -9 left
             r2 = harness(root, d, "prune", str(scene_src), str(d / "out2.ply"), "--ratio", "0.3", "--method", "opacity")
             after = _tmps(d)
-            rec = {"id": f"prune {sig.name} at {delay:.1f}s", "rc": proc.returncode, "tmp_left": len(left),
+            rec = {"id": f"prune {sig.name} {delay:.2f} s into the write", "rc": proc.returncode,
+                   "tmp_left": len(left),
                    "output_written": written, "tmp_after_next_command": len(after), "next_rc": r2.returncode,
                    "stderr": err.decode(errors="replace").strip()[-120:]}
             if written:
