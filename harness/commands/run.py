@@ -44,8 +44,8 @@ def run(args) -> int:
 
     config = load_config(args.config)
     workers = args.workers if args.workers is not None else config.workers
-    if workers < 1:
-        raise InputError("--workers", f"must be at least 1, got {workers}")
+    if not 1 <= workers <= 256:
+        raise InputError("--workers", f"must be 1..256, got {workers}")
     from harness.core.devices import check_device
     from harness.io.files import make_output_folder, sweep_stale_temps
 

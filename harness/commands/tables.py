@@ -20,8 +20,11 @@ def run(args) -> int:
     from harness.report.results import read_results
     from harness.run.config import PLOTS, TABLES
 
+    from harness.io.files import sweep_stale_temps
+
     run_dir = Path(args.run_dir)
     df = read_results(run_dir)
+    sweep_stale_temps(run_dir, recursive=True)
     from harness.report.tracking import read_run_json
 
     meta = read_run_json(run_dir / "run.json") if (run_dir / "run.json").exists() else {}
