@@ -295,6 +295,14 @@ def _cmdline(pid: int) -> str:
         return "?"
 
 
+def _rss_mb(pid: int) -> int:
+    try:
+        with open(f"/proc/{pid}/status") as f:
+            return next(int(ln.split()[1]) // 1024 for ln in f if ln.startswith("VmRSS"))
+    except (OSError, StopIteration, ValueError):
+        return 0
+
+
 def _tmps(d: Path) -> list[Path]:
     return [p for p in d.rglob(".*.tmp")]
 
@@ -342,9 +350,11 @@ def kill_experiments(root: Path, work: Path) -> list[dict]:
         cfg = d / "study.yaml"
         cfg.write_text(STUDY.replace("RATIOS", "[0.1, 0.2, 0.3, 0.4, 0.5]").replace("SCENE", str(scene))
                        .replace("n_test: 2", "n_test: 6").replace("longest_side: 64", "longest_side: 256"))
+        # output to files, not pipes: workers that outlive the driver would hold a pipe open forever
+        log = open(d / "stderr.txt", "wb")
         proc = subprocess.Popen([PY, "-m", "harness", "run", str(cfg), "--workers", "2", "--cache", str(d / "cache"),
-                                 "--out", str(d / "out")], cwd=d, env=_env(root), stdout=subprocess.PIPE,
-                                stderr=subprocess.PIPE, stdin=subprocess.DEVNULL)
+                                 "--out", str(d / "out")], cwd=d, env=_env(root), stdout=subprocess.DEVNULL,
+                                stderr=log, stdin=subprocess.DEVNULL)
         workers: list[int] = []
         t0 = time.time()
         while time.time() - t0 < 120 and proc.poll() is None:
@@ -358,16 +368,25 @@ def kill_experiments(root: Path, work: Path) -> list[dict]:
         workers = sorted(set(workers) | {k for k in _children(proc.pid)})
         names = {k: _cmdline(k) for k in workers}
         proc.send_signal(sig)
-        out, err = proc.communicate(timeout=60)
+        proc.wait(timeout=120)
+        log.close()
+        err = (d / "stderr.txt").read_bytes()
         time.sleep(3.0)
         survivors = [k for k in workers if _alive(k)]
+        rss = {k: _rss_mb(k) for k in survivors}
         tmp_left = _tmps(d)
+        for k in survivors:  # leave the machine as found (they are this experiment's own processes)
+            try:
+                os.kill(k, signal.SIGKILL)
+            except OSError:
+                pass
         r2 = harness(root, d, "run", str(cfg), "--workers", "2", "--cache", str(d / "cache"), "--out", str(d / "out"))
         rec = {"id": f"run --workers 2, {sig.name} of the driver", "rc": proc.returncode,
                "children_before": len(workers),
                "children": [("tracker" if "resource_tracker" in n else "worker" if "spawn_main" in n else n[:40])
                             for n in names.values()],
-               "survivors": [names[k][:60] for k in survivors], "tmp_left": len(tmp_left),
+               "survivors": [f"{'tracker' if 'resource_tracker' in names[k] else 'worker'} ({rss[k]} MB)"
+                             for k in survivors], "tmp_left": len(tmp_left),
                "rerun_rc": r2.returncode, "stderr": err.decode(errors="replace").strip()[-160:]}
         results.append(rec)
         print(json.dumps(rec), flush=True)
