@@ -69,7 +69,12 @@ class _Files:
 
         self.root, self.zip_path = root, zip_path
         self.top = top  # the metadata file the user named: read as given (the folder is its own)
-        self._zip = zipfile.ZipFile(open_regular(zip_path, "scene", ".sog bundle")) if zip_path else None
+        self._handle = open_regular(zip_path, "scene", ".sog bundle") if zip_path else None
+        try:
+            self._zip = zipfile.ZipFile(self._handle) if zip_path else None
+        except BaseException:
+            self._handle.close()
+            raise
 
     def __enter__(self) -> Self:
         return self
@@ -77,6 +82,8 @@ class _Files:
     def __exit__(self, *exc) -> None:
         if self._zip:
             self._zip.close()
+        if self._handle:
+            self._handle.close()
 
     def label(self, name: str) -> str:
         return f"{self.zip_path}:{name}" if self._zip else str(self.root / name)
