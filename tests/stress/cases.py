@@ -873,7 +873,13 @@ def classify(c: Case, s: Setup, rc, out: str, err: str, before: dict, d: Path) -
 
 def table(before: list[dict], after: list[dict]) -> str:
     """Markdown case table: case -> before -> after (later entries of ``before`` override earlier)."""
-    b = {r["id"]: r for r in before}
+    import re
+
+    def short(text: str) -> str:  # the per-case temporary folder says nothing
+        return re.sub(r"/tmp/(pytest-of-\w+/pytest-\d+/)?case-[\w-]+?-[a-z0-9_]{8}/", "", text).replace("|", "/")
+
+    b = {r["id"]: {**r, "stderr": short(r.get("stderr", ""))} for r in before}
+    after = [{**r, "stderr": short(r.get("stderr", ""))} for r in after]
     rows = ["| case | what | before | after |", "|---|---|---|---|"]
     for r in after:
         was = b.get(r["id"], {}).get("outcome", "(not run)")
