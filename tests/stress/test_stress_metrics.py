@@ -18,7 +18,8 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from harness.core.errors import InputError
-from harness.metrics import psnr, ssim
+from harness.metrics.psnr import psnr
+from harness.metrics.ssim import ssim
 from tests.stress.budget import examples
 
 pytestmark = pytest.mark.stress
