@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import pkgutil
 import sys
 
@@ -45,12 +46,22 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 
+def _os_error_line(err: OSError) -> str:
+    """``<file>: <reason>`` of an OSError the commands did not turn into an InputError themselves
+    (a disk that fills up during a run, a folder made read-only meanwhile ...)."""
+    where = err.filename if err.filename is not None else "output"
+    return f"{where}: {err.strerror or err}"
+
+
 def main(argv: list[str] | None = None) -> int:
+    from harness.core.lifecycle import Terminated, install_signal_handlers
+
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "_run", None):
         parser.print_help()
         return 2
+    install_signal_handlers()
     try:
         return int(args._run(args) or 0)
     except InputError as err:
@@ -59,6 +70,21 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("harness: interrupted", file=sys.stderr)
         return 130
+    except Terminated as sig:
+        print(f"harness: terminated by signal {sig.signum}", file=sys.stderr)
+        return 128 + sig.signum
+    except BrokenPipeError:  # `harness info x | head`: the reader left, nothing to report
+        try:
+            sys.stdout = open(os.devnull, "w")
+        except OSError:
+            pass
+        return 0
+    except MemoryError:
+        print("harness: out of memory (input too large for this machine?)", file=sys.stderr)
+        return InputError.exit_status
+    except OSError as err:  # disk full, read-only, vanished folder: one line, not a traceback
+        print(f"harness: {_os_error_line(err)}", file=sys.stderr)
+        return InputError.exit_status
 
 
 if __name__ == "__main__":

@@ -45,11 +45,55 @@ def test_json_and_array_round_trip_with_counts(tmp_path):
 
 
 def test_corrupt_entry_reads_as_a_miss(tmp_path):
-    c = StageCache(tmp_path)
+    warnings = []
+    c = StageCache(tmp_path, warn=warnings.append)
     p = c.path("metrics", "bad", "json")
     p.parent.mkdir(parents=True)
     p.write_text("{not json")
     assert c.get_json("metrics", "bad") is None
+    assert not p.exists() and len(warnings) == 1 and "discarded" in warnings[0]
+
+
+@pytest.mark.parametrize("kind", ["json", "npy"])
+def test_every_flipped_byte_or_truncation_is_discarded_with_one_warning(tmp_path, kind):
+    warnings = []
+    c = StageCache(tmp_path, warn=warnings.append)
+    if kind == "json":
+        c.put_json("metrics", "k", {"psnr": 30.5, "ssim": 0.9})
+    else:
+        c.put_array("score", "k", np.arange(50, dtype=np.float64))
+    stage = "metrics" if kind == "json" else "score"
+    p = c.path(stage, "k", kind)
+    good = p.read_bytes()
+    get = (lambda: c.get_json(stage, "k")) if kind == "json" else (lambda: c.get_array(stage, "k"))
+    for pos in range(0, len(good), max(1, len(good) // 40)):
+        bad = bytearray(good)
+        bad[pos] ^= 0x01
+        p.write_bytes(bytes(bad))
+        assert get() is None and not p.exists(), pos
+    for cut in (0, 10, len(good) // 2, len(good) - 1):
+        p.write_bytes(good[:cut])
+        assert get() is None and not p.exists(), cut
+    p.write_bytes(good)
+    assert get() is not None
+    assert len(warnings) == len(c.discarded) > 40
+
+
+def test_schema_check_discards_a_well_formed_wrong_entry(tmp_path):
+    from harness.run.verify import metrics_check, prune_check, score_array_check
+
+    warnings = []
+    c = StageCache(tmp_path, warn=warnings.append)
+    c.put_array("score", "s", np.zeros(10))
+    assert c.get_array("score", "s", check=score_array_check(5000)) is None  # 10 scores, 5,000 splats
+    c.put_json("prune", "p", {"mask": "0" * 64, "splats_out": 5734, "tau": 0.1, "tau_quantile": 0.3,
+                              "seconds": 0.1})
+    assert c.get_json("prune", "p", check=prune_check(5000, 0.3)) is None  # more out than in
+    c.put_json("metrics", "m", {"psnr": float("nan"), "render_s": 0.1, "metrics_s": 0.1})
+    assert c.get_json("metrics", "m", check=metrics_check(["psnr"])) is None
+    c.put_json("metrics", "m", {"psnr": float("inf"), "render_s": 0.1, "metrics_s": 0.1})
+    assert c.get_json("metrics", "m", check=metrics_check(["psnr"])) is not None  # identical renders
+    assert len(warnings) == 3
 
 
 def test_atomic_write_leaves_nothing_on_failure(tmp_path):
@@ -66,22 +110,36 @@ def test_atomic_write_leaves_nothing_on_failure(tmp_path):
     assert target.read_bytes() == b"done" and len(list(tmp_path.iterdir())) == 1
 
 
-def test_file_digest_is_memoised_by_size_and_mtime(tmp_path):
+def test_file_digest_is_content_hashed_every_run(tmp_path):
     f = tmp_path / "scene.ply"
     f.write_bytes(b"x" * 1000)
-    d = FileDigests(tmp_path / "index.json")
+    d = FileDigests()
     h1 = d.digest(f)
     assert h1 == hashlib.sha256(b"x" * 1000).hexdigest() and d.hashed_bytes == 1000
-    d2 = FileDigests(tmp_path / "index.json")  # a new process reads the index
-    assert d2.digest(f) == h1 and d2.hashed_bytes == 0
+    assert d.digest(f) == h1 and d.hashed_bytes == 1000  # same identity in one process: read once
+    d2 = FileDigests()  # a new process (run) reads the content again: nothing trusted on disk
+    assert d2.digest(f) == h1 and d2.hashed_bytes == 1000
     f.write_bytes(b"y" * 1001)
-    assert d2.digest(f) != h1 and d2.hashed_bytes == 1001
+    assert d2.digest(f) != h1 and d2.hashed_bytes == 2001
     folder = tmp_path / "sog"
     folder.mkdir()
     (folder / "meta.json").write_text("{}")
     h_dir = d2.digest(folder)
     (folder / "extra.webp").write_bytes(b"1")
     assert d2.digest(folder) != h_dir
+
+
+def test_in_place_edit_with_restored_size_and_mtime_changes_the_digest(tmp_path):
+    f = tmp_path / "scene.ply"
+    f.write_bytes(b"a" * 4096)
+    h1 = FileDigests().digest(f)
+    st = f.stat()
+    with open(f, "r+b") as fh:  # same size, one byte changed, mtime put back
+        fh.seek(100)
+        fh.write(b"b")
+    os.utime(f, ns=(st.st_atime_ns, st.st_mtime_ns))
+    assert f.stat().st_size == st.st_size and f.stat().st_mtime_ns == st.st_mtime_ns
+    assert FileDigests().digest(f) != h1
 
 
 def test_mask_digest():

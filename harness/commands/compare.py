@@ -38,19 +38,15 @@ def _json_ready(metrics: dict) -> dict:
 def run(args) -> int:
     import torch
 
-    from harness.core.errors import InputError
     from harness.metrics.images import check_same_size, read_image
     from harness.metrics.lpips_vgg import LpipsVGG
     from harness.metrics.suite import compare_images
 
     a, b = read_image(args.a), read_image(args.b)
     check_same_size(a, b, args.a, args.b)
-    try:
-        device = None if args.device is None else torch.device(args.device)
-    except RuntimeError as err:
-        raise InputError("--device", str(err)) from None
-    if device is not None and device.type == "cuda" and not torch.cuda.is_available():
-        raise InputError("--device", f"{args.device} requested but no CUDA device is available")
+    from harness.core.devices import check_device
+
+    device = None if check_device(args.device, "--device") is None else torch.device(args.device)
     model = LpipsVGG(device=device)
     metrics = compare_images(a, b, lpips_model=model, yuv=args.yuv)
     if args.json:

@@ -1,8 +1,10 @@
-"""`harness info SCENE [--json] [--lod N|all] [--drop-nonfinite]`: what a scene holds."""
+"""`harness info SCENE [--json] [--lod N|all] [--drop-nonfinite]`: what a scene holds.
+
+``--json`` prints strict JSON: a statistic that is not finite (e.g. the mean scale of a scene with
+an overflowing log-scale) is ``null`` (:mod:`harness.core.jsonout`)."""
 
 from __future__ import annotations
 
-import json
 import sys
 
 NAME = "info"
@@ -43,8 +45,10 @@ def run(args) -> int:
               file=sys.stderr)
     info = describe_scene(result.scene, result.path, fmt=result.format, lod=result.lod, format_name=result.format_name)
     info["dropped_nonfinite"] = result.dropped_nonfinite
-    if args.json:
-        print(json.dumps(info))
+    if args.json:  # non-finite statistics (an overflowing scale) are null: always valid JSON
+        from harness.core.jsonout import dumps
+
+        print(dumps(info))
         return 0
     lo, hi = info["bbox_min"], info["bbox_max"]
     lines = [

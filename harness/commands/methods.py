@@ -3,8 +3,6 @@
 
 from __future__ import annotations
 
-import json
-
 NAME = "methods"
 HELP = "list the registered pruners (name, label, group, needs, parameters with types and ranges)"
 
@@ -32,7 +30,9 @@ def describe() -> list[dict]:
 def run(args) -> int:
     rows = describe()
     if args.json:
-        print(json.dumps(rows, indent=2, default=str))
+        from harness.core.jsonout import dumps
+
+        print(dumps(rows, indent=2))
         return 0
     from rich.console import Console
     from rich.table import Table

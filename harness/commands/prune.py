@@ -15,7 +15,6 @@ BetaDescPrune's optional view-aware edge evidence when ``--view-weight`` > 0.
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from pathlib import Path
@@ -110,11 +109,17 @@ def _check_paths(args) -> float:
         raise InputError(args.scores, "scores are saved as .npy; give a path ending in .npy")
     inputs = [resolve_scene(args.input)] + ([Path(args.cameras)] if args.cameras else [])
     outputs = [out] + ([Path(args.scores)] if args.scores is not None else [])
+    from harness.io.files import probe_writable, sweep_stale_temps
+
     for path in outputs:
         if not path.parent.is_dir():
             raise InputError(path, "output folder does not exist")
         if path.is_dir():
             raise InputError(path, "is a folder; give a file name")
+        if path.exists() and not path.is_file():
+            raise InputError(path, "exists and is not a regular file")
+        probe_writable(path.parent, path)  # read-only, /proc ...: refused before any work
+        sweep_stale_temps(path.parent)
         for src in inputs:
             if path.resolve() == src.resolve() or (src.is_dir() and src.resolve() in path.resolve().parents):
                 raise InputError(path, f"would overwrite the input {src}; choose another output")
@@ -146,8 +151,11 @@ def run(args) -> int:
         spec = get_pruner(args.method)
     except KeyError as err:
         raise InputError("--method", str(err.args[0])) from None
+    from harness.core.devices import check_device
+
     params = resolve(args, spec)
     ratio = _check_paths(args)
+    check_device(args.device, "--device")
     cameras = _cameras(args, spec, params)
 
     seconds: dict[str, float] = {}
@@ -170,9 +178,15 @@ def run(args) -> int:
     seconds["select"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
+    existed = Path(args.output).exists()
     write_scene(scene.subset(selection.keep), args.output)  # the input's header comments travel with it
     if args.scores is not None:
-        atomic_write_npy(args.scores, scores)
+        try:
+            atomic_write_npy(args.scores, scores)
+        except OSError as err:  # the scene must not stay behind as if the command had succeeded
+            if not existed:
+                Path(args.output).unlink(missing_ok=True)
+            raise InputError(args.scores, f"cannot write: {err.strerror or err}") from None
     seconds["write"] = time.perf_counter() - t0
 
     report = {"method": spec.name, "params": params.to_dict(), "splats_in": len(scene),
@@ -181,7 +195,9 @@ def run(args) -> int:
               "tau_quantile": selection.tau_quantile,
               "seconds": seconds}
     if args.json:
-        print(json.dumps(report, default=float))
+        from harness.core.jsonout import dumps
+
+        print(dumps(report))
     else:
         print(f"{spec.name}: {len(scene):,} -> {selection.kept:,} splats "
               f"(removed {selection.removed:,}, tau = {selection.tau:.6g})")

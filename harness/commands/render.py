@@ -70,8 +70,8 @@ def _background(text: str) -> tuple[float, float, float]:
         vals = tuple(float(v) for v in text.split(","))
     except ValueError:
         vals = ()
-    if len(vals) != 3 or not all(np.isfinite(vals)):
-        raise InputError("--background", f"expected three numbers R,G,B, got {text!r}")
+    if len(vals) != 3 or not all(np.isfinite(vals)) or not all(0.0 <= v <= 1.0 for v in vals):
+        raise InputError("--background", f"expected three numbers R,G,B in [0, 1], got {text!r}")
     return vals
 
 
@@ -93,10 +93,12 @@ def _split_llff(cams):
 
 def select_views(args, scene):
     """(where the views came from, the cameras to render), per the module docstring."""
+    from harness.core.cameras import MAX_SIDE
     from harness.io.cameras import embedded_cameras, load_cameras
 
-    if args.longest_side is not None and args.longest_side < 1:
-        raise InputError("--longest-side", "must be a positive number of pixels")
+    if args.longest_side is not None and not 1 <= args.longest_side <= MAX_SIDE:
+        raise InputError("--longest-side", f"must be 1..{MAX_SIDE} pixels (the maximum render size), "
+                                           f"got {args.longest_side}")
     up = _triple(args.up, "--up")
     if up is not None and not any(up):
         raise InputError("--up", "must be a non-zero direction")
@@ -111,8 +113,8 @@ def select_views(args, scene):
         from harness.io.datasets import identify
         from harness.views.rigs import scene_rig
 
-        if args.n_test < 1 or args.n_train < 0:
-            raise InputError("--n-test/--n-train", "need at least one test view and no negative counts")
+        if args.n_test < 1 or args.n_train < 0 or args.n_test > 10000 or args.n_train > 10000:
+            raise InputError("--n-test/--n-train", "need 1..10000 test views and 0..10000 training views")
         if args.aspect is not None and not (np.isfinite(args.aspect) and args.aspect > 0):
             raise InputError("--aspect", "must be a positive width/height ratio")
         rig = args.rig or "default"
@@ -147,11 +149,13 @@ def _save_image(image: np.ndarray, path: Path, fmt: str) -> None:
 
 
 def run(args) -> int:
+    from harness.core.devices import check_device
     from harness.io.cameras import write_3dgs_cameras
     from harness.io.scenes import load_scene
     from harness.views.contact_sheet import write_contact_sheet
 
     background = _background(args.background)
+    check_device(args.device, "--device")
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise InputError(out, "exists and is not a folder")
@@ -163,7 +167,9 @@ def run(args) -> int:
         renderer = get_renderer(args.backend, args.device)
     except Exception as err:  # noqa: BLE001  no EGL/CUDA here (moderngl, torch errors): usage, not a crash
         raise InputError(f"--backend {args.backend}", f"cannot start the renderer: {err}") from None
-    out.mkdir(parents=True, exist_ok=True)
+    from harness.io.files import make_output_folder
+
+    make_output_folder(out)  # created, writable (not /proc, not read-only), stale temp files swept
     images, labels = [], []
     try:
         for i, cam in enumerate(cams):
@@ -171,13 +177,15 @@ def run(args) -> int:
             _save_image(img, out / f"{i:03d}_{_safe(cam.name)}.{args.format}", args.format)
             images.append(img)
             labels.append(cam.name or f"view {i}")
+        covs = write_contact_sheet(images, labels, out / "contact_sheet.png", background=background)
+        write_3dgs_cameras(cams, out / "cameras.json")
+        record = [{"view": lab, "width": c.width, "height": c.height, "coverage": round(v, 4)}
+                  for lab, c, v in zip(labels, cams, covs)]
+        atomic_write_text(out / "coverage.json", json.dumps(record, indent=1))
+    except OSError as err:  # full disk, folder removed meanwhile: each file is whole or absent
+        raise InputError(err.filename or out, f"cannot write: {err.strerror or err}") from None
     finally:
         renderer.close()
-    covs = write_contact_sheet(images, labels, out / "contact_sheet.png", background=background)
-    write_3dgs_cameras(cams, out / "cameras.json")
-    record = [{"view": lab, "width": c.width, "height": c.height, "coverage": round(v, 4)}
-              for lab, c, v in zip(labels, cams, covs)]
-    atomic_write_text(out / "coverage.json", json.dumps(record, indent=1))
     for r in record:
         print(f"{r['view']:>24}  {r['width']}x{r['height']}  coverage {100 * r['coverage']:5.1f}%")
     print(f"wrote {len(cams)} views ({origin}), contact_sheet.png, cameras.json and coverage.json to {out}")

@@ -48,11 +48,16 @@ def run(args) -> int:
 
     config = load_config(args.config)
     workers = args.workers if args.workers is not None else config.workers
-    if workers < 1:
-        raise InputError("--workers", f"must be at least 1, got {workers}")
-    out_dir = Path(args.out or config.output)
-    cache_root = Path(args.cache) if args.cache else cache_dir() / "stages"
-    out_dir.mkdir(parents=True, exist_ok=True)
+    if not 1 <= workers <= 256:
+        raise InputError("--workers", f"must be 1..256, got {workers}")
+    from harness.core.devices import check_device
+    from harness.io.files import make_output_folder, sweep_stale_temps
+
+    check_device(config.protocol.device, f"{args.config}: protocol.device")
+    out_dir = make_output_folder(Path(args.out or config.output), "--out" if args.out else f"{args.config}: output")
+    cache_root = make_output_folder(Path(args.cache) if args.cache else cache_dir() / "stages",
+                                    "--cache" if args.cache else "stage cache")
+    sweep_stale_temps(out_dir, recursive=True)
     console = Console(stderr=True, soft_wrap=True)
     console.print(f"[bold]harness run[/] {config.name}: {len(config.scenes)} scenes, "
                   f"{len(config.methods)} method variants, {workers} worker(s) -> {out_dir}")

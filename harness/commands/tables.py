@@ -8,7 +8,6 @@ cannot give what was asked).
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
@@ -27,20 +26,22 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     from harness.core.errors import InputError
+    from harness.io.files import sweep_stale_temps
     from harness.report.outputs import write_outputs
     from harness.report.results import read_results
     from harness.run.config import PLOTS, TABLES
 
     run_dir = Path(args.run_dir)
     df = read_results(run_dir)
-    meta = {}
-    if (run_dir / "run.json").exists():
-        try:
-            meta = json.loads((run_dir / "run.json").read_text())
-        except ValueError:
-            raise InputError(run_dir / "run.json", "is not valid JSON") from None
+    sweep_stale_temps(run_dir, recursive=True)
+    from harness.report.tracking import read_run_json
+
+    meta = read_run_json(run_dir / "run.json") if (run_dir / "run.json").exists() else {}
     tables = args.tables if args.tables is not None else meta.get("tables", list(TABLES))
     plots = args.plots if args.plots is not None else meta.get("plots", list(PLOTS))
+    for key, names in (("tables", tables), ("plots", plots)):
+        if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+            raise InputError(run_dir / "run.json", f"'{key}' must be a list of names, got {str(names)[:60]}")
     for name in tables:
         if name not in TABLES:
             raise InputError("--tables", f"unknown table {name!r}; known: {', '.join(TABLES)}")

@@ -13,6 +13,68 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+#: the largest image any camera may ask for (camera files, rigs, ``--longest-side``, configs): 8192
+#: pixels per side and 8192² = 64 Mi pixels in all — a float32 RGB render of that size is 768 MiB
+MAX_SIDE = 8192
+MAX_PIXELS = MAX_SIDE * MAX_SIDE
+#: focal lengths (pixels) outside this range are refused: they overflow the projection maths
+FOCAL_RANGE = (1e-3, 1e9)
+#: largest absolute coordinate of a camera centre / principal point
+COORD_MAX = 1e12
+
+
+def is_real(v) -> bool:
+    """A real number as a file would hold it: int or float (numpy scalars too), never bool or str."""
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
+
+
+def is_whole(v) -> bool:
+    """An integer, or a float with an integral finite value (some writers store 800.0)."""
+    if isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_)):
+        return True
+    return isinstance(v, (float, np.floating)) and math.isfinite(v) and float(v).is_integer()
+
+
+def size_problem(width, height) -> str | None:
+    """Why (width, height) is not a renderable image size, or None."""
+    if not (is_whole(width) and is_whole(height)):
+        return f"width/height must be positive integers, got {width!r} x {height!r}"
+    w, h = int(width), int(height)
+    if w < 1 or h < 1:
+        return f"width/height must be positive integers, got {w} x {h}"
+    if w > MAX_SIDE or h > MAX_SIDE or w * h > MAX_PIXELS:
+        return f"{w} x {h} pixels is larger than the maximum render size ({MAX_SIDE} per side)"
+    return None
+
+
+def intrinsics_problem(fx, fy, cx, cy) -> str | None:
+    """Why focal lengths / principal point are unusable, or None."""
+    if not all(is_real(v) for v in (fx, fy, cx, cy)):
+        return "fx, fy, cx, cy must be numbers"
+    if not all(math.isfinite(float(v)) for v in (fx, fy, cx, cy)):
+        return "fx, fy, cx, cy must be finite"
+    lo, hi = FOCAL_RANGE
+    if not (lo <= float(fx) <= hi and lo <= float(fy) <= hi):
+        return f"focal lengths must be positive, in [{lo:g}, {hi:g}] pixels, got {float(fx):g}, {float(fy):g}"
+    if abs(float(cx)) > COORD_MAX or abs(float(cy)) > COORD_MAX:
+        return "principal point is out of range"
+    return None
+
+
+def camera_problem(cam: "Camera") -> str | None:
+    """Why a Camera cannot be rendered (size, intrinsics, a non-rigid or non-finite pose), or None."""
+    why = size_problem(cam.width, cam.height) or intrinsics_problem(cam.fx, cam.fy, cam.cx, cam.cy)
+    if why:
+        return why
+    m = cam.world_to_cam
+    if not np.all(np.isfinite(m)) or np.abs(m[:3, 3]).max() > COORD_MAX:
+        return "world_to_cam must be finite"
+    r = m[:3, :3]
+    if np.abs(m[3] - (0.0, 0.0, 0.0, 1.0)).max() > 1e-9 or np.abs(r @ r.T - np.eye(3)).max() > 1e-3 \
+            or np.linalg.det(r) < 0:
+        return "world_to_cam is not a rigid transform (proper rotation + translation)"
+    return None
+
 
 @dataclass(frozen=True)
 class Camera:
@@ -92,7 +154,10 @@ class Camera:
         return cls(m, fy, fy, width / 2.0, height / 2.0, int(width), int(height), name)
 
     def resized(self, longest_side: int) -> "Camera":
-        """The same view at a new resolution whose longest side is ``longest_side`` pixels."""
+        """The same view at a new resolution whose longest side is ``longest_side`` pixels
+        (at most :data:`MAX_SIDE`)."""
+        if not 1 <= longest_side <= MAX_SIDE:
+            raise ValueError(f"longest side {longest_side} is outside 1..{MAX_SIDE}")
         s = longest_side / max(self.width, self.height)
         return replace(
             self,

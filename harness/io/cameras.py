@@ -22,8 +22,12 @@ Formats (:func:`load_cameras` dispatches on the path):
   ``harness.io.ply.write_ply(..., comments=...)``; :func:`read_ply_cameras` reads them back (other
   comments are ignored).
 
-Every reader validates: finite numbers, positive sizes and focal lengths, a proper rotation
-(orthonormal to 1e-3, then re-orthonormalised by SVD). Anything else is an :class:`InputError`.
+Every reader validates: numbers stored as numbers (``"fx": "55.4"`` and ``"width": true`` are
+errors), finite, sizes integral, positive and within the maximum render size
+(:data:`harness.core.cameras.MAX_SIDE`), focal lengths within
+:data:`harness.core.cameras.FOCAL_RANGE`, a proper rotation (orthonormal to 1e-3, then
+re-orthonormalised by SVD). Files are read through :mod:`harness.io.safe` (regular files,
+size-capped, bounded nesting). Anything else is an :class:`InputError`.
 """
 
 from __future__ import annotations
@@ -34,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.core.cameras import Camera
+from harness.core.cameras import Camera, intrinsics_problem, is_real, size_problem
 from harness.core.errors import InputError
 from harness.io.colmap import find_colmap_model, read_colmap_model
 
@@ -43,8 +47,21 @@ PLY_CAMERA_TAG = "camera "  # the comment text after "comment "
 
 
 # ------------------------------------------------------------------------------ helpers
+def _numbers(value, shape, source, what: str, name: str) -> np.ndarray:
+    """A nested list of real numbers of ``shape`` as float64 (strings, bools, ragged lists refused)."""
+    def ok(v, dims):
+        if not dims:
+            return is_real(v)
+        return isinstance(v, (list, tuple, np.ndarray)) and len(v) == dims[0] and all(ok(x, dims[1:]) for x in v)
+
+    if not ok(value, shape):
+        raise InputError(source, f"{what}: {name} must be {' x '.join(map(str, shape))} numbers")
+    with np.errstate(over="ignore"):
+        return np.asarray(value, np.float64)
+
+
 def _proper_rotation(r, source, what: str) -> np.ndarray:
-    r = np.asarray(r, np.float64)
+    r = _numbers(r, (3, 3), source, what, "rotation")
     if r.shape != (3, 3) or not np.all(np.isfinite(r)):
         raise InputError(source, f"{what}: rotation must be a finite 3x3 matrix")
     if np.abs(r.T @ r - np.eye(3)).max() > 1e-3 or np.linalg.det(r) < 0:
@@ -55,17 +72,16 @@ def _proper_rotation(r, source, what: str) -> np.ndarray:
 
 def _camera_from_c2w(rot_c2w, center, fx, fy, cx, cy, width, height, name, source) -> Camera:
     """Build a Camera from a camera-to-world rotation and centre (both OpenCV axes)."""
-    what = f"camera {name!r}"
-    try:
-        vals = [float(v) for v in (fx, fy, cx, cy)]
-        w, h = int(width), int(height)
-        center = np.asarray(center, np.float64).reshape(3)
-    except (TypeError, ValueError):
-        raise InputError(source, f"{what}: non-numeric intrinsics, size or position") from None
-    if w != width or h != height or w < 1 or h < 1:
-        raise InputError(source, f"{what}: width/height must be positive integers")
-    if not np.all(np.isfinite(vals)) or vals[0] <= 0 or vals[1] <= 0 or not np.all(np.isfinite(center)):
-        raise InputError(source, f"{what}: focal lengths must be positive and all values finite")
+    what = f"camera {str(name)[:80]!r}"
+    why = size_problem(width, height) or intrinsics_problem(fx, fy, cx, cy)
+    if why:
+        raise InputError(source, f"{what}: {why}")
+    vals = [float(v) for v in (fx, fy, cx, cy)]
+    w, h = int(width), int(height)
+    center = _numbers(list(np.ravel(center)) if isinstance(center, np.ndarray) else center, (3,), source, what,
+                      "position")
+    if not np.all(np.isfinite(center)) or np.abs(center).max() > 1e12:
+        raise InputError(source, f"{what}: position must be finite")
     r_w2c = _proper_rotation(rot_c2w, source, what).T
     m = np.eye(4)
     m[:3, :3] = r_w2c
@@ -74,10 +90,9 @@ def _camera_from_c2w(rot_c2w, center, fx, fy, cx, cy, width, height, name, sourc
 
 
 def _read_json(path: Path):
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
-        raise InputError(path, f"not a readable JSON file: {err}") from None
+    from harness.io.safe import read_json
+
+    return read_json(path, "json", "camera file")
 
 
 # ------------------------------------------------------------------------------ 3DGS cameras.json
@@ -102,7 +117,7 @@ def read_3dgs_cameras(path: str | Path) -> list[Camera]:
 
 
 def _half(v):
-    return v / 2.0 if isinstance(v, (int, float)) else v
+    return v / 2.0 if is_real(v) else v
 
 
 def cameras_to_3dgs_json(cameras: list[Camera]) -> list[dict]:
@@ -169,27 +184,33 @@ def read_transforms_json(path: str | Path) -> list[Camera]:
             if size is None:
                 raise InputError(path, f"frame {i}: no w/h and its image {name!r} cannot be read for its size")
             w, h = size
-        try:
-            w, h = float(w), float(h)
-            if get("fl_x") is not None:
-                fx = float(get("fl_x"))
-                fy = float(get("fl_y", fx))
-            elif get("camera_angle_x") is not None:
-                fx = 0.5 * w / math.tan(0.5 * float(get("camera_angle_x")))
-                ay = get("camera_angle_y")
-                fy = fx if ay is None else 0.5 * h / math.tan(0.5 * float(ay))
-            else:
-                raise InputError(path, f"frame {i}: no focal length (fl_x or camera_angle_x)")
-            cx, cy = float(get("cx", w / 2.0)), float(get("cy", h / 2.0))
-            m = np.asarray(frame["transform_matrix"], np.float64)
-        except (TypeError, ValueError):
-            raise InputError(path, f"frame {i}: non-numeric intrinsics or transform_matrix") from None
+        why = size_problem(w, h)
+        if why:
+            raise InputError(path, f"frame {i}: {why}")
+        w, h = int(w), int(h)
+
+        def angle(key):
+            a = get(key)
+            if not is_real(a) or not 0.0 < float(a) < math.pi:
+                raise InputError(path, f"frame {i}: {key} must be an angle in (0, pi) radians, got {a!r}")
+            return float(a)
+
+        if get("fl_x") is not None:
+            fx = get("fl_x")
+            fy = get("fl_y", fx)
+        elif get("camera_angle_x") is not None:
+            fx = 0.5 * w / math.tan(0.5 * angle("camera_angle_x"))
+            fy = fx if get("camera_angle_y") is None else 0.5 * h / math.tan(0.5 * angle("camera_angle_y"))
+        else:
+            raise InputError(path, f"frame {i}: no focal length (fl_x or camera_angle_x)")
+        cx, cy = get("cx", w / 2.0), get("cy", h / 2.0)
+        raw = frame["transform_matrix"]
+        rows = len(raw) if isinstance(raw, list) else 0
+        m = _numbers(raw, (rows if rows in (3, 4) else 4, 4), path, f"frame {i}", "transform_matrix")
         if m.shape == (3, 4):
             m = np.vstack([m, [0.0, 0.0, 0.0, 1.0]])
-        if m.shape != (4, 4):
-            raise InputError(path, f"frame {i}: transform_matrix must be 4x4 or 3x4")
         c2w = m @ GL_TO_CV
-        out.append(_camera_from_c2w(c2w[:3, :3], c2w[:3, 3], fx, fy, cx, cy, int(w), int(h), name, path))
+        out.append(_camera_from_c2w(c2w[:3, :3], c2w[:3, 3], fx, fy, cx, cy, w, h, name, path))
     return out
 
 
@@ -208,14 +229,16 @@ def cameras_from_comments(comments, source) -> list[Camera]:
             continue
         try:
             d = json.loads(text[len(PLY_CAMERA_TAG):])
-            m = np.asarray(d["world_to_cam"], np.float64)
+            if not isinstance(d, dict):
+                raise ValueError("expected a JSON object")
+            m = _numbers(d["world_to_cam"], (4, 4), source, "camera comment", "world_to_cam")
             if m.shape != (4, 4) or np.abs(m[3] - [0, 0, 0, 1]).max() > 1e-9:
                 raise ValueError("world_to_cam must be a 4x4 rigid transform")
             name = d.get("name") or f"view_{len(out):04d}"
             r = _proper_rotation(m[:3, :3], source, f"camera {name!r}")
             out.append(_camera_from_c2w(r.T, -r.T @ m[:3, 3], d["fx"], d["fy"], d["cx"], d["cy"],
                                         d["width"], d["height"], name, source))
-        except (json.JSONDecodeError, KeyError, TypeError, ValueError) as err:
+        except (json.JSONDecodeError, KeyError, TypeError, ValueError, RecursionError) as err:
             raise InputError(source, f"malformed camera comment ({err}): {text[:80]!r}") from None
     return out
 
@@ -245,6 +268,10 @@ def load_cameras(path: str | Path) -> list[Camera]:
     path = Path(path)
     if not path.exists():
         raise InputError(path, "no such file or folder")
+    if not path.is_dir():
+        from harness.io.safe import check_regular
+
+        check_regular(path, "json", "camera file")
     if path.is_dir():
         for fname in ("cameras.json", "transforms.json"):
             if (path / fname).is_file():

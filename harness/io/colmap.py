@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.core.cameras import Camera
+from harness.core.cameras import Camera, intrinsics_problem, size_problem
 from harness.core.errors import InputError
 
 
@@ -80,15 +80,17 @@ def _make_camera(qvec, tvec, intr, width, height, name, source) -> Camera:
     m[:3, :3] = qvec_to_rotmat(q)
     m[:3, 3] = np.asarray(tvec, np.float64)
     fx, fy, cx, cy = intr
+    why = size_problem(width, height) or intrinsics_problem(fx, fy, cx, cy)
+    if why:
+        raise InputError(source, f"image {name!r}: {why}")
     return Camera(m, fx, fy, cx, cy, int(width), int(height), name)
 
 
 # ------------------------------------------------------------------------------ text
 def _data_lines(path: Path) -> list[str]:
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as err:
-        raise InputError(path, f"cannot read: {err}") from None
+    from harness.io.safe import read_text
+
+    text = read_text(path, "camera_model", "COLMAP file")
     return [ln for ln in text.splitlines() if not ln.lstrip().startswith("#")]
 
 
@@ -136,11 +138,10 @@ def _read_images_txt(path: Path) -> list[tuple]:
 # ------------------------------------------------------------------------------ binary
 class _Reader:
     def __init__(self, path: Path):
+        from harness.io.safe import read_bytes
+
         self.path = path
-        try:
-            self.buf = path.read_bytes()
-        except OSError as err:
-            raise InputError(path, f"cannot read: {err}") from None
+        self.buf = read_bytes(path, "camera_model", "COLMAP file")
         self.pos = 0
 
     def take(self, fmt: str):
@@ -219,8 +220,9 @@ def read_colmap_model(path: str | Path) -> list[Camera]:
         if cid not in cams:
             raise InputError(imgs_path, f"image {name!r} refers to missing camera id {cid}")
         intr, w, h = cams[cid]
-        if w < 1 or h < 1 or min(intr[0], intr[1]) <= 0 or not np.all(np.isfinite(intr)):
-            raise InputError(cams_path, f"camera {cid} has invalid size or intrinsics")
+        why = size_problem(w, h) or intrinsics_problem(*intr)
+        if why:
+            raise InputError(cams_path, f"camera {cid}: {why}")
         out.append(_make_camera(q, t, intr, w, h, name, imgs_path))
     if not out:
         raise InputError(imgs_path, "the model has no registered images")

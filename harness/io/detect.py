@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from harness.core.errors import InputError
+from harness.io.safe import check_regular, open_regular
 
 _PEEK = 64
 
@@ -41,8 +42,8 @@ def detect(path: Path) -> Detected:
         if (path / "lod-meta.json").is_file() or (path / "meta.json").is_file():
             return Detected("sog", "sog (PlayCanvas SOG folder)")
         raise InputError(path, "is a folder without lod-meta.json or meta.json (not a SOG scene)")
-    size = path.stat().st_size
-    with open(path, "rb") as f:
+    size = check_regular(path, "scene", "scene file").st_size  # FIFOs, devices, huge files refused first
+    with open_regular(path, "scene", "scene file") as f:
         head = f.read(_PEEK)
     name = path.name.lower()
     if head.split(b"\n", 1)[0].strip() == b"ply":
@@ -76,7 +77,7 @@ def _ksplat_name(path: Path, size: int) -> str:
 
 
 def _read(path: Path, count: int) -> bytes:
-    with open(path, "rb") as f:
+    with open_regular(path, "scene", "scene file") as f:
         return f.read(count)
 
 

@@ -38,6 +38,7 @@ import numpy as np
 from harness.core.errors import InputError
 from harness.core.scene import SH_REST_COUNT, GaussianScene
 from harness.io.files import atomic_write_chunks
+from harness.io.safe import open_regular
 
 PLY_TYPES = {
     "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
@@ -52,6 +53,10 @@ REQUIRED = ("x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity",
             "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3")
 NORMALS = ("nx", "ny", "nz")
 _MAX_HEADER_LINES = 100_000
+_MAX_HEADER_LINE = 1 << 20  # bytes per header line (a camera comment is ~400)
+#: the 3DGS properties must be stored as float or double: integer bytes read as floats (or the
+#: reverse) decode to garbage that no check downstream can tell from data
+_FLOAT_TYPES = ("f4", "f8")
 
 
 @dataclass
@@ -80,12 +85,14 @@ def read_ply_header(path: str | Path) -> PlyHeader:
     comments: list[str] = []
     preamble: list[str] = []
     fmt = None
-    with open(path, "rb") as f:
-        if f.readline().strip() != b"ply":
+    with open_regular(path, "scene", "PLY file") as f:
+        if f.readline(16).strip() != b"ply":
             raise InputError(path, "not a PLY file (first line is not 'ply')")
         for lineno in range(2, _MAX_HEADER_LINES):
-            raw = f.readline()
+            raw = f.readline(_MAX_HEADER_LINE)
             if not raw.endswith(b"\n"):  # EOF, possibly in the middle of a line
+                if len(raw) >= _MAX_HEADER_LINE:
+                    raise InputError(path, f"PLY header line {lineno} is longer than {_MAX_HEADER_LINE} bytes")
                 raise InputError(path, "PLY header has no 'end_header' line (truncated file?)")
             try:
                 line = raw.decode("ascii").strip()
@@ -135,32 +142,79 @@ def _vertex_dtype(element: PlyElement, endian: str, path: Path) -> np.dtype:
     return np.dtype([(name, endian + t) for name, t in element.properties])
 
 
-def _read_binary(path: Path, header: PlyHeader, element: PlyElement) -> np.ndarray:
-    """The rows of one element of a binary file (elements before it must have fixed-size rows)."""
+def _fixed_size(el: PlyElement, endian: str) -> int | None:
+    """Bytes of a binary element with fixed-size rows; None when it has list properties."""
+    if any(t == "list" for _, t in el.properties):
+        return None
+    return el.count * np.dtype([(n, endian + t) for n, t in el.properties]).itemsize
+
+
+def _short(path: Path, el: PlyElement, dtype: np.dtype, available: int) -> InputError:
+    """The error for an element of which only ``available`` bytes are present."""
+    name = f"{el.name!r}"
+    rows, row = ("vertices", "vertex") if el.name == "vertex" else (f"{name} rows", f"{name} row")
+    whole = max(available, 0) // dtype.itemsize
+    if max(available, 0) % dtype.itemsize:
+        return InputError(path, f"truncated: the data ends inside {row} {whole + 1} of {el.count} "
+                                f"({max(available, 0)} of {el.count * dtype.itemsize} bytes present)")
+    return InputError(path, f"header declares {el.count} {rows} but the file holds data for only {whole} "
+                            "(truncated file or wrong count)")
+
+
+def _check_size(path: Path, header: PlyHeader, sizes: list, file_size: int) -> None:
+    """With every element of fixed size, the file must end exactly where the last one ends: too few
+    bytes name the element (and row) where the data stops; trailing bytes are an error too."""
     endian = _ENDIAN[header.format]
-    offset = header.data_offset
-    for el in header.elements:
-        if el is element:
-            break
-        if any(t == "list" for _, t in el.properties):
-            raise InputError(path, f"element {el.name!r} before {element.name!r} has list properties (unsupported)")
-        offset += el.count * np.dtype([(n, endian + t) for n, t in el.properties]).itemsize
+    expected = header.data_offset + sum(sizes)
+    if file_size < expected:
+        pos = header.data_offset
+        for el, size in zip(header.elements, sizes):
+            if file_size < pos + size:
+                raise _short(path, el, _vertex_dtype(el, endian, path), file_size - pos)
+            pos += size
+    if file_size > expected:
+        extra, last = file_size - expected, header.elements[-1] if header.elements else None
+        if last is not None:
+            itemsize = _vertex_dtype(last, endian, path).itemsize
+            if itemsize and extra % itemsize == 0:
+                raise InputError(path, f"header declares {last.count} {'vertices' if last.name == 'vertex' else 'rows'}"
+                                       f" of {last.name!r} but the file holds data for "
+                                       f"{last.count + extra // itemsize} (wrong count)")
+        raise InputError(path, f"{extra} bytes after the last element (the header declares {expected} bytes "
+                               "in all; wrong count or trailing garbage)")
+
+
+def _read_binary(path: Path, header: PlyHeader, element: PlyElement) -> np.ndarray:
+    """The rows of one element of a binary file (elements before it must have fixed-size rows). The
+    file's size must be exactly what the header declares (:func:`_check_size`)."""
+    endian = _ENDIAN[header.format]
+    sizes = [_fixed_size(el, endian) for el in header.elements]
+    idx = header.elements.index(element)
+    if None in sizes[:idx]:
+        bad = header.elements[sizes[:idx].index(None)]
+        raise InputError(path, f"element {bad.name!r} before {element.name!r} has list properties (unsupported)")
+    offset = header.data_offset + sum(sizes[:idx])
     dtype = _vertex_dtype(element, endian, path)
     n = element.count
-    if dtype.itemsize == 0:  # an element without properties (e.g. an empty compressed.ply 'sh')
-        return np.zeros(n, dtype)
-    name = f"{element.name!r}"
-    rows, row = ("vertices", "vertex") if element.name == "vertex" else (f"{name} rows", f"{name} row")
-    available = path.stat().st_size - offset
-    need = n * dtype.itemsize
-    if available < need:
-        whole = max(available, 0) // dtype.itemsize
-        if max(available, 0) % dtype.itemsize:
-            raise InputError(path, f"truncated: the data ends inside {row} {whole + 1} of {n} "
-                                   f"({max(available, 0)} of {need} bytes present)")
-        raise InputError(path, f"header declares {n} {rows} but the file holds data for only {whole} "
-                               "(truncated file or wrong count)")
-    return np.fromfile(path, dtype=dtype, count=n, offset=offset)
+    with open_regular(path, "scene", "PLY file") as f:
+        file_size = os_size(f)
+        if None not in sizes:
+            _check_size(path, header, sizes, file_size)
+        elif file_size - offset < n * dtype.itemsize:
+            raise _short(path, element, dtype, file_size - offset)
+        if dtype.itemsize == 0:  # an element without properties (e.g. an empty compressed.ply 'sh')
+            return np.zeros(n, dtype)
+        f.seek(offset)
+        table = np.fromfile(f, dtype=dtype, count=n)
+    if len(table) != n:
+        raise InputError(path, f"truncated while reading: {len(table)} of {n} rows of {element.name!r}")
+    return table
+
+
+def os_size(f) -> int:
+    import os
+
+    return os.fstat(f.fileno()).st_size
 
 
 def read_binary_elements(path: str | Path, header: PlyHeader) -> dict[str, np.ndarray]:
@@ -173,23 +227,31 @@ def read_binary_elements(path: str | Path, header: PlyHeader) -> dict[str, np.nd
 
 def _read_ascii(path: Path, header: PlyHeader, vertex: PlyElement) -> np.ndarray:
     dtype = _vertex_dtype(vertex, "<", path)
-    skip = sum(el.count for el in header.elements[: header.elements.index(vertex)])
-    # every ascii row holds at least one character and one separator per property: a count the file
-    # cannot possibly hold is rejected before reading (a huge count must not loop or exhaust memory)
-    available = path.stat().st_size - header.data_offset
-    if skip + vertex.count * 2 * len(vertex.properties) > available:
-        raise InputError(path, f"header declares {vertex.count} vertices but the file is too short to "
-                               f"hold them (truncated file or wrong count)")
-    with open(path, "rb") as f:
+    position = header.elements.index(vertex)
+    skip = sum(el.count for el in header.elements[:position])
+    last = position == len(header.elements) - 1
+    with open_regular(path, "scene", "PLY file") as f:
+        # every ascii row holds at least one character and one separator per property: a count the
+        # file cannot possibly hold is rejected before reading (a huge count must not loop or exhaust memory)
+        available = os_size(f) - header.data_offset
+        if skip + vertex.count * 2 * len(vertex.properties) > available:
+            raise InputError(path, f"header declares {vertex.count} vertices but the file is too short to "
+                                   f"hold them (truncated file or wrong count)")
         f.seek(header.data_offset)
         for _ in range(skip):
             if not f.readline():
                 raise InputError(path, "truncated: the file ends before the vertex element")
         lines = [f.readline() for _ in range(vertex.count)]
+        rest = f.read(1 << 16) if last else b""
     rows = [ln for ln in lines if ln.strip()]
     if len(rows) < vertex.count:
         raise InputError(path, f"header declares {vertex.count} vertices but the file holds only "
                                f"{len(rows)} rows (truncated file or wrong count)")
+    if rest.strip():
+        extra = len([ln for ln in rest.splitlines() if ln.strip()])
+        raise InputError(path, f"header declares {vertex.count} vertices but {extra}"
+                               f"{'+' if len(rest) == 1 << 16 else ''} more non-empty lines follow (wrong count "
+                               "or trailing garbage)")
     ncols = len(vertex.properties)
     try:
         values = np.loadtxt(rows, dtype=np.float64, ndmin=2) if rows else np.zeros((0, ncols))
@@ -198,8 +260,16 @@ def _read_ascii(path: Path, header: PlyHeader, vertex: PlyElement) -> np.ndarray
     if values.shape[1] != ncols:
         raise InputError(path, f"ascii vertex rows have {values.shape[1]} values, header declares {ncols}")
     out = np.empty(vertex.count, dtype=dtype)
-    for j, (name, _) in enumerate(vertex.properties):
-        out[name] = values[:, j]
+    for j, (name, code) in enumerate(vertex.properties):
+        col = values[:, j]
+        if code[0] in "iu":  # integer property: whole numbers within the type's range, nothing cast silently
+            info = np.iinfo(code)
+            bad = ~np.isfinite(col) | (col != np.round(col)) | (col < info.min) | (col > info.max)
+            if bad.any():
+                row = int(np.flatnonzero(bad)[0])
+                raise InputError(path, f"ascii vertex {row}: property {name!r} ({code}) holds {float(col[row])!r}, "
+                                       f"not an integer in [{info.min}, {info.max}]")
+        out[name] = col
     return out
 
 
@@ -244,6 +314,11 @@ def table_to_scene(table: np.ndarray, path: str | Path) -> GaussianScene:
         raise InputError(path, f"missing required propert{'y' if len(missing) == 1 else 'ies'} "
                                f"{', '.join(missing)} (not a 3DGS splat PLY?)")
     k = _sh_rest_count(path, names)
+    for name in REQUIRED + tuple(f"f_rest_{i}" for i in range(3 * k)):
+        code = table.dtype[name].str[1:]
+        if code not in _FLOAT_TYPES:
+            raise InputError(path, f"property {name!r} is stored as {_WRITE_TYPES.get(code, code)}; the 3DGS "
+                                   "properties must be float or double")
     n = len(table)
     mat = _float_matrix(table)
     f32 = lambda names: np.ascontiguousarray(_block(table, mat, names), dtype=np.float32)  # one copy each

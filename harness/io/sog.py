@@ -27,12 +27,19 @@ The optional ``environment`` SOG is not read.
 Inputs accepted: a folder holding ``lod-meta.json`` or ``meta.json``, either JSON file, or a
 ``.sog`` zip bundle. Images are decoded with Pillow; lossy WebP is rejected because the codes
 must be exact.
+
+Safety (issue 15): every file a SOG set names is read through :mod:`harness.io.safe` — regular
+files only, size-capped — and must lie inside the scene's folder (the folder of the ``meta.json``
+or ``lod-meta.json`` given): absolute names, ``..`` climbing out and symlinks leading out are
+refused. Sizes are bounded before decoding: an image may hold at most :data:`MAX_PIXELS` pixels
+and at most ``2·count + 65536`` when the splat count is known; LOD references must be integers
+(``offset ≥ 0``, ``count ≥ 0``), name a listed file, and the ranges of one level may not overlap,
+so a level holds each stored splat at most once (no expansion beyond the referenced data).
 """
 
 from __future__ import annotations
 
 import io
-import json
 import posixpath
 import zipfile
 from pathlib import Path
@@ -45,16 +52,29 @@ from harness.core.scene import SH_REST_COUNT, GaussianScene
 
 _SQRT2 = np.sqrt(2.0)
 _OPACITY_EPS = 1e-6
-_MAX_COUNT = 2**31 - 1  # texture pixels are addressed with 32-bit ints by every SOG tool
+#: most splats one SOG file may declare, and most pixels one texture may decode to (64 Mi: a
+#: 8192x8192 texture, ~20x the largest published scenes; WebP itself stops at 16383x16383)
+MAX_PIXELS = 1 << 26
+_MAX_COUNT = MAX_PIXELS
+_MAX_LOD_LEVELS = 64
+_MAX_TREE_NODES = 10_000_000
 _MAX_META_VALUE = 1e30  # codebooks / ranges beyond this overflow float32 maths downstream
 
 
 class _Files:
     """Reads sibling files of a SOG set from a folder or a ``.sog`` zip."""
 
-    def __init__(self, root: Path, zip_path: Path | None = None):
+    def __init__(self, root: Path, zip_path: Path | None = None, top: str | None = None):
+        from harness.io.safe import open_regular
+
         self.root, self.zip_path = root, zip_path
-        self._zip = zipfile.ZipFile(zip_path) if zip_path else None
+        self.top = top  # the metadata file the user named: read as given (the folder is its own)
+        self._handle = open_regular(zip_path, "scene", ".sog bundle") if zip_path else None
+        try:
+            self._zip = zipfile.ZipFile(self._handle) if zip_path else None
+        except BaseException:
+            self._handle.close()
+            raise
 
     def __enter__(self) -> Self:
         return self
@@ -62,47 +82,68 @@ class _Files:
     def __exit__(self, *exc) -> None:
         if self._zip:
             self._zip.close()
+        if self._handle:
+            self._handle.close()
 
     def label(self, name: str) -> str:
         return f"{self.zip_path}:{name}" if self._zip else str(self.root / name)
 
     def read(self, name: str) -> bytes:
+        from harness.io.safe import confined, read_bytes
+
+        if not isinstance(name, str) or not name:
+            raise InputError(self.label(str(name)), "bad file name in the SOG metadata")
         try:
             if self._zip:
-                return self._zip.read(name)
-            return (self.root / name).read_bytes()
+                info = self._zip.getinfo(name)
+                if info.file_size > _limit("image"):
+                    raise InputError(self.label(name), f"is {info.file_size:,} bytes uncompressed, over the limit")
+                return self._zip.read(info)
+            kind = "json" if name.endswith(".json") else "image"
+            path = self.root / name if name == self.top else confined(self.root, name, self.label(name))
+            if not path.exists():
+                raise InputError(self.label(name), "missing (referenced by the SOG metadata)")
+            return read_bytes(path, kind, "SOG file")
         except KeyError:
             raise InputError(self.label(name), "missing from the .sog bundle") from None
-        except FileNotFoundError:
-            raise InputError(self.label(name), "missing (referenced by the SOG metadata)") from None
-        except OSError as err:
-            raise InputError(self.label(name), f"cannot read: {err.strerror or err}") from None
+        except (zipfile.BadZipFile, OSError, RuntimeError) as err:
+            raise InputError(self.label(name), f"cannot read: {getattr(err, 'strerror', None) or err}") from None
 
     def json(self, name: str) -> dict:
-        try:
-            meta = json.loads(self.read(name))
-        except (UnicodeDecodeError, json.JSONDecodeError) as err:
-            raise InputError(self.label(name), f"not valid JSON ({err})") from None
+        from harness.io.safe import parse_json
+
+        meta = parse_json(self.read(name), self.label(name))
         if not isinstance(meta, dict):
             raise InputError(self.label(name), "expected a JSON object")
         return meta
 
     def image(self, name: str, count: int | None) -> np.ndarray:
-        """(H, W, 4) uint8 pixels; checks there are at least ``count`` of them."""
+        """(H, W, 4) uint8 pixels; checks there are at least ``count`` of them (and not too many)."""
         from PIL import Image, UnidentifiedImageError
 
         data = self.read(name)
         if _is_lossy_webp(data):
             raise InputError(self.label(name), "lossy WebP image; SOG codes need lossless images")
+        bound = MAX_PIXELS if count is None else min(MAX_PIXELS, 2 * count + 65536)
         try:
             with Image.open(io.BytesIO(data)) as img:
+                w, h = img.size
+                if w * h > bound:  # checked on the header, before decoding
+                    raise InputError(self.label(name), f"image is {w}x{h} pixels, more than the {bound:,} "
+                                                       f"allowed{'' if count is None else f' for {count} splats'}")
                 pixels = np.asarray(img.convert("RGBA"))
-        except (UnidentifiedImageError, OSError, ValueError) as err:
+        except (UnidentifiedImageError, OSError, ValueError, Image.DecompressionBombError) as err:
             raise InputError(self.label(name), f"cannot decode image ({err})") from None
         if count is not None and pixels.shape[0] * pixels.shape[1] < count:
             raise InputError(self.label(name), f"image has {pixels.shape[1]}x{pixels.shape[0]} pixels, "
                                                f"fewer than the {count} splats declared")
         return pixels
+
+
+def _limit(kind: str) -> int:
+    from harness.io.safe import limit
+
+    return limit(kind)
 
 
 def _is_lossy_webp(data: bytes) -> bool:
@@ -178,7 +219,7 @@ def _read_meta_file(files: _Files, name: str) -> GaussianScene:
         raise InputError(files.label(name), f"unsupported SOG version {meta.get('version')!r} (only version 2)")
     count = _get(meta, files, name, "count")
     if not isinstance(count, int) or isinstance(count, bool) or not 0 <= count <= _MAX_COUNT:
-        raise InputError(files.label(name), f"bad SOG count {count!r}")
+        raise InputError(files.label(name), f"bad SOG count {count!r} (expected an integer 0..{_MAX_COUNT})")
     folder = posixpath.dirname(name)  # image names are relative to their meta.json
 
     def img(*keys) -> np.ndarray:
@@ -242,38 +283,73 @@ def lod_levels(path: str | Path) -> int | None:
     """Number of LOD levels of a ``lod-meta.json`` set; None for a single SOG (no levels)."""
     files, meta_name, is_lod = _open(Path(path))
     with files:
-        return _get(files.json(meta_name), files, meta_name, "lodLevels") if is_lod else None
+        return _levels(files.json(meta_name), files, meta_name) if is_lod else None
+
+
+def _levels(meta: dict, files: _Files, name: str) -> int:
+    levels = _get(meta, files, name, "lodLevels")
+    if not _is_int(levels) or not 1 <= levels <= _MAX_LOD_LEVELS:
+        raise InputError(files.label(name), f"bad lodLevels {levels!r} (expected an integer 1..{_MAX_LOD_LEVELS})")
+    return levels
+
+
+def _is_int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
 
 
 def _lod_refs(meta: dict, files: _Files, name: str, level: int) -> dict[int, list[tuple[int, int]]]:
+    """{file index: [(offset, count)]} of one level; every reference checked (module docstring)."""
     refs: dict[int, list[tuple[int, int]]] = {}
     stack = [_get(meta, files, name, "tree")]
+    seen = 0
     while stack:
         node = stack.pop()
+        seen += 1
+        if seen > _MAX_TREE_NODES:
+            raise InputError(files.label(name), f"'tree' has more than {_MAX_TREE_NODES:,} nodes")
         if not isinstance(node, dict):
-            raise InputError(files.label(name), "bad 'tree' node in lod-meta.json")
-        ref = (node.get("lods") or {}).get(str(level))
+            raise InputError(files.label(name), "bad 'tree' node in lod-meta.json (expected an object)")
+        lods = node.get("lods") or {}
+        if not isinstance(lods, dict):
+            raise InputError(files.label(name), f"bad 'lods' {str(lods)[:60]} in a 'tree' node (expected an object "
+                                                "of level -> {file, offset, count})")
+        ref = lods.get(str(level))
         if ref is not None:
-            try:
-                refs.setdefault(int(ref["file"]), []).append((int(ref["offset"]), int(ref["count"])))
-            except (KeyError, TypeError, ValueError):
-                raise InputError(files.label(name), f"bad LOD reference {ref!r}") from None
-        stack.extend(node.get("children") or [])
+            if not isinstance(ref, dict) or not all(_is_int(ref.get(k)) for k in ("file", "offset", "count")):
+                raise InputError(files.label(name), f"bad LOD reference {str(ref)[:80]} (file, offset and count must "
+                                                    "be integers)")
+            if ref["offset"] < 0 or ref["count"] < 0 or ref["file"] < 0:
+                raise InputError(files.label(name), f"bad LOD reference {ref} (negative file, offset or count)")
+            if ref["count"]:
+                refs.setdefault(ref["file"], []).append((ref["offset"], ref["count"]))
+        children = node.get("children") or []
+        if not isinstance(children, list):
+            raise InputError(files.label(name), "bad 'children' in a 'tree' node (expected a list)")
+        stack.extend(children)
+    for file_index, ranges in refs.items():
+        ranges.sort()
+        for (o1, c1), (o2, c2) in zip(ranges, ranges[1:]):
+            if o2 < o1 + c1:
+                raise InputError(files.label(name), f"LOD level {level}: references to file {file_index} overlap "
+                                                    f"(rows {o1}..{o1 + c1} and {o2}..{o2 + c2}); each splat may "
+                                                    "be referenced once")
     return refs
 
 
 def _read_lod_level(files: _Files, name: str, meta: dict, level: int) -> GaussianScene:
     filenames = _get(meta, files, name, "filenames")
+    if not isinstance(filenames, list) or not all(isinstance(f, str) and f for f in filenames):
+        raise InputError(files.label(name), "'filenames' must be a list of file names")
     parts = []
     for file_index, ranges in sorted(_lod_refs(meta, files, name, level).items()):
         if not 0 <= file_index < len(filenames):
             raise InputError(files.label(name), f"LOD reference to file {file_index}, only {len(filenames)} listed")
         scene = _read_meta_file(files, filenames[file_index])
-        for offset, count in sorted(ranges):
-            if offset < 0 or offset + count > len(scene):
+        for offset, count in ranges:
+            if offset + count > len(scene):
                 raise InputError(files.label(filenames[file_index]),
                                  f"LOD rows {offset}..{offset + count} exceed its {len(scene)} splats")
-        rows = np.concatenate([np.arange(o, o + c) for o, c in sorted(ranges)])
+        rows = np.concatenate([np.arange(o, o + c) for o, c in ranges])
         whole_file = len(rows) == len(scene) and (rows == np.arange(len(scene))).all()
         parts.append(scene if whole_file else scene.subset(rows))
     if not parts:
@@ -286,14 +362,14 @@ def _open(path: Path) -> tuple[_Files, str, bool]:
     if path.is_dir():
         for meta_name, is_lod in (("lod-meta.json", True), ("meta.json", False)):
             if (path / meta_name).is_file():
-                return _Files(path), meta_name, is_lod
+                return _Files(path, top=meta_name), meta_name, is_lod
         raise InputError(path, "folder holds neither lod-meta.json nor meta.json (not a SOG scene)")
     if path.suffix.lower() == ".sog":
         try:
             return _Files(path.parent, path), "meta.json", False
         except zipfile.BadZipFile:
             raise InputError(path, "not a valid .sog zip bundle") from None
-    return _Files(path.parent), path.name, path.name.endswith("lod-meta.json")
+    return _Files(path.parent, top=path.name), path.name, path.name.endswith("lod-meta.json")
 
 
 def read_sog(path: str | Path, lod: int | str | None = None) -> GaussianScene:
@@ -310,9 +386,7 @@ def read_sog(path: str | Path, lod: int | str | None = None) -> GaussianScene:
 
 def _read_lod_set(path: Path, files: _Files, meta_name: str, lod) -> GaussianScene:
     meta = files.json(meta_name)
-    levels = _get(meta, files, meta_name, "lodLevels")
-    if not isinstance(levels, int) or levels < 1:
-        raise InputError(files.label(meta_name), f"bad lodLevels {levels!r}")
+    levels = _levels(meta, files, meta_name)
     if lod == "all":
         return concat_scenes([_read_lod_level(files, meta_name, meta, level) for level in range(levels)])
     level = 0 if lod is None else lod

@@ -43,14 +43,17 @@ _QUAT_OF_BYTE = ((_BYTES - 128.0) / 128.0).astype(np.float32)
 
 def read_splat(path: str | Path) -> GaussianScene:
     """Read an antimatter15 ``.splat`` file (see module docstring for the decoding)."""
+    import os
+
+    from harness.io.safe import open_regular
+
     path = Path(path)
-    size = path.stat().st_size
-    if size == 0:
-        raise InputError(path, "empty .splat file (no 32-byte records)")
-    if size % SPLAT_RECORD.itemsize:
-        raise InputError(path, f"truncated: {size} bytes is not a whole number of 32-byte .splat records "
-                               f"({size // 32} complete, {size % 32} bytes left over)")
-    rec = np.fromfile(path, dtype=SPLAT_RECORD)
+    with open_regular(path, "scene", ".splat file") as f:
+        size = os.fstat(f.fileno()).st_size
+        _check_size(path, size)
+        rec = np.fromfile(f, dtype=SPLAT_RECORD, count=size // SPLAT_RECORD.itemsize)
+    if len(rec) * SPLAT_RECORD.itemsize != size:
+        raise InputError(path, "truncated while reading")
     rgba = np.ascontiguousarray(rec["rgba"])
     with np.errstate(divide="ignore", invalid="ignore"):
         scales_log = np.log(rec["scale"])
@@ -61,6 +64,14 @@ def read_splat(path: str | Path) -> GaussianScene:
         opacity_logit=LOGIT_OF_ALPHA_BYTE[rgba[:, 3]],
         sh_dc=_DC_OF_BYTE[rgba[:, :3]],
     )
+
+
+def _check_size(path: Path, size: int) -> None:
+    if size == 0:
+        raise InputError(path, "empty .splat file (no 32-byte records)")
+    if size % SPLAT_RECORD.itemsize:
+        raise InputError(path, f"truncated: {size} bytes is not a whole number of 32-byte .splat records "
+                               f"({size // 32} complete, {size % 32} bytes left over)")
 
 
 def encode_splat(scene: GaussianScene) -> np.ndarray:

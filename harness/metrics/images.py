@@ -5,7 +5,11 @@ to [0, 1] themselves, so readers do not. Bad images raise :class:`~harness.core.
 
 File readings (the decisions):
 * PNG (8-bit grey, grey+alpha, RGB, RGBA, palette; 16-bit grey): integer values divided by 255 or
-  65535. 16-bit *colour* PNGs are refused (Pillow would silently reduce them to 8 bits). Grey is
+  65535. 16-bit *colour* and 16-bit *grey+alpha* PNGs are refused (Pillow would silently reduce
+  them to 8 bits).
+* Size: files are read through :mod:`harness.io.safe` (regular files only, size-capped), and an
+  image larger than the maximum render size (:data:`harness.core.cameras.MAX_SIDE` per side) is
+  refused from its header (PNG IHDR, ``.npy`` shape) before any pixel is decoded. Grey is
   replicated to three channels; **alpha is dropped** (colour compared as stored, not
   composited) because the renderers write opaque RGB over a known background.
 * ``.npy`` (loaded without pickle): float arrays kept as they are (cast to float32), ``uint8`` /
@@ -49,32 +53,51 @@ def as_image(array, source: str | Path = "image") -> np.ndarray:
     return a
 
 
+def _check_dims(path, w: int, h: int) -> None:
+    from harness.core.cameras import MAX_PIXELS, MAX_SIDE
+
+    if w > MAX_SIDE or h > MAX_SIDE or w * h > MAX_PIXELS:
+        raise InputError(path, f"image is {w}x{h} pixels, larger than the maximum ({MAX_SIDE} per side)")
+
+
 def read_image(path: str | Path) -> np.ndarray:
     """Read a PNG or ``.npy`` image file as float32 ``(H, W, 3)``."""
+    from harness.io.safe import check_regular, load_npy
+
     path = Path(path)
-    if not path.is_file():
-        raise InputError(path, "no such file")
+    check_regular(path, "image", "image file")
     if path.suffix.lower() == ".npy":
-        try:
-            array = np.load(path, allow_pickle=False)
-        except (ValueError, OSError, EOFError) as err:
-            raise InputError(path, f"not a readable .npy array: {err}") from None
+        from harness.core.cameras import MAX_PIXELS
+
+        array = load_npy(path, "image", max_elements=4 * MAX_PIXELS)
+        if array.ndim >= 2:
+            _check_dims(path, array.shape[1], array.shape[0])
         return as_image(array, path)
     return as_image(_read_png(path), path)
 
 
 def _read_png(path: Path) -> np.ndarray:
+    import io
+
     from PIL import Image, UnidentifiedImageError
 
-    with open(path, "rb") as f:
-        head = f.read(26)
+    from harness.io.safe import read_bytes
+
+    data = read_bytes(path, "image", "image file")
+    head = data[:26]
     # IHDR: signature (8) + length (4) + "IHDR" (4) + width, height (8) + bit depth + colour type
-    if len(head) == 26 and head[12:16] == b"IHDR" and head[24] == 16 and head[25] in (2, 6):
-        raise InputError(path, "16-bit colour PNG is not supported (Pillow reads it as 8-bit); save it as .npy")
+    if len(head) == 26 and head[12:16] == b"IHDR":
+        _check_dims(path, int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big"))
+        if head[24] == 16 and head[25] in (2, 6):
+            raise InputError(path, "16-bit colour PNG is not supported (Pillow reads it as 8-bit); save it as .npy")
+        if head[24] == 16 and head[25] == 4:
+            raise InputError(path, "16-bit grey+alpha PNG is not supported (Pillow reads it as 8-bit); "
+                                   "save it as .npy or as 16-bit grey")
     try:
-        with Image.open(path) as im:
+        with Image.open(io.BytesIO(data)) as im:
             if im.format != "PNG":
                 raise InputError(path, f"is a {im.format} image; only PNG and .npy are read")
+            _check_dims(path, *im.size)
             im.load()
             if im.mode == "P":
                 im = im.convert("RGBA")

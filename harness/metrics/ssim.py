@@ -94,7 +94,9 @@ def ssim_batch(a, b, *, border: str = "zero", device=None, dtype=torch.float64) 
             if min(s.shape[-2:]) <= 2 * r:
                 raise ValueError(f"border='valid' needs images larger than {2 * r} px per side")
             s = s[..., r:-r, r:-r]
-        return s.mean(dim=(1, 2, 3)).cpu().numpy().astype(np.float64)
+        # the mean in numpy: torch splits a CPU reduction over its threads, so the last digit would
+        # depend on the thread count (1 vs 2 workers of a run); numpy's summation order is fixed
+        return s.cpu().numpy().astype(np.float64).reshape(len(s), -1).mean(axis=1)
 
 
 def ssim(a, b, *, border: str = "zero", device=None) -> float:

@@ -47,21 +47,55 @@ def to_frame(rows: list[dict]) -> pd.DataFrame:
 
 def write_results(df: pd.DataFrame, out_dir: str | Path) -> tuple[Path, Path]:
     """Write ``results.parquet`` and ``results.csv`` atomically; returns both paths."""
+    from harness.core.errors import InputError
+
     out_dir = Path(out_dir)
     pq, csv = out_dir / "results.parquet", out_dir / "results.csv"
-    atomic_write_with(pq, lambda p: df.to_parquet(p, index=False))
-    atomic_write_with(csv, lambda p: df.to_csv(p, index=False))
+    for path, write in ((pq, lambda p: df.to_parquet(p, index=False)), (csv, lambda p: df.to_csv(p, index=False))):
+        try:
+            atomic_write_with(path, write)
+        except OSError as err:  # pyarrow's errors name no file: say which one could not be written
+            raise InputError(path, f"cannot write: {err.strerror or str(err).splitlines()[0]}") from None
     return pq, csv
 
 
+#: columns every stored result must have (identification, status, and the metrics tracked)
+REQUIRED = ("scene", "method", "variant", "ratio", "status")
+_NUMERIC = ("ratio", "keep", "psnr", "ssim", "lpips", "splats_in", "splats_out", "tau", "tau_quantile",
+            "score_s", "prune_s", "render_ref_s", "render_s", "metrics_s", "width", "height")
+
+
 def read_results(run_dir: str | Path) -> pd.DataFrame:
-    """Stored results of a run directory (parquet, else csv)."""
+    """Stored results of a run directory (parquet, else csv), checked: a readable regular file of
+    bounded size, the :data:`REQUIRED` columns present, numeric columns numeric (a PSNR stored as
+    text is an error, not a crash later)."""
     from harness.core.errors import InputError
+    from harness.io.safe import check_regular
 
     run_dir = Path(run_dir)
     pq, csv = run_dir / "results.parquet", run_dir / "results.csv"
     if pq.exists():
-        return pd.read_parquet(pq)
-    if csv.exists():
-        return to_frame(pd.read_csv(csv, keep_default_na=False, na_values=[""]).to_dict("records"))
-    raise InputError(run_dir, "no results.parquet or results.csv here (is it a `harness run` output folder?)")
+        check_regular(pq, "results", "results file")
+        try:
+            df = pd.read_parquet(pq)
+        except Exception as err:  # noqa: BLE001  pyarrow raises many types for a damaged file
+            raise InputError(pq, f"not a readable parquet file ({type(err).__name__}: "
+                                 f"{str(err).splitlines()[0][:120] if str(err) else ''})") from None
+        source = pq
+    elif csv.exists():
+        check_regular(csv, "results", "results file")
+        try:
+            df = to_frame(pd.read_csv(csv, keep_default_na=False, na_values=[""]).to_dict("records"))
+        except (ValueError, UnicodeDecodeError, pd.errors.ParserError) as err:
+            raise InputError(csv, f"not a readable results CSV ({str(err)[:120]})") from None
+        source = csv
+    else:
+        raise InputError(run_dir, "no results.parquet or results.csv here (is it a `harness run` output folder?)")
+    missing = [c for c in REQUIRED if c not in df.columns]
+    if missing:
+        raise InputError(source, f"results lack the column(s) {', '.join(missing)}")
+    for c in _NUMERIC:
+        if c in df.columns and not (pd.api.types.is_numeric_dtype(df[c]) or df[c].isna().all()):
+            bad = next((v for v in df[c] if not isinstance(v, (int, float, np.number)) and v is not None), None)
+            raise InputError(source, f"column {c!r} holds non-numbers (e.g. {str(bad)[:40]!r})")
+    return df

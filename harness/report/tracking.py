@@ -121,14 +121,39 @@ def read_run(run_dir: str | Path) -> tuple[pd.DataFrame, dict]:
     if not run_dir.is_dir():
         raise InputError(run_dir, "is not a folder (expected a `harness run` output folder)")
     df = read_results(run_dir)
+    for c in ("psnr", "ssim", "lpips", "score_s", "render_s", "metrics_s", "view"):
+        if c not in df.columns:
+            raise InputError(run_dir / "results.parquet", f"results lack the column {c!r}")
     meta_path = run_dir / "run.json"
-    meta: dict = {}
-    if meta_path.is_file():
-        try:
-            meta = json.loads(meta_path.read_text())
-        except (OSError, ValueError) as err:
-            raise InputError(meta_path, f"unreadable run record: {err}") from None
+    meta = read_run_json(meta_path) if meta_path.exists() else {}
     return df, meta
+
+
+def read_run_json(path: Path) -> dict:
+    """A run record (``run.json``): a bounded regular file holding a JSON object whose known keys
+    have the types the harness writes; anything else is an InputError."""
+    from harness.io.safe import read_json
+
+    meta = read_json(path, "json", "run record")
+    if not isinstance(meta, dict):
+        raise InputError(path, f"run record must be a JSON object, got {type(meta).__name__}")
+    for key, types in (("name", str), ("commit", str), ("when", str), ("machine", dict),
+                       ("calibration_s", (int, float)), ("stage_seconds", dict), ("cache_counts", dict),
+                       ("tables", list), ("plots", list)):
+        v = meta.get(key)
+        if v is not None and (not isinstance(v, types) or isinstance(v, bool)):
+            raise InputError(path, f"'{key}' has the wrong type ({type(v).__name__})")
+    cal = meta.get("calibration_s")
+    if cal is not None and not (math.isfinite(cal) and cal > 0):
+        raise InputError(path, f"'calibration_s' must be a positive number, got {cal!r}")
+    for key in ("stage_seconds",):
+        for k, v in (meta.get(key) or {}).items():
+            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):
+                raise InputError(path, f"'{key}.{k}' is not a number")
+    for k, v in (meta.get("cache_counts") or {}).items():
+        if not isinstance(v, dict):
+            raise InputError(path, f"'cache_counts.{k}' is not an object")
+    return meta
 
 
 def build_summary(df: pd.DataFrame, run_json: dict, calibration_s: float | None = None) -> dict:
@@ -222,21 +247,37 @@ def compare(baseline: dict, summary: dict) -> list[Finding]:
 
 # --------------------------------------------------------------------------- files
 def load_baseline(path: str | Path) -> dict:
+    """A baseline file, checked: tolerances must be finite non-negative numbers (a NaN tolerance
+    would make every comparison pass), the calibration a positive number."""
+    from harness.io.safe import read_json
+
     path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-    except OSError as err:
-        raise InputError(path, f"cannot read baseline: {err.strerror or err}") from None
-    except ValueError as err:
-        raise InputError(path, f"baseline is not valid JSON: {err}") from None
+    data = read_json(path, "json", "baseline")
     if not isinstance(data, dict) or not isinstance(data.get("summary"), dict) \
             or not isinstance(data["summary"].get("groups"), dict) or "calibration_s" not in data["summary"]:
         raise InputError(path, "not a tracking baseline (expected {'tolerances': ..., 'summary': {...}} as "
                                "written by `harness track --update-baseline`)")
     tol = data.get("tolerances") or {}
+    if not isinstance(tol, dict):
+        raise InputError(path, "'tolerances' must be an object")
     unknown = sorted(set(tol) - set(DEFAULT_TOLERANCES))
     if unknown:
         raise InputError(path, f"unknown tolerance(s) {', '.join(unknown)}; known: {', '.join(DEFAULT_TOLERANCES)}")
+    for k, v in tol.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+            raise InputError(path, f"tolerance {k!r} must be a finite number >= 0, got {v!r}")
+    cal = data["summary"]["calibration_s"]
+    if isinstance(cal, bool) or not isinstance(cal, (int, float)) or not math.isfinite(cal) or cal <= 0:
+        raise InputError(path, f"summary.calibration_s must be a positive number, got {cal!r}")
+    if not isinstance(data["summary"].get("stages", {}), dict):
+        raise InputError(path, "summary.stages must be an object")
+    for key, g in data["summary"]["groups"].items():
+        if not isinstance(g, dict):
+            raise InputError(path, f"group {key!r} is not an object")
+        for m in ("psnr", "ssim", "lpips"):
+            v = g.get(m)
+            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)):
+                raise InputError(path, f"group {key!r}: {m} must be a finite number or null, got {v!r}")
     return data
 
 
@@ -245,18 +286,24 @@ def write_baseline(path: str | Path, summary: dict, tolerances: dict | None = No
     from harness.io.files import atomic_write_text
 
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     payload = {"tolerances": {**DEFAULT_TOLERANCES, **(tolerances or {})}, "summary": summary}
-    atomic_write_text(path, json.dumps(payload, indent=2, sort_keys=True, allow_nan=False) + "\n")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(path, json.dumps(payload, indent=2, sort_keys=True, allow_nan=False) + "\n")
+    except OSError as err:
+        raise InputError(path, f"cannot write the baseline: {err.strerror or err}") from None
     return path
 
 
 def append_history(history_dir: str | Path, summary: dict) -> Path:
     """Append ``summary`` as one JSON line to ``<history_dir>/history.jsonl``."""
     d = Path(history_dir)
-    d.mkdir(parents=True, exist_ok=True)
     path = d / "history.jsonl"
     line = json.dumps(summary, sort_keys=True, allow_nan=False) + "\n"
-    with open(path, "a", encoding="utf-8") as fh:  # one write of one line: readers see whole lines
-        fh.write(line)
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+        with open(path, "a", encoding="utf-8") as fh:  # one write of one line: readers see whole lines
+            fh.write(line)
+    except OSError as err:
+        raise InputError(path, f"cannot append to the history: {err.strerror or err}") from None
     return path

@@ -1,32 +1,54 @@
-"""Content-addressed stage cache: every stage result is stored under the sha256 of its inputs.
+"""Content-addressed, verified stage cache: every stage result is stored under the sha256 of its
+inputs, with the sha256 of its own bytes, and is checked before it is used.
 
-``key = sha256(canonical JSON of {stage, inputs})`` where the inputs name everything the result
-depends on: scene file digests (:func:`file_digest`), method + resolved params, camera set
-(:func:`digest_json` of the camera dicts), renderer / metric / pruner code versions
-(:func:`harness.run.versions.code_digest` of their source files). Values live at ``<root>/<stage>/<key[:2]>/<key>.<ext>``.
+``key = sha256(canonical JSON of {stage, inputs, format})`` where the inputs name everything the
+result depends on: scene file **content** digests (:class:`FileDigests`: every file is hashed on
+every run, never trusted by size/mtime), method + resolved params, camera set (:func:`digest_json`
+of the camera dicts), renderer / metric / pruner code versions
+(:func:`harness.run.versions.code_digest` of their source files). Values live at
+``<root>/<stage>/<key[:2]>/<key>.<ext>``.
 
-Writes are atomic (temp file in the same folder + ``os.replace``), so ``kill -9`` at any instant
-leaves either the complete entry or none: nothing already stored is ever lost or half-written.
+**Verification.** An entry file is an envelope ``b"HCE1 " + sha256(payload) + b"\n" + payload``
+(payload: JSON text, or ``.npy`` bytes). A read recomputes the checksum; then the caller's schema
+check (:mod:`harness.run.verify`: length = splat count, prune counts ≤ input, finite metrics ...)
+runs on the decoded value. An entry that fails either is **discarded** — a one-line warning,
+the file deleted — and reads as a miss, so the stage recomputes it. Checksums detect corruption
+and careless edits (a byte flipped, a number changed by hand); they are not a defence against a
+user who rewrites an entry *and* its checksum on purpose.
+
+**Atomic publish, many writers.** Entries are written to a temporary file in the destination's
+folder (name ``.<name>.<host>.<pid>.<random>.tmp``), fsynced and renamed into place
+(:mod:`harness.io.files`), so a reader — in this process, another worker, or another node sharing
+the folder — sees the old entry, the complete new one, or none. Two writers of one key write the
+same content (keys are content addresses of deterministic computations) and the last rename wins;
+a reader that races a deletion of a bad entry sees a miss. All storage access goes through
+:class:`LocalStore` (read / write / delete / exists of a relative path), the one class to swap for
+an fsspec-backed store.
+
 Hit/miss counts per stage are kept so a run can prove that a rerun recomputed nothing.
-
-Big files are hashed once: digests are memoised in ``<root>/filedigests.json`` keyed by
-(absolute path, size, mtime_ns), so a rerun does not re-read a 40 MB scene to know it is unchanged.
 """
 
 from __future__ import annotations
 
 import hashlib
+import io
 import json
-import threading
+import os
+import sys
 from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from harness.io.files import atomic_write_bytes, atomic_write_text
+from harness.io.files import atomic_write_bytes
 
 _HASH_CHUNK = 1 << 20
+#: part of every key: entries written by an older layout (no envelope) are never looked up
+CACHE_FORMAT = 2
+_MAGIC = b"HCE1 "
+_HEADER = len(_MAGIC) + 64 + 1
 
 
 def canonical_json(obj: Any) -> str:
@@ -64,35 +86,39 @@ def digest_mask(keep: np.ndarray) -> str:
 
 # --------------------------------------------------------------------------- file digests
 class FileDigests:
-    """sha256 of files and folders, memoised on disk by (path, size, mtime_ns)."""
+    """sha256 of files and folders, from their content on every run.
 
-    def __init__(self, index_path: Path | None):
-        self.index_path = Path(index_path) if index_path else None
-        self._lock = threading.Lock()
-        self._memo: dict[str, dict] = {}
-        if self.index_path and self.index_path.exists():
-            try:
-                self._memo = json.loads(self.index_path.read_text())
-            except (OSError, ValueError):
-                self._memo = {}
+    Nothing is trusted across processes: a scene edited in place with its size and mtime restored
+    gets a new digest. Within one process a file is hashed once per identity
+    ``(path, size, mtime_ns, ctime_ns, inode, device)`` — ctime cannot be set back by a user —
+    so the frames of a sequence or a camera file named twice are not re-read. ``hashed_bytes``
+    counts what was read (the cost of hashing is reported by ``harness run``).
+    """
+
+    def __init__(self, index_path: Path | None = None):
+        self.index_path = None  # kept for callers; digests are no longer memoised on disk
+        self._memo: dict[tuple, str] = {}
         self.hashed_bytes = 0
+        self.seconds = 0.0
 
     def _file(self, path: Path) -> str:
-        st = path.stat()
-        key = str(path.resolve())
-        entry = self._memo.get(key)
-        if entry and entry["size"] == st.st_size and entry["mtime_ns"] == st.st_mtime_ns:
-            return entry["sha256"]
-        h = hashlib.sha256()
-        with open(path, "rb") as f:
+        import time
+
+        from harness.io.safe import open_regular
+
+        t0 = time.perf_counter()
+        with open_regular(path, "scene", "input file") as f:
+            st = os.fstat(f.fileno())
+            ident = (str(Path(path).resolve()), st.st_size, st.st_mtime_ns, st.st_ctime_ns, st.st_ino, st.st_dev)
+            if ident in self._memo:
+                return self._memo[ident]
+            h = hashlib.sha256()
             while chunk := f.read(_HASH_CHUNK):
                 h.update(chunk)
         self.hashed_bytes += st.st_size
-        with self._lock:
-            self._memo[key] = {"size": st.st_size, "mtime_ns": st.st_mtime_ns, "sha256": h.hexdigest()}
-            if self.index_path:
-                atomic_write_text(self.index_path, json.dumps(self._memo, indent=0, sort_keys=True))
-        return h.hexdigest()
+        self.seconds += time.perf_counter() - t0
+        self._memo[ident] = h.hexdigest()
+        return self._memo[ident]
 
     def digest(self, path: str | Path) -> str:
         """Digest of a file, or of a folder (relative names + file digests, sorted)."""
@@ -103,80 +129,159 @@ class FileDigests:
         return self._file(path)
 
 
+# --------------------------------------------------------------------------- storage
+class LocalStore:
+    """Byte storage of the cache under a local folder (the one place that touches the disk).
+
+    Paths are relative (``stage/ab/key.ext``). ``write`` is atomic (temp + fsync + rename); ``read``
+    returns None when absent. An fsspec-backed store implements the same four methods."""
+
+    def __init__(self, root: str | Path):
+        self.root = Path(root)
+
+    def path(self, rel: str) -> Path:
+        return self.root / rel
+
+    def read(self, rel: str) -> bytes | None:
+        try:
+            with open(self.root / rel, "rb") as f:
+                return f.read()
+        except (FileNotFoundError, NotADirectoryError, IsADirectoryError):
+            return None
+
+    def write(self, rel: str, data: bytes) -> None:
+        atomic_write_bytes(self.root / rel, data)
+
+    def delete(self, rel: str) -> None:
+        try:
+            (self.root / rel).unlink()
+        except FileNotFoundError:
+            pass
+
+    def exists(self, rel: str) -> bool:
+        return (self.root / rel).is_file()
+
+
+def envelope(payload: bytes) -> bytes:
+    return _MAGIC + hashlib.sha256(payload).hexdigest().encode() + b"\n" + payload
+
+
+def open_envelope(data: bytes) -> tuple[bytes | None, str | None]:
+    """(payload, None) when the checksum holds, else (None, what is wrong)."""
+    if len(data) < _HEADER or not data.startswith(_MAGIC) or data[_HEADER - 1:_HEADER] != b"\n":
+        return None, "no checksum header (truncated or not written by the cache)"
+    payload = data[_HEADER:]
+    if hashlib.sha256(payload).hexdigest().encode() != data[len(_MAGIC):_HEADER - 1]:
+        return None, "checksum mismatch (the entry was changed or damaged after it was written)"
+    return payload, None
+
+
+def _warn_stderr(message: str) -> None:
+    print(f"harness: warning: {message}", file=sys.stderr, flush=True)
+
+
+Check = Callable[[Any], "str | None"]
+
+
 # --------------------------------------------------------------------------- the cache
 class StageCache:
-    """Results keyed by content. ``get_*`` return None on a miss; ``put_*`` store atomically."""
+    """Results keyed by content. ``get_*`` return None on a miss (or a discarded bad entry);
+    ``put_*`` store atomically. ``check`` arguments are schema checks returning a problem or None."""
 
-    def __init__(self, root: str | Path, force: bool = False):
+    def __init__(self, root: str | Path, force: bool = False, warn: Callable[[str], None] | None = None,
+                 store: LocalStore | None = None):
         self.root = Path(root)
         self.force = force  # every lookup misses (results are recomputed and overwritten)
         self.root.mkdir(parents=True, exist_ok=True)
-        self.files = FileDigests(self.root / "filedigests.json")
+        self.store = store or LocalStore(self.root)
+        self.files = FileDigests()
         self.hits: Counter = Counter()
         self.misses: Counter = Counter()
+        self.discarded: list[str] = []  # "stage/key: problem" of every entry thrown away
+        self.warn = warn or _warn_stderr
 
     @staticmethod
     def key(stage: str, **inputs) -> str:
-        return digest_json({"stage": stage, **inputs})
+        return digest_json({"stage": stage, "cache_format": CACHE_FORMAT, **inputs})
+
+    @staticmethod
+    def rel(stage: str, key: str, ext: str) -> str:
+        return f"{stage}/{key[:2]}/{key}.{ext}"
 
     def path(self, stage: str, key: str, ext: str) -> Path:
-        return self.root / stage / key[:2] / f"{key}.{ext}"
+        return self.store.path(self.rel(stage, key, ext))
 
     def _count(self, stage: str, hit: bool) -> None:
         (self.hits if hit else self.misses)[stage] += 1
 
+    def discard(self, stage: str, key: str, ext: str, problem: str) -> None:
+        """Delete a bad entry and say so in one line."""
+        self.store.delete(self.rel(stage, key, ext))
+        self.discarded.append(f"{stage}/{key[:12]}: {problem}")
+        self.warn(f"stage cache {stage} entry {key[:12]}.{ext}: {problem}; discarded, it will be recomputed")
+
+    def _read(self, stage: str, key: str, ext: str, decode, check: Check | None):
+        data = self.store.read(self.rel(stage, key, ext))
+        if data is None:
+            return None
+        payload, problem = open_envelope(data)
+        value = None
+        if problem is None:
+            try:
+                value = decode(payload)
+            except (ValueError, TypeError, OSError, EOFError, RecursionError) as err:
+                problem = f"undecodable ({type(err).__name__}: {str(err)[:80]})"
+        if problem is None and check is not None:
+            try:
+                problem = check(value)
+            except (KeyError, TypeError, ValueError, IndexError, AttributeError) as err:
+                problem = f"does not match its schema ({type(err).__name__}: {str(err)[:80]})"
+        if problem is not None:
+            self.discard(stage, key, ext, problem)
+            return None
+        return value
+
     # JSON values ------------------------------------------------------------------
-    def get_json(self, stage: str, key: str, count: bool = True):
-        p = self.path(stage, key, "json")
-        try:
-            value = None if self.force else json.loads(p.read_text())
-        except FileNotFoundError:
-            value = None
-        except (OSError, ValueError):  # unreadable entry: treat as absent, it will be rewritten
-            value = None
+    def get_json(self, stage: str, key: str, count: bool = True, check: Check | None = None):
+        value = None if self.force else self._read(stage, key, "json", _decode_json, check)
         if count:
             self._count(stage, value is not None)
         return value
 
     def put_json(self, stage: str, key: str, value) -> None:
-        atomic_write_text(self.path(stage, key, "json"), json.dumps(value, allow_nan=True, default=float))
+        payload = json.dumps(value, allow_nan=True, default=float, sort_keys=True).encode()
+        self.store.write(self.rel(stage, key, "json"), envelope(payload))
 
     # array values -------------------------------------------------------------------
-    def get_array(self, stage: str, key: str, count: bool = True) -> np.ndarray | None:
-        p = self.path(stage, key, "npy")
-        try:
-            value = None if self.force else np.load(p, allow_pickle=False)
-        except FileNotFoundError:
-            value = None
-        except (OSError, ValueError):
-            value = None
+    def get_array(self, stage: str, key: str, count: bool = True, check: Check | None = None) -> np.ndarray | None:
+        value = None if self.force else self._read(stage, key, "npy", _decode_npy, check)
         if count:
             self._count(stage, value is not None)
         return value
 
     def put_array(self, stage: str, key: str, arr: np.ndarray) -> None:
-        import io
-
         buf = io.BytesIO()
         np.save(buf, np.asarray(arr), allow_pickle=False)
-        atomic_write_bytes(self.path(stage, key, "npy"), buf.getvalue())
+        self.store.write(self.rel(stage, key, "npy"), envelope(buf.getvalue()))
 
-    def load_json(self, stage: str, key: str):
+    def load_json(self, stage: str, key: str, check: Check | None = None):
         """Read an entry regardless of ``force`` and without counting (results of this run)."""
-        try:
-            return json.loads(self.path(stage, key, "json").read_text())
-        except (OSError, ValueError):
-            return None
+        return self._read(stage, key, "json", _decode_json, check)
 
-    def load_array(self, stage: str, key: str) -> np.ndarray | None:
-        try:
-            return np.load(self.path(stage, key, "npy"), allow_pickle=False)
-        except (OSError, ValueError):
-            return None
+    def load_array(self, stage: str, key: str, check: Check | None = None) -> np.ndarray | None:
+        return self._read(stage, key, "npy", _decode_npy, check)
 
     def has(self, stage: str, key: str, ext: str) -> bool:
-        return self.path(stage, key, ext).exists()
+        return self.store.exists(self.rel(stage, key, ext))
 
     def counts(self) -> dict[str, dict[str, int]]:
         stages = sorted(set(self.hits) | set(self.misses))
         return {s: {"hits": self.hits[s], "misses": self.misses[s]} for s in stages}
+
+
+def _decode_json(payload: bytes):
+    return json.loads(payload)
+
+
+def _decode_npy(payload: bytes) -> np.ndarray:
+    return np.load(io.BytesIO(payload), allow_pickle=False)

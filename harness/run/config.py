@@ -55,8 +55,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from harness.core import ratios
 from harness.core.errors import InputError
 from harness.core.params import Params
@@ -264,8 +262,8 @@ def _scene(d, i, protocol: Protocol, src) -> SceneSpec:
     lod = d.get("lod")
     return SceneSpec(
         name=name,
-        label=str(d.get("label", name)),
-        source=None if "frames" in d else expand_env(str(d.get("source", name))),
+        label=_str(d.get("label", name), f"{where}.label", src),
+        source=None if "frames" in d else expand_env(_str(d.get("source", name), f"{where}.source", src)),
         frames=expand_env(_str(d["frames"], f"{where}.frames", src)) if "frames" in d else None,
         kind=_choice(d.get("kind", "object-centric"), KINDS, f"{where}.kind", src),
         rig=_choice(d.get("rig", "default"), rigs.RIG_CHOICES, f"{where}.rig", src),
@@ -384,16 +382,13 @@ def parse_config(data: Any, source: str = "<config>") -> RunConfig:
 
 
 def load_config(path: str | Path) -> RunConfig:
-    """Read and validate a YAML run config; any problem is an InputError naming the file and key."""
+    """Read and validate a YAML run config; any problem is an InputError naming the file and key.
+
+    Read through :func:`harness.io.safe.load_yaml`: a regular file of at most 1 MiB of UTF-8,
+    duplicate keys refused, aliases bounded (no "billion laughs")."""
+    from harness.io.safe import load_yaml
+
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as err:
-        raise InputError(path, f"cannot read config: {err.strerror or err}") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as err:
-        mark = getattr(err, "problem_mark", None)
-        at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        raise InputError(path, f"invalid YAML{at}: {getattr(err, 'problem', None) or err}") from None
-    return parse_config(data, str(path))
+    if not path.exists():
+        raise InputError(path, "cannot read config: no such file")
+    return parse_config(load_yaml(path), str(path))

@@ -113,8 +113,10 @@ def scene_views(item_spec: SceneSpec, scene, path: Path, protocol, cache: StageC
         dataset = item_spec.source if item_spec.source and toolkit.resolve_dataset(item_spec.source) else None
         source = {"rig": item_spec.rig, "scene": scene_digest, "dataset": dataset, "kind": item_spec.kind,
                   "n_train": item_spec.n_train, "n_test": item_spec.n_test, "aspect": p.aspect, "seed": p.seed}
+    from harness.run.verify import views_check
+
     key = cache.key("views", source=source, longest_side=p.longest_side, code=versions.rigs)
-    hit = cache.get_json("views", key)
+    hit = cache.get_json("views", key, check=views_check())
     if hit is not None:
         return hit["rig"], [Camera.from_dict(c) for c in hit["train"]], [Camera.from_dict(c) for c in hit["test"]]
     if item_spec.cameras is not None:
@@ -175,13 +177,15 @@ def load_items(config: RunConfig, cache: StageCache, toolkit: Toolkit, versions:
 
 
 def _scene_items(spec, frames, config, cache, toolkit, versions, base) -> list[SceneItem]:
+    from harness.run.verify import load_check
+
     items, views = [], None
     for frame, path in frames:
         t0 = time.perf_counter()
         digest = digest_json({"file": cache.files.digest(path), "lod": spec.lod})
         scene = _LazyScene(toolkit, str(path), spec.lod)
         key = cache.key("load", scene=digest, code=versions.reader)
-        info = cache.get_json("load", key)
+        info = cache.get_json("load", key, check=load_check())
         if info is None:
             s = scene()
             info = {"n_splats": len(s), "sh_degree": int(s.sh_degree)}

@@ -38,7 +38,24 @@ from harness.run.tasks import (
     run_view,
 )
 from harness.run.toolkit import Toolkit
+from harness.run.verify import (
+    mask_check,
+    metrics_check,
+    prune_check,
+    render_ref_record_check,
+    score_array_check,
+    score_record_check,
+)
 from harness.run.versions import module_versions
+
+
+def _pool_worker_init(parent_pid: int, threads: int, imports, preload) -> None:
+    """Pool initializer: die with the driver (even on its ``kill -9``), then :func:`init_worker`."""
+    from harness.core.lifecycle import die_with_parent
+
+    die_with_parent(parent_pid)
+    init_worker(threads, imports, preload)
+
 
 #: pruned sets per view task: small enough to balance two workers, large enough that the per-task
 #: reference LPIPS features (one VGG pass) stay a small overhead
@@ -56,13 +73,30 @@ class RunResult:
     images: dict = field(default_factory=dict)  # (scene, method, variant, ratio) -> cache png path
 
 
+def _terminate(pool: ProcessPoolExecutor) -> None:
+    """Stop a pool now: cancel what is queued, SIGTERM then SIGKILL every worker, reap them."""
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in procs:
+        if p.is_alive():
+            p.terminate()
+    for p in procs:
+        p.join(timeout=2.0)
+        if p.is_alive():
+            p.kill()
+            p.join(timeout=2.0)
+
+
 class Runner:
     def __init__(self, config: RunConfig, *, out_dir: Path, cache_root: Path, workers: int = 1,
                  force: bool = False, toolkit: Toolkit | None = None, progress=None, log=print,
                  base_dir: Path | None = None):
         self.config = config
         self.out_dir = Path(out_dir)
-        self.cache = StageCache(cache_root, force=force)
+        self.cache = StageCache(cache_root, force=force, warn=lambda m: log(f"warning: {m}"))
+        from harness.io.files import sweep_stale_temps
+
+        sweep_stale_temps(self.cache.root, recursive=True)  # left by a killed run (kill -9 of a writer)
         self.workers = max(1, int(workers))
         self.toolkit = toolkit or Toolkit()
         self.progress = progress  # a harness.run.progress.StageProgress or None
@@ -94,8 +128,10 @@ class Runner:
                     bar.advance(weight(t) - done[0])
         else:
             ctx = get_context("spawn")
-            with ProcessPoolExecutor(self.workers, mp_context=ctx, initializer=init_worker,
-                                     initargs=(self.threads, self.toolkit.imports, self.toolkit.preload)) as pool:
+            pool = ProcessPoolExecutor(self.workers, mp_context=ctx, initializer=_pool_worker_init,
+                                       initargs=(os.getpid(), self.threads, self.toolkit.imports,
+                                                 self.toolkit.preload))
+            try:
                 futures = {pool.submit(fn, t): t for t in tasks}
                 for fut in as_completed(futures):
                     try:
@@ -104,6 +140,10 @@ class Runner:
                         results.append(futures[fut].failed(f"worker failed: {type(err).__name__}: {err}"))
                     if bar:
                         bar.advance(weight(futures[fut]))
+            except BaseException:  # SIGTERM / Ctrl-C / an error here: the workers go with the run
+                _terminate(pool)
+                raise
+            pool.shutdown(wait=True)
         if bar:
             bar.finish()
         return results
@@ -137,6 +177,9 @@ class Runner:
         self._timed("render_metrics", self._view_stage, items, prunes)
         rows, images = self._timed("aggregate", self._rows, items, scores, prunes, skips)
         self.stage_s["total"] = time.perf_counter() - t_all
+        # content hashing of the inputs (every run; part of "load"): its cost, reported in run.json
+        self.stage_s["hash_inputs"] = self.cache.files.seconds
+        self.hashed_bytes = self.cache.files.hashed_bytes
         return RunResult(self.out_dir, rows, skips, self.errors, self.stage_s, self.cache.counts(), images)
 
     def _score_key(self, item: SceneItem, mv, spec) -> str:
@@ -161,7 +204,7 @@ class Runner:
                                       "training cameras (give a rig or a cameras file with training views)"))
                     continue
                 key = self._score_key(item, mv, spec)
-                rec = self.cache.get_json("score", key)
+                rec = self._cached_scores(key, item.n_splats) if key not in pending else None
                 if rec is not None:
                     out[(i, mv.key)] = (key, rec)
                     continue
@@ -181,10 +224,24 @@ class Runner:
                 for ik in pending[res["key"]]:
                     out[ik] = (res["key"], {"error": res["error"]})
                 continue
-            rec = self.cache.load_json("score", res["key"])
+            n = items[pending[res["key"]][0][0]].n_splats
+            rec = self.cache.load_json("score", res["key"], check=score_record_check(n))
+            if rec is None or self.cache.load_array("score", res["key"], check=score_array_check(n)) is None:
+                rec = {"error": "the stored scores failed verification"}
+                self.errors.append(f"score {res['key'][:12]}: {rec['error']}")
             for ik in pending[res["key"]]:
                 out[ik] = (res["key"], rec)
         return out, skips
+
+    def _cached_scores(self, key: str, n: int):
+        """The score record when both it and its array pass verification (a hit), else None (a
+        miss: whichever entry is bad was discarded with a warning, and both are recomputed)."""
+        rec = None if self.cache.force else self.cache.get_json("score", key, count=False,
+                                                                check=score_record_check(n))
+        if rec is not None and self.cache.load_array("score", key, check=score_array_check(n)) is None:
+            rec = None
+        self.cache._count("score", rec is not None)
+        return rec
 
     def _prune_stage(self, items, scores):
         """{(item index, method key, ratio): prune record with mask digest}."""
@@ -200,16 +257,24 @@ class Runner:
                 if "error" in srec:
                     continue
                 arr = None
+                n = item.n_splats
                 for r in mv.ratios:
                     key = self.cache.key("prune", score=skey, ratio=r, code=code)
-                    rec = self.cache.get_json("prune", key)
+                    rec = self.cache.get_json("prune", key, count=False, check=prune_check(n, r))
+                    if rec is not None and self.cache.load_array(
+                            "masks", rec["mask"], check=mask_check(n, rec["splats_out"], rec["mask"])) is None:
+                        rec = None  # its mask was missing or bad (discarded): recompute both
+                    self.cache._count("prune", rec is not None)
                     if rec is None:
                         if arr is None:
-                            arr = self.cache.load_array("score", skey)
+                            arr = self.cache.load_array("score", skey, check=score_array_check(n))
+                            if arr is None:
+                                self.errors.append(f"prune {key[:12]}: scores {skey[:12]} failed verification")
+                                break
                         t0 = time.perf_counter()
                         sel = select_by_ratio(arr, r)
                         mask = digest_mask(sel.keep)
-                        if not self.cache.has("masks", mask, "npy"):
+                        if self.cache.load_array("masks", mask, check=mask_check(n, sel.kept, mask)) is None:
                             self.cache.put_array("masks", mask, np.packbits(sel.keep))
                         rec = {"mask": mask, "tau": sel.tau, "tau_quantile": sel.tau_quantile,
                                "splats_out": sel.kept, "seconds": time.perf_counter() - t0}
@@ -241,10 +306,11 @@ class Runner:
                 for mask in masks:
                     mkey = self._metrics_key(ref_key, mask)
                     # the first view's pruned render is kept as an image (figures, report page)
-                    measured = self.cache.get_json("metrics", mkey) is not None
+                    measured = self.cache.get_json("metrics", mkey, check=metrics_check(p.metrics)) is not None
                     if not measured or (v == 0 and not self.cache.has("images", mkey, "png")):
                         jobs.append(MaskJob(mkey, mask, v == 0))
-                have_ref = self.cache.get_json("render_ref", ref_key) is not None
+                have_ref = self.cache.get_json("render_ref", ref_key,
+                                               check=render_ref_record_check(cam.width, cam.height)) is not None
 
                 def task(jobs_, render_ref=False, ref_png=False, ref_key=ref_key, item=item, cam=cam):
                     return ViewTask(str(self.cache.root), ref_key, item.path, item.spec.lod, item.digest,
@@ -279,7 +345,8 @@ class Runner:
                          "variant": sk.variant, "status": sk.status, "reason": sk.reason})
         for i, item in enumerate(items):
             ref_keys = [self._ref_key(item, cam) for cam in item.test]
-            ref_recs = [self.cache.load_json("render_ref", k) or {} for k in ref_keys]
+            ref_recs = [self.cache.load_json("render_ref", k, check=render_ref_record_check(c.width, c.height)) or {}
+                        for k, c in zip(ref_keys, item.test)]
             if ref_keys:
                 images[(item.spec.name, item.frame, "input", "", 0.0)] = self.cache.path("images", ref_keys[0], "png")
             for mv in variants_for(item, self.config.methods):
@@ -295,12 +362,15 @@ class Runner:
                     if "error" in srec:
                         rows.append({**row0, "status": "error", "reason": srec["error"]})
                         continue
-                    prec = prunes[(i, mv.key, r)]
+                    prec = prunes.get((i, mv.key, r))
+                    if prec is None:  # its scores failed verification after they were computed
+                        rows.append({**row0, "status": "error", "reason": "pruning failed (see run.json errors)"})
+                        continue
                     row0.update(splats_out=prec["splats_out"], tau=prec["tau"], tau_quantile=prec["tau_quantile"],
                                 score_s=srec["seconds"], prune_s=prec["seconds"])
                     for v, (cam, rk, rrec) in enumerate(zip(item.test, ref_keys, ref_recs)):
                         mkey = self._metrics_key(rk, prec["mask"])
-                        m = self.cache.load_json("metrics", mkey)
+                        m = self.cache.load_json("metrics", mkey, check=metrics_check(p.metrics))
                         row = {**row0, "view": cam.name or f"view{v:02d}", "width": cam.width, "height": cam.height,
                                "render_ref_s": rrec.get("seconds")}
                         if m is None:

@@ -55,6 +55,7 @@ def init_worker(threads: int, imports: tuple[str, ...] = (), preload: tuple[str,
 
 
 def _cache(root: str) -> StageCache:
+    # a worker's warnings go to stderr as one line each (StageCache's default)
     c = _STATE.get("cache")
     if c is None or str(c.root) != root:
         c = _STATE["cache"] = StageCache(root)
@@ -189,7 +190,11 @@ def run_view(task: ViewTask, progress=None) -> dict:
     try:
         scene = _scene(task.toolkit, task.path, task.lod, task.scene_digest)
         renderer = _renderer(task.toolkit, task.renderer, task.device)
-        ref = None if task.render_ref else cache.get_array("render_ref", task.ref_key, count=False)
+        from harness.run.verify import image_check, mask_check
+
+        # a cached reference that fails its checksum or shape is discarded and rendered again
+        ref = None if task.render_ref else cache.get_array("render_ref", task.ref_key, count=False,
+                                                           check=image_check(cam.width, cam.height))
         if ref is None:
             t0 = time.perf_counter()
             ref = np.asarray(renderer.render(scene, cam, background=task.background), dtype=np.float32)
@@ -205,7 +210,10 @@ def run_view(task: ViewTask, progress=None) -> dict:
             feat_s = time.perf_counter() - t0
             for job in todo:
                 try:
-                    packed = cache.get_array("masks", job.mask_key, count=False)
+                    packed = cache.get_array("masks", job.mask_key, count=False,
+                                             check=mask_check(task.n_splats, digest=job.mask_key))
+                    if packed is None:
+                        raise RuntimeError(f"mask {job.mask_key[:12]} is missing or failed verification")
                     keep = np.unpackbits(packed, count=task.n_splats).astype(bool)
                     t0 = time.perf_counter()
                     img = np.asarray(renderer.render(scene.subset(keep), cam, background=task.background),

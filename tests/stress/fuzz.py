@@ -219,9 +219,16 @@ def run_cases(seeds: list[dict], start: int, count: int, work: str, mem_limit_gb
             folder = work_dir / "sog"
             shutil.rmtree(folder, ignore_errors=True)
             folder.mkdir()
-            for f in Path(seed["dir"]).iterdir():
-                if f.name != "meta.json":
-                    os.symlink(f, folder / f.name)
+            # the images are hard links to one copy inside the work folder: a symlink leading out of
+            # the scene folder is refused by the reader (issue 15: a scene never makes it read outside)
+            local = work_dir / f"sog-seed-{Path(seed['dir']).name}"
+            if not local.is_dir():
+                local.mkdir()
+                for f in Path(seed["dir"]).iterdir():
+                    if f.name != "meta.json":
+                        shutil.copy(f, local / f.name)
+            for f in local.iterdir():
+                os.link(f, folder / f.name)
             if bad_image:
                 (folder / bad_image).unlink(missing_ok=True)
                 raw = (Path(seed["dir"]) / bad_image).read_bytes()

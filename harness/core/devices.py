@@ -1,0 +1,35 @@
+"""Checking a torch device named by a user (``--device``, ``protocol.device``) before any work.
+
+``cpu`` always works; ``cuda``/``cuda:N`` only when a CUDA device is present (and N exists);
+``mps`` only when available. Anything else (``meta``, ``xla``, a typo) is an
+:class:`~harness.core.errors.InputError`: a device that cannot hold real tensors must fail as one
+line before a scene is read, not as a traceback in the middle of a render.
+"""
+
+from __future__ import annotations
+
+from harness.core.errors import InputError
+
+SUPPORTED = ("cpu", "cuda", "mps")
+
+
+def check_device(text: str | None, source: str = "--device") -> str | None:
+    """``text`` unchanged when usable (None passes through: the caller's default)."""
+    if text is None:
+        return None
+    import torch
+
+    try:
+        dev = torch.device(str(text))
+    except (RuntimeError, ValueError, TypeError) as err:
+        raise InputError(source, f"not a torch device: {str(err).splitlines()[0] if str(err) else text!r}") from None
+    if dev.type not in SUPPORTED:
+        raise InputError(source, f"device type {dev.type!r} cannot run the harness; use one of {', '.join(SUPPORTED)}")
+    if dev.type == "cuda":
+        if not torch.cuda.is_available():
+            raise InputError(source, f"{text} requested but no CUDA device is available")
+        if dev.index is not None and dev.index >= torch.cuda.device_count():
+            raise InputError(source, f"{text} requested but only {torch.cuda.device_count()} CUDA device(s) exist")
+    if dev.type == "mps" and not (getattr(torch.backends, "mps", None) and torch.backends.mps.is_available()):
+        raise InputError(source, f"{text} requested but MPS is not available")
+    return str(text)

@@ -1,0 +1,280 @@
+"""Bounded, safe reads: every reader opens its files through here.
+
+Rules (issue 15):
+
+* **Regular files only.** A path is ``stat``-ed before it is opened and FIFOs, sockets, character
+  and block devices (``/dev/zero``), and folders are refused with one line. The file is then opened
+  with ``O_NONBLOCK`` (opening a FIFO swapped in after the ``stat`` cannot block) and ``fstat``-ed
+  again, so what is read is the regular file that was checked.
+* **A size cap per kind of file** (:data:`LIMITS`), checked against the size on disk before any
+  byte is read: a scene, a camera file, a config, an image. Readers that allocate from a header
+  (PLY counts, ``.npy`` shapes, image dimensions, SOG counts) check those numbers against the file
+  size and the documented maxima before allocating.
+* **Paths inside a scene are confined to its folder** (:func:`confined`): a SOG ``meta.json`` or
+  ``lod-meta.json`` may name files only below the scene's folder; absolute paths, ``..`` that
+  climbs out, and symlinks that lead out are refused.
+* **JSON**: bounded size; nesting too deep for the parser is an error, not a RecursionError.
+
+Every refusal is an :class:`~harness.core.errors.InputError` naming the file.
+
+The caps can be raised for a machine that needs it with ``HARNESS_MAX_<KIND>_BYTES`` (e.g.
+``HARNESS_MAX_SCENE_BYTES=17179869184``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import stat
+from pathlib import Path
+from typing import BinaryIO
+
+from harness.core.errors import InputError
+
+KiB, MiB, GiB = 1 << 10, 1 << 20, 1 << 30
+
+#: default size caps (bytes) per kind of file
+LIMITS = {
+    "scene": 8 * GiB,       # .ply / .splat (a 6 M-splat SH-3 PLY is ~1.5 GB)
+    "json": 64 * MiB,       # meta.json, lod-meta.json, cameras.json, transforms.json, run.json, baselines
+    "config": 1 * MiB,      # YAML run configs
+    "image": 512 * MiB,     # PNG / WebP / .npy images and SOG textures
+    "camera_model": 256 * MiB,  # COLMAP cameras/images (.txt/.bin)
+    "results": 1 * GiB,     # results.parquet / .csv
+    "array": 8 * GiB,       # .npy arrays other than images
+}
+
+def limit(kind: str) -> int:
+    env = os.environ.get(f"HARNESS_MAX_{kind.upper()}_BYTES")
+    if env:
+        try:
+            return int(env)
+        except ValueError:
+            raise InputError(f"HARNESS_MAX_{kind.upper()}_BYTES", f"expected a number of bytes, got {env!r}") from None
+    return LIMITS[kind]
+
+
+def _kind_of(mode: int) -> str:
+    if stat.S_ISDIR(mode):
+        return "a folder"
+    if stat.S_ISFIFO(mode):
+        return "a FIFO (named pipe)"
+    if stat.S_ISCHR(mode):
+        return "a character device"
+    if stat.S_ISBLK(mode):
+        return "a block device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "not a regular file"
+
+
+def check_regular(path: str | Path, kind: str = "json", what: str = "file") -> os.stat_result:
+    """``stat`` (following symlinks) and refuse anything but a regular file within the size cap."""
+    path = Path(path)
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        raise InputError(path, "no such file") from None
+    except NotADirectoryError:
+        raise InputError(path, "no such file (a parent is not a folder)") from None
+    except OSError as err:
+        raise InputError(path, f"cannot read: {err.strerror or err}") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise InputError(path, f"is {_kind_of(st.st_mode)}; expected a regular {what}")
+    cap = limit(kind)
+    if st.st_size > cap:
+        raise InputError(path, f"is {st.st_size:,} bytes, more than the {cap:,}-byte limit for a {what} "
+                               f"(HARNESS_MAX_{kind.upper()}_BYTES raises it)")
+    return st
+
+
+def open_regular(path: str | Path, kind: str = "json", what: str = "file") -> BinaryIO:
+    """A binary file object of a checked regular file (see the module docstring)."""
+    path = Path(path)
+    check_regular(path, kind, what)
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    except OSError as err:
+        raise InputError(path, f"cannot read: {err.strerror or err}") from None
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):  # swapped between stat and open
+            raise InputError(path, f"is {_kind_of(st.st_mode)}; expected a regular {what}")
+        if st.st_size > limit(kind):
+            raise InputError(path, f"is {st.st_size:,} bytes, more than the {limit(kind):,}-byte limit")
+    except BaseException:
+        os.close(fd)
+        raise
+    return os.fdopen(fd, "rb")
+
+
+def read_bytes(path: str | Path, kind: str = "json", what: str = "file") -> bytes:
+    """All bytes of a checked regular file (at most its cap, read once)."""
+    with open_regular(path, kind, what) as f:
+        try:
+            return f.read(limit(kind) + 1)
+        except OSError as err:
+            raise InputError(path, f"cannot read: {err.strerror or err}") from None
+
+
+def read_text(path: str | Path, kind: str = "json", what: str = "file") -> str:
+    """UTF-8 text of a checked regular file; other encodings are an error."""
+    data = read_bytes(path, kind, what)
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise InputError(path, f"is not UTF-8 text (byte {err.start}: {data[err.start:err.start + 1]!r})") from None
+
+
+def parse_json(text: str | bytes, source) -> object:
+    """``json.loads`` with a depth limit and one-line errors."""
+    if isinstance(text, bytes):
+        try:
+            text = text.decode("utf-8")
+        except UnicodeDecodeError as err:
+            raise InputError(source, f"not valid JSON (not UTF-8 at byte {err.start})") from None
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as err:
+        raise InputError(source, f"not a readable JSON file (not valid JSON: {err})") from None
+    except RecursionError:
+        raise InputError(source, "JSON nested too deeply") from None
+
+
+def read_json(path: str | Path, kind: str = "json", what: str = "JSON file") -> object:
+    return parse_json(read_text(path, kind, what), path)
+
+
+def confined(root: str | Path, name: str, source) -> Path:
+    """``root / name`` for a relative ``name`` that stays below ``root`` once symlinks are resolved;
+    anything else (absolute, ``..`` climbing out, a symlink out) is an InputError naming ``source``."""
+    if not isinstance(name, str) or not name or "\x00" in name:
+        raise InputError(source, f"bad file name {name!r}")
+    if name.startswith(("/", "\\")) or os.path.isabs(name) or (len(name) > 1 and name[1] == ":"):
+        raise InputError(source, f"refers to {name!r}, an absolute path; only files inside the scene folder are read")
+    root = Path(root).resolve()
+    target = (root / name).resolve()
+    if target != root and root not in target.parents:
+        raise InputError(source, f"refers to {name!r}, outside the scene folder {root}; only files inside it are read")
+    return target
+
+
+# ----------------------------------------------------------------------------- .npy
+def npy_header(f: BinaryIO, source) -> tuple[tuple[int, ...], object, bool]:
+    """(shape, dtype, fortran_order) of an open ``.npy`` at its start; file position left at the data."""
+    import numpy as np
+
+    try:
+        major, minor = np.lib.format.read_magic(f)
+        if (major, minor) == (1, 0):
+            shape, fortran, dtype = np.lib.format.read_array_header_1_0(f, max_header_size=10000)
+        elif major in (2, 3):
+            shape, fortran, dtype = np.lib.format.read_array_header_2_0(f, max_header_size=10000)
+        else:
+            raise ValueError(f"unknown .npy version {major}.{minor}")
+    except (ValueError, OSError, EOFError, SyntaxError) as err:
+        raise InputError(source, f"not a readable .npy array: {err}") from None
+    if dtype.hasobject:
+        raise InputError(source, ".npy holds Python objects (pickles are never loaded)")
+    return tuple(int(s) for s in shape), dtype, fortran
+
+
+def load_npy(path: str | Path, kind: str = "array", max_elements: int | None = None):
+    """A ``.npy`` array whose header agrees with the file size exactly, checked before allocating."""
+    import numpy as np
+
+    path = Path(path)
+    with open_regular(path, kind, ".npy file") as f:
+        shape, dtype, fortran = npy_header(f, path)
+        n = 1
+        for s in shape:
+            n *= s
+        data_bytes = os.fstat(f.fileno()).st_size - f.tell()
+        if max_elements is not None and n > max_elements:
+            raise InputError(path, f".npy shape {shape} has {n:,} elements, more than the {max_elements:,} allowed")
+        if n * dtype.itemsize != data_bytes:
+            raise InputError(path, f".npy header declares shape {shape} of {dtype} ({n * dtype.itemsize:,} bytes) "
+                                   f"but the file holds {data_bytes:,} bytes of data")
+        arr = np.frombuffer(f.read(data_bytes), dtype=dtype) if n else np.zeros(0, dtype)
+    arr = arr.reshape(shape[::-1]).transpose() if fortran else arr.reshape(shape)
+    return np.array(arr)  # writable, owns its memory
+
+
+# ----------------------------------------------------------------------------- YAML
+#: a YAML document may expand (aliases followed) to at most this many nodes: a "billion laughs"
+#: document of a few hundred bytes is refused instead of being expanded when a value is used
+MAX_YAML_NODES = 100_000
+MAX_YAML_ALIASES = 1_000
+
+
+def _yaml_loader():
+    import yaml
+
+    class Loader(yaml.SafeLoader):
+        """SafeLoader that refuses duplicate keys and bounds alias expansion."""
+
+        aliases = 0
+
+        def compose_node(self, parent, index):
+            if self.check_event(yaml.events.AliasEvent):
+                self.aliases += 1
+                if self.aliases > MAX_YAML_ALIASES:
+                    raise yaml.constructor.ConstructorError(
+                        None, None, f"more than {MAX_YAML_ALIASES} aliases", self.peek_event().start_mark)
+            return super().compose_node(parent, index)
+
+        def construct_mapping(self, node, deep=False):
+            seen = {}
+            for key_node, _ in node.value:
+                if isinstance(key_node, yaml.ScalarNode):
+                    key = key_node.value
+                    if key in seen:
+                        raise yaml.constructor.ConstructorError(
+                            None, None, f"duplicate key {key!r} (first at line {seen[key] + 1})", key_node.start_mark)
+                    seen[key] = key_node.start_mark.line
+            return super().construct_mapping(node, deep=deep)
+
+    return Loader
+
+
+def _expanded_nodes(node, memo: dict) -> int:
+    """Node count of a composed YAML graph with every alias expanded (shared nodes memoised)."""
+    import yaml
+
+    key = id(node)
+    if key in memo:
+        return memo[key]
+    memo[key] = MAX_YAML_NODES + 1  # a cycle counts as too big
+    if isinstance(node, yaml.SequenceNode):
+        n = 1 + sum(_expanded_nodes(v, memo) for v in node.value)
+    elif isinstance(node, yaml.MappingNode):
+        n = 1 + sum(_expanded_nodes(k, memo) + _expanded_nodes(v, memo) for k, v in node.value)
+    else:
+        n = 1
+    memo[key] = min(n, MAX_YAML_NODES + 1)
+    return memo[key]
+
+
+def load_yaml(path: str | Path, what: str = "config"):
+    """A YAML document from a checked regular file (size-capped, UTF-8), with duplicate keys and
+    alias bombs refused; any problem is one InputError naming the file and line."""
+    import yaml
+
+    path = Path(path)
+    text = read_text(path, "config", what)
+    loader = _yaml_loader()(text)
+    try:
+        node = loader.get_single_node()
+        if node is None:
+            return None
+        if _expanded_nodes(node, {}) > MAX_YAML_NODES:
+            raise InputError(path, f"YAML expands to more than {MAX_YAML_NODES:,} values (aliases); refusing it")
+        return loader.construct_document(node)
+    except yaml.YAMLError as err:
+        mark = getattr(err, "problem_mark", None)
+        at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        raise InputError(path, f"invalid YAML{at}: {getattr(err, 'problem', None) or err}") from None
+    except RecursionError:
+        raise InputError(path, "YAML nested too deeply") from None
+    finally:
+        loader.dispose()
