@@ -78,3 +78,9 @@ for _sfx, _fam, _lab, _how in (("", "mpeg", "", "MPEG default: float BT.709, 1:1
 def mpeg_names(qmiv: bool = False) -> tuple[str, ...]:
     """The metric names of the mpeg (``qmiv=False``) or mpeg-qmiv family, registry order."""
     return tuple(m.name for m in METRICS if m.family == ("mpeg-qmiv" if qmiv else "mpeg"))
+
+
+def needs_alpha(names) -> bool:
+    """Do any of ``names`` need the renders' alpha (the occupancy-masked MPEG metrics)?"""
+    om = {m.name for m in METRICS if m.family in ("mpeg", "mpeg-qmiv") and "_om" in m.name}
+    return bool(om & set(names))

@@ -47,8 +47,12 @@ def _at(df: pd.DataFrame, ratio: float) -> pd.Series:
     return (df["ratio"] - ratio).abs() <= ratios.TOLERANCE
 
 
-def _metrics() -> list[tuple[str, str, int]]:
-    return catalog.metric_columns(("psnr", "ssim", "lpips"))
+def _metrics(s: pd.DataFrame | None = None) -> list[tuple[str, str, int]]:
+    """(name, heading, digits) of the metrics to show: the 3DGS set, or every registered metric
+    ``s`` has values for (MPEG columns carry the tool's names: RGB-PSNR, YUV-PSNR, YUV-SSIM, OM-…)."""
+    if s is None:
+        return catalog.metric_columns(("psnr", "ssim", "lpips"))
+    return [c for c in catalog.metric_columns(s.columns) if s[c[0]].notna().any()]
 
 
 
@@ -80,7 +84,7 @@ def table_comparison(s: pd.DataFrame):
         return None
     idx, num, disp = [], [], []
     for scene in dict.fromkeys(s["label"]):
-        for key, name, digits in _metrics():
+        for key, name, digits in _metrics(s):
             cells = [_cell(s, scene, m, r) for *_, m, r in cols]
             vals = [np.nan if c is None else c[key] for c in cells]
             idx.append((scene, name))
@@ -98,7 +102,7 @@ def table_ablation(s: pd.DataFrame, ratio: float = 0.2):
         return None
     idx, num, disp = [], [], []
     for scene in dict.fromkeys(s["label"]):
-        for key, name, digits in _metrics():
+        for key, name, digits in _metrics(s):
             vals = [np.nan if (c := _cell(s, scene, m, ratio)) is None else c[key] for *_, m in present]
             finite = [v for v in vals if np.isfinite(v)]
             best = (max(finite) if catalog.higher_is_better(key) else min(finite)) if finite else None

@@ -2,7 +2,7 @@
 
 Stages and their cache keys (every key also holds the code digest of what computes it):
 
-* **load**  — per (scene, frame): file digest (+ LOD) -> splat count, SH degree.
+* **load**  — per (scene, frame): file digest (+ LOD) -> splat count, SH degree, size model of its .ply.
 * **views** — per scene: rig (or camera file digest) + counts, resolution, aspect, seed -> train/test
   cameras. Multi-frame sequences use the rig of their first frame for every frame, so all frames
   are seen from the same held-out views.
@@ -44,6 +44,14 @@ class SceneItem:
     train: list[Camera]
     test: list[Camera]
     load_s: float = 0.0
+    ply_base: int = 0  # size model of the pruned .ply (harness.io.plysize): base + digits + N·row
+    ply_row: int = 0
+
+    def ply_bytes(self, count: int) -> int | None:
+        """Bytes of the .ply the harness writes for ``count`` of this frame's splats (None: unknown)."""
+        from harness.io.plysize import PlySize
+
+        return PlySize(self.ply_base, self.ply_row)(count) if self.ply_row else None
 
     @property
     def train_digest(self) -> str:
@@ -180,15 +188,18 @@ def _scene_items(spec, frames, config, cache, toolkit, versions, base) -> list[S
         scene = _LazyScene(toolkit, str(path), spec.lod)
         key = cache.key("load", scene=digest, code=versions.reader)
         info = cache.get_json("load", key)
-        if info is None:
+        if info is None or "ply_row" not in info:
+            from harness.io.plysize import ply_size_model
+
             s = scene()
-            info = {"n_splats": len(s), "sh_degree": int(s.sh_degree)}
+            size = ply_size_model(s)
+            info = {"n_splats": len(s), "sh_degree": int(s.sh_degree), "ply_base": size.base, "ply_row": size.row}
             cache.put_json("load", key, info)
         if views is None:  # the first frame's views serve the whole sequence
             views = scene_views(spec, scene, path, config.protocol, cache, toolkit, versions, digest, base)
         rig, train, test = views
         items.append(SceneItem(spec, frame, str(path), digest, info["n_splats"], info["sh_degree"], rig,
-                               train, test, time.perf_counter() - t0))
+                               train, test, time.perf_counter() - t0, info["ply_base"], info["ply_row"]))
     return items
 
 
