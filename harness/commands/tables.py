@@ -37,7 +37,8 @@ def run(args) -> int:
     for name in plots:
         if name not in PLOTS:
             raise InputError("--plots", f"unknown plot {name!r}; known: {', '.join(PLOTS)}")
-    written = write_outputs(run_dir, df, tables, plots)
+    anchor = (meta.get("config") or {}).get("anchor") if isinstance(meta.get("config"), dict) else None
+    written = write_outputs(run_dir, df, tables, plots, anchor)
     for p in written:
         print(p)
     return 0

@@ -10,6 +10,6 @@ from harness.report.plots import write_plots
 from harness.report.tables import write_tables
 
 
-def write_outputs(run_dir: str | Path, df: pd.DataFrame, tables, plots) -> list[Path]:
-    """Tables and plots of a run folder from its results (no recomputation)."""
-    return write_tables(df, run_dir, tables) + write_plots(df, run_dir, plots)
+def write_outputs(run_dir: str | Path, df: pd.DataFrame, tables, plots, anchor: str | None = None) -> list[Path]:
+    """Tables and plots of a run folder from its results (no recomputation); ``anchor``: the bd table's."""
+    return write_tables(df, run_dir, tables, anchor) + write_plots(df, run_dir, plots)

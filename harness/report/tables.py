@@ -22,6 +22,8 @@ comparison groups, and each method's cell of the paper's ablation grid.
   overhead betadesc − betadesc-nodesc (absolute and %).
 * ``per_scene``: per-scene descriptor gain PSNR(betadesc) − PSNR(betadesc-nodesc) at each keep
   fraction (positive = descriptors help; the paper's "+4.04 dB" sense).
+* ``bd`` and ``ctc``: rate points, BD-rate / BD-PSNR against the config's anchor, and the CTC's
+  per-sequence CSV layout (:mod:`harness.report.bd`).
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ import pandas as pd
 
 from harness.core import ratios
 from harness.io.files import atomic_write_text
-from harness.report import catalog
+from harness.report import bd, catalog
 from harness.report.summary import summarise
 
 LEVELS = (("Low", 0.1), ("Mid", 0.2), ("High", 0.3))
@@ -240,26 +242,29 @@ def table_per_scene(s: pd.DataFrame):
 
 
 BUILDERS = {"comparison": table_comparison, "ablation": table_ablation, "keep": table_keep,
-            "sensitivity": table_sensitivity, "runtime": table_runtime, "per_scene": table_per_scene}
+            "sensitivity": table_sensitivity, "runtime": table_runtime, "per_scene": table_per_scene,
+            "bd": bd.table_bd, "ctc": bd.table_ctc}
 _USES_RAW = {"keep", "sensitivity"}
 TITLES = {"comparison": "Comparison at low (10 %), mid (20 %) and high (30 %) pruning (paper Table 1)",
           "ablation": "Ablation: descriptors × Beta at 20 % pruning (paper Table 2)",
           "keep": "Keep fractions 0.7 / 0.5 / 0.3 with and without descriptors (paper Table 3)",
           "sensitivity": "Sensitivity: coefficient presets and voxel sizes at keep 0.7",
-          "runtime": "Scoring runtime per scene", "per_scene": "Per-scene descriptor gains"}
+          "runtime": "Scoring runtime per scene", "per_scene": "Per-scene descriptor gains",
+          "bd": "Bjøntegaard deltas against the anchor (BD-rate on .ply bytes; RGB-PSNR, YUV-PSNR, YUV-SSIM)",
+          "ctc": "Per sequence and rate point (MPEG CTC layout)"}
 
 
-def build_tables(df: pd.DataFrame, names) -> dict:
+def build_tables(df: pd.DataFrame, names, anchor: str | None = None) -> dict:
     s = summarise(df)
     out = {}
     for name in names:
-        t = BUILDERS[name](df if name in _USES_RAW else s)
+        t = bd.table_bd(s, anchor) if name == "bd" else BUILDERS[name](df if name in _USES_RAW else s)
         if t is not None:
             out[name] = t
     return out
 
 
-def write_tables(df: pd.DataFrame, out_dir: str | Path, names) -> list[Path]:
+def write_tables(df: pd.DataFrame, out_dir: str | Path, names, anchor: str | None = None) -> list[Path]:
     """Write ``tables/<name>.md|csv|tex`` for each table with data, plus ``tables/summary.csv``."""
     from harness.report.formats import to_latex, to_markdown
 
@@ -268,7 +273,7 @@ def write_tables(df: pd.DataFrame, out_dir: str | Path, names) -> list[Path]:
     s = summarise(df)
     written = [out_dir / "summary.csv"]
     atomic_write_text(written[0], s.to_csv(index=False))
-    for name, (num, disp, notes) in build_tables(df, names).items():
+    for name, (num, disp, notes) in build_tables(df, names, anchor).items():
         title = TITLES[name]
         for ext, text in (("md", to_markdown(disp, title, notes)), ("csv", num.to_csv()),
                           ("tex", to_latex(disp, title, notes, label=f"table:{name}"))):

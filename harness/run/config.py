@@ -16,6 +16,7 @@ A config is a YAML mapping::
       seed: 0
       n_train: 48                 # rig views handed to camera-aware pruners (default 48)
       n_test: 8                   # held-out rig views that are measured (default 8)
+    anchor: lightgs               # BD-rate / BD-PSNR anchor of the bd table (default lightgs)
     ratios: [0.1, 0.2, 0.3]       # default pruning ratios of every method
     keep: [0.7, 0.5, 0.3]         # default keep fractions (ratio = 1 - keep), merged with ratios
     scenes:
@@ -65,7 +66,7 @@ from harness.views import rigs
 from renderers import RENDERERS
 
 KINDS = ("forward-facing", "object-centric")
-TABLES = ("comparison", "ablation", "keep", "sensitivity", "runtime", "per_scene")
+TABLES = ("comparison", "ablation", "keep", "sensitivity", "runtime", "per_scene", "bd", "ctc")
 PLOTS = ("curves", "figure1", "figure3")
 
 _ENV = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)(?::-([^}]*))?\}")
@@ -140,6 +141,7 @@ class RunConfig:
     plots: tuple[str, ...] = PLOTS
     source_path: str = ""
     raw: dict = field(default_factory=dict)
+    anchor: str = "lightgs"  # the BD table's anchor method (harness.report.bd)
 
 
 # --------------------------------------------------------------------------- small validators
@@ -338,12 +340,24 @@ def _method(d, i, default_ratios, scene_names, src) -> list[MethodVariant]:
     return out
 
 
+def _anchor(v, src) -> str:
+    """The BD anchor: a registered pruner name."""
+    from methods.registry import get_pruner
+
+    name = _str(v, "anchor", src)
+    try:
+        get_pruner(name)
+    except KeyError as err:
+        raise InputError(src, f"anchor: {err.args[0]}") from None
+    return name
+
+
 def parse_config(data: Any, source: str = "<config>") -> RunConfig:
     """Validate a parsed YAML document and expand method sweeps."""
     src = source
     d = _mapping(data, "top level", src)
-    _only(d, {"name", "output", "workers", "protocol", "ratios", "keep", "scenes", "methods", "tables", "plots"},
-          "top level", src)
+    _only(d, {"name", "output", "workers", "protocol", "ratios", "keep", "scenes", "methods", "tables", "plots",
+              "anchor"}, "top level", src)
     protocol = _protocol(d.get("protocol"), src)
     scenes_raw = d.get("scenes")
     if not isinstance(scenes_raw, list) or not scenes_raw:
@@ -380,6 +394,7 @@ def parse_config(data: Any, source: str = "<config>") -> RunConfig:
         plots=_names(d.get("plots", list(PLOTS)), PLOTS, "plots", src),
         source_path=str(source),
         raw=d,
+        anchor=_anchor(d.get("anchor", "lightgs"), src),
     )
 
 
