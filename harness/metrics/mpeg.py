@@ -188,13 +188,11 @@ def tool_metrics(ref, test, mask=None, *, qmiv: bool = False, ssim: bool = True,
             r[f"{space}_psnr_om"] = _combine(psnr, True, space) if qmiv else _psnr_of_mean(mse)
         r["occupancy"] = 100.0 * n_valid / size
     r["ssim_yuv"], r["yuv_ssim"], r["ssim_yuv_om"], r["yuv_ssim_om"] = [0.0] * 3, 0.0, [0.0] * 3, 0.0
-    if ssim:
-        fa, fb = ya.astype(np.float64), yb.astype(np.float64)
-        r["ssim_yuv"] = [mpeg_ssim.ssim_plane(fa[..., c], fb[..., c]) for c in range(3)]
-        r["yuv_ssim"] = _combine(r["ssim_yuv"], qmiv, "ssim")
-        if om:  # computed even for an empty mask (then 1.0 per plane), as the tool does
-            r["ssim_yuv_om"] = [mpeg_ssim.masked_ssim_plane(fa[..., c], fb[..., c], m) for c in range(3)]
-            r["yuv_ssim_om"] = _combine(r["ssim_yuv_om"], qmiv, "ssim")
+    if ssim:  # OM-SSIM is computed even for an empty mask (then 1.0 per plane), as the tool does
+        full, masked = mpeg_ssim.ssim_yuv(ya, yb, m if om else None)
+        r["ssim_yuv"], r["yuv_ssim"] = full, _combine(full, qmiv, "ssim")
+        if om:
+            r["ssim_yuv_om"], r["yuv_ssim_om"] = masked, _combine(masked, qmiv, "ssim")
     return r
 
 

@@ -71,15 +71,29 @@ _W = gaussian_window()
 
 
 def pad_like_tool(plane: np.ndarray, half: int = HALF) -> np.ndarray:
-    """The tool's padded plane (tool row order, see the module docstring), any dtype kept."""
+    """The tool's padded plane (tool row order, see the module docstring), dtype kept."""
     h, w = plane.shape
-    xs = np.clip(np.arange(w + 2 * half) - half, 0, w - 1)
-    rows = np.concatenate([np.zeros(half, np.int64), np.arange(h), np.zeros(half, np.int64)])  # quirk: row 0 twice
-    out = plane[rows][:, xs]
-    clamped = np.clip(np.arange(h + 2 * half) - half, 0, h - 1)
-    out[:, :half] = plane[clamped, min(half, w - 1)][:, None]          # quirk: column 5
-    out[:, w + half:] = plane[clamped][:, w - 1 - np.arange(half)]     # mirror W-1, W-2, ...
-    return np.ascontiguousarray(out)
+    if w <= half or h < 1:  # tiny planes: the general index form (the tool reads out of bounds there)
+        xs = np.clip(np.arange(w + 2 * half) - half, 0, w - 1)
+        rows = np.concatenate([np.zeros(half, np.int64), np.arange(h), np.zeros(half, np.int64)])
+        out = plane[rows][:, xs]
+        clamped = np.clip(np.arange(h + 2 * half) - half, 0, h - 1)
+        out[:, :half] = plane[clamped, min(half, w - 1)][:, None]
+        out[:, w + half:] = plane[clamped][:, w - 1 - np.arange(half)]
+        return np.ascontiguousarray(out)
+    out = np.empty((h + 2 * half, w + 2 * half), plane.dtype)
+    out[half:h + half, half:w + half] = plane
+    out[:half, half:w + half] = plane[0]                  # rows before row 0: row 0
+    out[h + half:, half:w + half] = plane[0]              # quirk: rows after row H-1 are row 0 again
+    col = plane[:, half]                                  # quirk: left columns copy column 5
+    out[half:h + half, :half] = col[:, None]
+    out[:half, :half] = col[0]
+    out[h + half:, :half] = col[h - 1]                    # corners: the column loop clamps rows
+    right = plane[:, w - 1:w - 1 - half:-1]               # mirror: W-1, W-2, ..., W-5
+    out[half:h + half, w + half:] = right
+    out[:half, w + half:] = right[0]
+    out[h + half:, w + half:] = right[h - 1]
+    return out
 
 
 @nb.njit(cache=True, fastmath=False)
@@ -183,6 +197,23 @@ def _masked_ssim_sum(pa, pb, pm, w, h, width):
                 total += num / den
                 count += 1
     return total, count
+
+
+def ssim_yuv(a: np.ndarray, b: np.ndarray, mask: np.ndarray | None = None) -> tuple[list[float], list[float] | None]:
+    """Per-plane SSIM (and OM-SSIM with ``mask``) of two (H, W, 3) float64 images in tool row
+    order; each plane and the mask are padded once for both."""
+    h, w, _ = a.shape
+    pm = None if mask is None else pad_like_tool((np.asarray(mask) != 0).astype(np.float64))
+    full, om = [], ([] if mask is not None else None)
+    for c in range(3):
+        pa = pad_like_tool(np.ascontiguousarray(a[..., c], np.float64))
+        pb = pad_like_tool(np.ascontiguousarray(b[..., c], np.float64))
+        total, count = _ssim_sum(pa, pb, _W, h, w)
+        full.append(total / count if count > 0 else 1.0)
+        if pm is not None:
+            total, count = _masked_ssim_sum(pa, pb, pm, _W, h, w)
+            om.append(total / count if count > 0 else 1.0)
+    return full, om
 
 
 def ssim_plane(a: np.ndarray, b: np.ndarray) -> float:
