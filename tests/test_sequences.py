@@ -75,12 +75,19 @@ def test_run_on_the_synthetic_sequence(content, tmp_path):
                       {"name": "absent", "sequence": str(content / "m71763_absent_stable")}],
            "methods": ["opacity", "random"], "tables": ["bd", "ctc"], "plots": []}
     config = parse_config(doc, "seq.yaml")
+    from harness.run import tasks
+
     try:
         result = Runner(config, out_dir=tmp_path / "out", cache_root=tmp_path / "cache", log=lambda m: None).run()
     except Exception as err:  # noqa: BLE001
         if "EGL" in str(err):
             pytest.skip(f"no EGL context: {err}")
         raise
+    finally:  # the in-process worker state keeps a real GL renderer; later tests inject fakes
+        renderer = tasks._STATE.get("renderer")
+        if renderer is not None and hasattr(renderer, "close"):
+            renderer.close()
+        tasks._STATE.clear()
     assert not result.errors, result.errors
     assert [s.scene for s in result.skips] == ["absent"] and "not found" in result.skips[0].reason
     ok = [r for r in result.rows if r.get("status") == "ok"]

@@ -203,10 +203,11 @@ def run_view(task: ViewTask, progress=None) -> dict:
         renderer = _renderer(task.toolkit, task.renderer, task.device)
         from harness.metrics.registry import needs_alpha
 
-        alpha = bool(todo) and needs_alpha(task.metrics)  # OM metrics: occupancy from both renders
+        alpha = needs_alpha(task.metrics)  # OM metrics: occupancy from both renders (stored with the reference)
         ref = None if task.render_ref else cache.get_array("render_ref", task.ref_key, count=False)
-        ref_alpha = cache.get_array("render_alpha", task.ref_key, count=False) if alpha and ref is not None else None
-        if ref is None or (alpha and ref_alpha is None):
+        ref_alpha = cache.get_array("render_alpha", task.ref_key, count=False) if alpha and todo and ref is not None \
+            else None
+        if ref is None or (alpha and todo and ref_alpha is None):
             t0 = time.perf_counter()
             if alpha:
                 ref, ref_alpha = render_alpha(renderer, scene, cam, task.background)
