@@ -303,17 +303,28 @@ class GLRenderer:
             projected = project_gaussians(scene, camera, device=self.device)
         return self.render_projected(projected, background)
 
-    def render_projected(self, projected, background=(0.0, 0.0, 0.0)) -> np.ndarray:
-        """Composite already projected splats (a ``Projected`` of ``width × height``) into an image."""
+    def render_with_alpha(self, scene, camera, background=(0.0, 0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+        """``(image (H, W, 3), alpha (H, W))`` float32; alpha = 1 − T, the pixel's accumulated opacity
+        (the transmittance T is the target's alpha channel; the image is ``C + T·background``)."""
+        from renderers.projection import project_gaussians
+
+        with torch.no_grad():
+            projected = project_gaussians(scene, camera, device=self.device)
+        return self.render_projected(projected, background, with_alpha=True)
+
+    def render_projected(self, projected, background=(0.0, 0.0, 0.0), with_alpha: bool = False):
+        """Composite already projected splats (a ``Projected`` of ``width × height``) into an image
+        (and its alpha, ``with_alpha=True``)."""
         self._ensure_context()
         width, height = int(projected.width), int(projected.height)
         bg = np.asarray(background, dtype=np.float32).reshape(3)
         records = pack_instances(projected)
         with self.ctx:  # several renderers (contexts) may live in one process: make ours current
-            return self._draw(records, width, height, bg)
+            image, alpha = self._draw(records, width, height, bg, with_alpha)
+        return (image, alpha) if with_alpha else image
 
-    def _draw(self, records: np.ndarray, width: int, height: int, bg: np.ndarray) -> np.ndarray:
-        """Draw the records tile by tile; each tile's (Σ cᵢαᵢTᵢ, T) becomes ``C + T·bg``."""
+    def _draw(self, records: np.ndarray, width: int, height: int, bg: np.ndarray, with_alpha: bool = False):
+        """Draw the records tile by tile; each tile's (Σ cᵢαᵢTᵢ, T) becomes ``C + T·bg`` (and 1 − T)."""
         tile = min(self.max_tile, max(width, height))
         fbo = self._framebuffer(min(tile, width), min(tile, height))
         vao = self._upload(records) if len(records) else None
@@ -324,6 +335,7 @@ class GLRenderer:
         prog["u_image"].value = (float(width), float(height))
         prog["u_tiles"].value = self.footprint == "tile"
         image = np.empty((height, width, 3), dtype=np.float32)
+        alpha = np.empty((height, width), dtype=np.float32) if with_alpha else None
         fbo.use()
         for x0, y0, w, h in tiles(width, height, tile):
             fbo.viewport = (0, 0, w, h)
@@ -335,7 +347,9 @@ class GLRenderer:
             raw = fbo.read(viewport=(0, 0, w, h), components=4, dtype="f4")
             rgbt = np.frombuffer(raw, dtype=np.float32).reshape(h, w, 4)
             image[y0 : y0 + h, x0 : x0 + w] = rgbt[..., :3] + rgbt[..., 3:4] * bg
-        return image
+            if with_alpha:
+                alpha[y0 : y0 + h, x0 : x0 + w] = np.float32(1.0) - rgbt[..., 3]
+        return image, alpha
 
     def close(self) -> None:
         """Release every GL object and the context (a later render creates a new one)."""

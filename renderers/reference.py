@@ -72,6 +72,7 @@ class RasterOutput:
     alpha_t: torch.Tensor | None = None  # (N,) Σ_pixels α_i T_i
     opacity_t: torch.Tensor | None = None  # (N,) Σ_pixels o_i T_i
     hits: torch.Tensor | None = None  # (N,) pixels where splat i passed the α tests
+    alpha: torch.Tensor | None = None  # (H, W) accumulated opacity 1 − T of each pixel
 
 
 @dataclass
@@ -307,10 +308,12 @@ def composite(proj: Projected, n_splats: int, background=(0, 0, 0), *, stats: bo
     color = color + trans[:, None, :] * bg[None, :, None]
     image = color.reshape(bins.gy, bins.gx, 3, tile, tile).permute(0, 3, 1, 4, 2)
     image = image.reshape(bins.gy * tile, bins.gx * tile, 3)[:h, :w]
+    alpha = (1.0 - trans).reshape(bins.gy, bins.gx, tile, tile).permute(0, 2, 1, 3)
+    alpha = alpha.reshape(bins.gy * tile, bins.gx * tile)[:h, :w]
     if not stats:
-        return RasterOutput(image)
+        return RasterOutput(image, alpha=alpha)
     full = torch.zeros(3, n_splats, dtype=dtype, device=dev).index_copy(1, proj.ids, acc)
-    return RasterOutput(image, full[0], full[1], full[2].round().long())
+    return RasterOutput(image, full[0], full[1], full[2].round().long(), alpha=alpha)
 
 
 class ReferenceRenderer:
@@ -331,6 +334,14 @@ class ReferenceRenderer:
             out = rasterize(scene, camera, background, device=self.device,
                             early_stop=self.early_stop, footprint=self.footprint)
         return out.image.to(torch.float32).cpu().numpy()
+
+    def render_with_alpha(self, scene, camera: Camera, background=(0, 0, 0)) -> tuple[np.ndarray, np.ndarray]:
+        """``(image (H, W, 3), alpha (H, W))`` float32; alpha = 1 − T, the pixel's accumulated opacity
+        (the image is ``C + T·background``)."""
+        with torch.no_grad():
+            out = rasterize(scene, camera, background, device=self.device,
+                            early_stop=self.early_stop, footprint=self.footprint)
+        return out.image.to(torch.float32).cpu().numpy(), out.alpha.to(torch.float32).cpu().numpy()
 
     def close(self) -> None:
         """Nothing to release (kept for the renderer contract)."""

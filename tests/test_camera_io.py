@@ -180,15 +180,21 @@ def test_transforms_camera_angle_and_image_size(tmp_path):
 
 # ------------------------------------------------------------------------------ PLY header
 def test_ply_header_cameras_round_trip(tmp_path):
+    """Legacy ``comment camera {JSON}`` lines (earlier versions of this harness) are still read;
+    the gsTools syntax it writes now is tested in test_gscameras.py."""
+    import json
+
     from harness.io.ply import write_ply
     from tests.scene_factory import random_scene
 
     cams = random_cameras()
-    write_ply(random_scene(10), tmp_path / "s.ply", comments=["made by a test", *ply_camera_comments(cams)])
+    legacy = ["camera " + json.dumps(c.to_dict()) for c in cams]
+    write_ply(random_scene(10), tmp_path / "s.ply", comments=["made by a test", *legacy])
     head = (tmp_path / "s.ply").read_bytes()[:4000].decode("ascii", "replace")
     assert head.count("\ncomment camera {") == len(cams)
     for a, b in zip(cams, load_cameras(tmp_path / "s.ply")):
         assert_same(a, b, tol=1e-12)
+    assert ply_camera_comments(cams[:1])[1].startswith("camera_position ")
     write_ply(random_scene(3), tmp_path / "plain.ply")
     with pytest.raises(InputError, match="no 'comment camera"):
         load_cameras(tmp_path / "plain.ply")

@@ -134,4 +134,6 @@ def test_shipped_configs_are_valid(name):
         suites = {t for s in cfg.scenes for t in s.suites}
         assert {"paper-table1", "subset14", "suite19"} <= suites
         assert sum("suite19" in s.suites and s.kind == "object-centric" for s in cfg.scenes) == 12
-        assert all(s.frames and "${" not in s.frames for s in cfg.scenes)
+        assert all(s.sequence and "${" not in s.sequence for s in cfg.scenes)  # MPEG content folders
+        assert not any(s.test or s.test_every for s in cfg.scenes)  # every camera of the content
+        assert "mpeg" not in cfg.protocol.metrics and "yuv_psnr_om" in cfg.protocol.metrics

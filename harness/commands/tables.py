@@ -48,7 +48,8 @@ def run(args) -> int:
     for name in plots:
         if name not in PLOTS:
             raise InputError("--plots", f"unknown plot {name!r}; known: {', '.join(PLOTS)}")
-    written = write_outputs(run_dir, df, tables, plots, reference=args.reference)
+    anchor = (meta.get("config") or {}).get("anchor") if isinstance(meta.get("config"), dict) else None
+    written = write_outputs(run_dir, df, tables, plots, reference=args.reference, anchor=anchor)
     for p in written.paths:
         print(p)
     for line in written.warnings:

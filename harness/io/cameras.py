@@ -15,12 +15,11 @@ Formats (:func:`load_cameras` dispatches on the path):
   top level: ``fl_x, fl_y, cx, cy, w, h`` (pixels; ``fl_y`` defaults to ``fl_x``, ``cx, cy`` to the
   image centre), or ``camera_angle_x`` [``camera_angle_y``] with ``fl = ½ w / tan(½ angle)``. When
   ``w, h`` are absent (Blender sets) the size is read from the frame's image file header.
-* **PLY header comments**. No published MPEG gsTools camera syntax could be found, so this project
-  defines one: each camera is one header line ``comment camera {JSON}`` whose JSON object is
-  :meth:`Camera.to_dict` (``name, world_to_cam`` 4×4 row-major OpenCV world-to-camera, ``fx, fy, cx,
-  cy, width, height``). :func:`ply_camera_comments` makes the comment texts for
-  ``harness.io.ply.write_ply(..., comments=...)``; :func:`read_ply_cameras` reads them back (other
-  comments are ignored).
+* **PLY header comments**: MPEG's gsTools ``comment camera_position ...`` lines before ``format``
+  (:mod:`harness.io.gscameras`: syntax, pose convention, image size). :func:`ply_camera_comments`
+  makes them (``write_ply`` puts them before ``format`` wherever they are passed);
+  :func:`read_ply_cameras` / :func:`embedded_cameras` read them. Files from earlier versions of
+  this harness carry ``comment camera {JSON}`` lines (:meth:`Camera.to_dict`); those are still read.
 
 Every reader validates: numbers stored as numbers (``"fx": "55.4"`` and ``"width": true`` are
 errors), finite, sizes integral, positive and within the maximum render size
@@ -216,13 +215,22 @@ def read_transforms_json(path: str | Path) -> list[Camera]:
 
 # ------------------------------------------------------------------------------ PLY header
 def ply_camera_comments(cameras: list[Camera]) -> list[str]:
-    """Comment texts ``camera {JSON}`` (one per camera) for :func:`harness.io.ply.write_ply`'s
-    ``comments``, which writes each as a ``comment camera {JSON}`` header line."""
-    return [PLY_CAMERA_TAG + json.dumps(c.to_dict(), separators=(",", ":")) for c in cameras]
+    """gsTools ``camera_position`` comment texts of ``cameras`` (:func:`harness.io.gscameras.camera_lines`)
+    for :func:`harness.io.ply.write_ply`, which writes them before the ``format`` line."""
+    from harness.io.gscameras import camera_lines
+
+    return camera_lines(cameras)
 
 
-def cameras_from_comments(comments, source) -> list[Camera]:
-    """Cameras stored as ``camera {JSON}`` header comment texts (other comments are ignored)."""
+def cameras_from_comments(comments, source, width: int | None = None, height: int | None = None) -> list[Camera]:
+    """Cameras in header comment texts: gsTools ``camera_position`` lines (image size ``width ×
+    height``, see :mod:`harness.io.gscameras`), else legacy ``camera {JSON}`` lines; others ignored."""
+    from harness.io.gscameras import cameras_from_lines
+
+    comments = list(comments)
+    gs = cameras_from_lines(comments, source, width, height)
+    if gs:
+        return gs
     out = []
     for text in comments:
         if not text.startswith(PLY_CAMERA_TAG):
@@ -243,17 +251,17 @@ def cameras_from_comments(comments, source) -> list[Camera]:
     return out
 
 
-def read_ply_cameras(path: str | Path) -> list[Camera]:
+def read_ply_cameras(path: str | Path, width: int | None = None, height: int | None = None) -> list[Camera]:
     """Cameras in a PLY header's comments (may be empty); the body is never read."""
     from harness.io.ply import read_ply_header
 
     header = read_ply_header(path)
-    return cameras_from_comments(header.preamble + header.comments, Path(path))
+    return cameras_from_comments(header.preamble + header.comments, Path(path), width, height)
 
 
-def embedded_cameras(scene) -> list[Camera]:
+def embedded_cameras(scene, width: int | None = None, height: int | None = None) -> list[Camera]:
     """Cameras a loaded scene's file carried in its header (``scene.meta``; may be empty)."""
-    return cameras_from_comments(scene.meta.all_comments, scene.meta.source or "scene")
+    return cameras_from_comments(scene.meta.all_comments, scene.meta.source or "scene", width, height)
 
 
 # ------------------------------------------------------------------------------ dispatch
@@ -290,7 +298,7 @@ def load_cameras(path: str | Path) -> list[Camera]:
     if suffix == ".ply":
         cams = read_ply_cameras(path)
         if not cams:
-            raise InputError(path, "PLY header has no 'comment camera {...}' lines")
+            raise InputError(path, "PLY header has no 'comment camera_position ...' lines")
         return cams
     if path.name in ("cameras.txt", "images.txt", "cameras.bin", "images.bin"):
         return read_colmap_model(path.parent)

@@ -434,9 +434,13 @@ def write_ply(scene: GaussianScene, path: str | Path, *, comments=None, preamble
     """Write ``scene`` as a binary little-endian INRIA ``.ply`` (atomically); see the module docstring.
 
     Header comments default to the scene's own (``scene.meta``), each where it stood: the preamble
-    before the ``format`` line, the rest after it."""
+    before the ``format`` line, the rest after it — except MPEG ``camera_position`` lines, which
+    always go before ``format`` (:func:`harness.io.gscameras.split_preamble`)."""
+    from harness.io.gscameras import split_preamble
+
     comments = scene.meta.comments if comments is None else comments
     preamble = scene.meta.preamble if preamble is None else preamble
+    preamble, comments = split_preamble(preamble, comments)  # MPEG camera lines always before `format`
     if sibr_layout:
         scene = sibr_compatible(scene)
     table = scene_to_table(scene)

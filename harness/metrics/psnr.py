@@ -11,7 +11,9 @@ full-range BT.709 matrix (Kr = 0.2126, Kb = 0.0722)::
 
 on the full 4:4:4 grid in floating point (no chroma subsampling, no 8/10-bit quantisation, no
 limited-range scaling), PSNR per plane with peak 1, and the combination
-YUV-PSNR = (6 PSNR_Y + PSNR_U + PSNR_V) / 8 used by the MPEG common test conditions.
+YUV-PSNR = (6 PSNR_Y + PSNR_U + PSNR_V) / 8 of MPEG's *video* common test conditions. This is not
+what MPEG's Gaussian-splat metric tool reports (8-bit renders, 1:1:1 on MSE, float BT.709 with +128
+chroma): that is the ``mpeg`` metric set, :mod:`harness.metrics.mpeg`.
 """
 
 from __future__ import annotations

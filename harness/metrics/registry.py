@@ -61,3 +61,26 @@ def expand(names) -> tuple[str, ...]:
 register_metric(MetricSpec("psnr", "PSNR", True, 2, "3dgs", "dB on [0, 1]-clamped float images; +inf if identical"))
 register_metric(MetricSpec("ssim", "SSIM", True, 3, "3dgs", "11×11 Gaussian σ 1.5, zero padding, data range 1"))
 register_metric(MetricSpec("lpips", "LPIPS", False, 3, "3dgs", "LPIPS v0.1 VGG, inputs in [-1, 1]"))
+
+# MPEG mpeg-gsc-metrics v3.0 (harness.metrics.mpeg): 8-bit renders, PSNRs capped at 999.99 dB, SSIM
+# per Y/U/V plane; "_om": over the pixels either render occupies. Family `mpeg` is the tool's default
+# mode, `mpeg-qmiv` its --computeQmiv=1 mode (integer BT.709, 4:1:1 weights).
+for _sfx, _fam, _lab, _how in (("", "mpeg", "", "MPEG default: float BT.709, 1:1:1"),
+                               ("_qmiv", "mpeg-qmiv", " (QMIV)", "QMIV: integer BT.709, 4:1:1")):
+    register_metric(MetricSpec(f"rgb_psnr{_sfx}", f"RGB-PSNR{_lab}", True, 2, _fam, f"mpeg-gsc-metrics RGB PSNR, {_how}"))
+    register_metric(MetricSpec(f"yuv_psnr{_sfx}", f"YUV-PSNR{_lab}", True, 2, _fam, f"mpeg-gsc-metrics YUV PSNR, {_how}"))
+    register_metric(MetricSpec(f"yuv_ssim{_sfx}", f"YUV-SSIM{_lab}", True, 4, _fam, f"mpeg-gsc-metrics YUV SSIM, {_how}"))
+    register_metric(MetricSpec(f"rgb_psnr_om{_sfx}", f"OM-RGB-PSNR{_lab}", True, 2, _fam, "occupancy-masked RGB-PSNR"))
+    register_metric(MetricSpec(f"yuv_psnr_om{_sfx}", f"OM-YUV-PSNR{_lab}", True, 2, _fam, "occupancy-masked YUV-PSNR"))
+    register_metric(MetricSpec(f"yuv_ssim_om{_sfx}", f"OM-YUV-SSIM{_lab}", True, 4, _fam, "occupancy-masked YUV-SSIM"))
+
+
+def mpeg_names(qmiv: bool = False) -> tuple[str, ...]:
+    """The metric names of the mpeg (``qmiv=False``) or mpeg-qmiv family, registry order."""
+    return tuple(m.name for m in METRICS if m.family == ("mpeg-qmiv" if qmiv else "mpeg"))
+
+
+def needs_alpha(names) -> bool:
+    """Do any of ``names`` need the renders' alpha (the occupancy-masked MPEG metrics)?"""
+    om = {m.name for m in METRICS if m.family in ("mpeg", "mpeg-qmiv") and "_om" in m.name}
+    return bool(om & set(names))

@@ -3,7 +3,9 @@
 Columns (see :data:`COLUMNS`): identification (``run, scene, label, kind, frame, method, variant,
 params`` as canonical JSON, ``ratio``, ``keep = 1 - ratio``, ``view``), ``status`` (``ok``,
 ``skipped``, ``error``) with ``reason``, metrics (``psnr`` — +inf for identical images — ``ssim``,
-``lpips``), counts (``splats_in``, ``splats_out``), the cut (``tau``: score value at the cut,
+``lpips``; the MPEG set ``rgb_psnr, yuv_psnr, yuv_ssim, …_om`` and ``occupancy`` % when measured), counts
+(``splats_in``, ``splats_out``, and ``bytes``: the size of the pruned ``.ply`` the harness writes — the
+rate of a rate point), the cut (``tau``: score value at the cut,
 ``tau_quantile = removed / N``), and stage timings in seconds (``score_s`` per (scene, method) —
 repeated on each of its rows, ``prune_s``, ``render_ref_s`` per view, ``render_s``, ``metrics_s``).
 Timings are those of the run that computed the entry (a cached rerun reports the original cost).
@@ -20,15 +22,18 @@ import numpy as np
 import pandas as pd
 
 from harness.io.files import atomic_write_with
+from harness.metrics.registry import METRICS as _METRICS
 
+#: metrics beyond the 3DGS set (the MPEG families, :mod:`harness.metrics.registry`), then occupancy (%)
+EXTRA_METRICS = [m.name for m in _METRICS if m.name not in ("psnr", "ssim", "lpips")] + ["occupancy"]
 COLUMNS = [
     "run", "scene", "label", "kind", "frame", "method", "variant", "params", "ratio", "keep", "view",
-    "status", "reason", "psnr", "ssim", "lpips", "splats_in", "splats_out", "tau", "tau_quantile",
-    "score_s", "prune_s", "render_ref_s", "render_s", "metrics_s", "renderer", "width", "height",
+    "status", "reason", "psnr", "ssim", "lpips", *EXTRA_METRICS, "splats_in", "splats_out", "bytes", "tau",
+    "tau_quantile", "score_s", "prune_s", "render_ref_s", "render_s", "metrics_s", "renderer", "width", "height",
 ]
 _TEXT = {"run", "scene", "label", "kind", "frame", "method", "variant", "params", "view", "status", "reason",
          "renderer"}
-_INT = {"splats_in", "splats_out", "width", "height"}
+_INT = {"splats_in", "splats_out", "bytes", "width", "height"}
 
 
 def to_frame(rows: list[dict]) -> pd.DataFrame:

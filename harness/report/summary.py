@@ -5,9 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from harness.report.results import EXTRA_METRICS
+
 
 def summarise(df: pd.DataFrame) -> pd.DataFrame:
-    """Per (scene, label, method, variant, ratio): n pairs, n_inf, mean psnr (finite), ssim, lpips, score_s."""
+    """Per (scene, label, method, variant, ratio): n pairs, n_inf, mean psnr (finite), ssim, lpips, score_s,
+    and the means of the MPEG metrics, occupancy, splats_out and bytes where the rows have them."""
     ok = df[df["status"] == "ok"].copy()
     cols = ["scene", "label", "method", "variant", "ratio"]
     if ok.empty:
@@ -21,6 +24,9 @@ def summarise(df: pd.DataFrame) -> pd.DataFrame:
         "score_s": g["score_s"].mean(),  # repeated on every view row of a frame: = mean over frames
         "splats_in": g["splats_in"].max(),
     }).reset_index()
+    for c in EXTRA_METRICS + ["splats_out", "bytes"]:  # MPEG metrics are capped (never inf): plain means
+        if c in ok:
+            out[c] = pd.to_numeric(g[c].mean(), errors="coerce").to_numpy()
     all_inf = (out["n_inf"] == out["n"]) & (out["n"] > 0)
     out.loc[all_inf, "psnr"] = np.inf
     return out

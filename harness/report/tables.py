@@ -20,6 +20,8 @@ registry (every registered metric the results carry).
 * ``runtime``: scoring seconds per scene of every method's default variant, with the descriptor
   overhead betadesc − betadesc-nodesc in seconds and in % of betadesc-nodesc's time — "–" when that
   time is under :data:`MIN_BASE_S` (a percentage of timer noise means nothing).
+* ``bd`` and ``ctc``: rate points, BD-rate / BD-PSNR against the config's anchor, and the CTC's
+  per-sequence CSV layout (:mod:`harness.report.bd`).
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ import pandas as pd
 
 from harness.core import ratios
 from harness.io.files import atomic_write_text
-from harness.report import catalog, cells
+from harness.report import bd, catalog, cells
 from harness.report.summary import summarise
 from harness.report.tabledata import Missing, Table, Written, as_table
 
@@ -48,8 +50,12 @@ def _at(df: pd.DataFrame, ratio: float) -> pd.Series:
     return (df["ratio"] - ratio).abs() <= ratios.TOLERANCE
 
 
-def _metrics() -> list[tuple[str, str, int]]:
-    return catalog.metric_columns(("psnr", "ssim", "lpips"))
+def _metrics(s: pd.DataFrame | None = None) -> list[tuple[str, str, int]]:
+    """(name, heading, digits) of the metrics to show: the 3DGS set, or every registered metric
+    ``s`` has values for (MPEG columns carry the tool's names: RGB-PSNR, YUV-PSNR, YUV-SSIM, OM-…)."""
+    if s is None:
+        return catalog.metric_columns(("psnr", "ssim", "lpips"))
+    return [c for c in catalog.metric_columns(s.columns) if s[c[0]].notna().any()]
 
 
 
@@ -179,15 +185,17 @@ def table_runtime(s: pd.DataFrame):
 
 BUILDERS = {"comparison": cells.table_comparison, "ablation": cells.table_ablation, "keep": table_keep,
             "sensitivity": table_sensitivity, "runtime": table_runtime, "per_scene": cells.table_per_scene,
-            "versus": cells.table_versus}
+            "versus": cells.table_versus, "bd": bd.table_bd, "ctc": bd.table_ctc}
 #: builders that read the summary (one row per cell) rather than the per-view results
-_USES_SUMMARY = {"runtime"}
+_USES_SUMMARY = {"runtime", "bd", "ctc"}
 TITLES = {"comparison": "Comparison at low (10 %), mid (20 %) and high (30 %) pruning (paper Table 1)",
           "ablation": "Ablation: descriptors × Beta at 20 % pruning (paper Table 2)",
           "keep": "Keep fractions 0.7 / 0.5 / 0.3 with and without descriptors (paper Table 3)",
           "sensitivity": "Sensitivity: coefficient presets and voxel sizes at keep 0.7",
           "runtime": "Scoring runtime per scene", "per_scene": "Per-scene descriptor gains",
-          "versus": "Every method against the reference, per view"}
+          "versus": "Every method against the reference, per view",
+          "bd": "Bjøntegaard deltas against the anchor (BD-rate on .ply bytes; RGB-PSNR, YUV-PSNR, YUV-SSIM)",
+          "ctc": "Per sequence and rate point (MPEG CTC layout)"}
 
 
 def _call(fn, data, opts: dict):

@@ -16,12 +16,18 @@ A config is a YAML mapping::
       seed: 0
       n_train: 48                 # rig views handed to camera-aware pruners (default 48)
       n_test: 8                   # held-out rig views that are measured (default 8)
+    anchor: lightgs               # BD-rate / BD-PSNR anchor of the bd table (default lightgs)
     ratios: [0.1, 0.2, 0.3]       # default pruning ratios of every method
     keep: [0.7, 0.5, 0.3]         # default keep fractions (ratio = 1 - keep), merged with ratios
     scenes:
       - name: luigi               # row label; also the dataset name or path when `source` is absent
         source: luigi             # dataset name (harness.io.datasets) or a path; ${VAR:-default} expanded
         frames: "dir/*.ply"       # instead of source: a glob of per-frame files (one sequence)
+        sequence: dir             # instead of source/frames/cameras: an MPEG content folder
+                                  # (track/ or plys/ per-frame PLYs, COLMAP or header cameras;
+                                  # harness.io.sequences), rendered at its native size with all
+                                  # its cameras; optional test: [names] / test_every: k,
+                                  # width/height for header cameras without a size
         kind: object-centric      # or forward-facing (picks the `forward` rig for rig: default)
         rig: default              # `default` (a named dataset's own rig, else auto), or orbit, room,
                                   # forward, auto (harness.views.rigs; same meaning as `harness render --rig`)
@@ -63,7 +69,7 @@ from harness.views import rigs
 from renderers import RENDERERS
 
 KINDS = ("forward-facing", "object-centric")
-TABLES = ("comparison", "ablation", "keep", "sensitivity", "runtime", "per_scene", "versus")
+TABLES = ("comparison", "ablation", "keep", "sensitivity", "runtime", "per_scene", "versus", "bd", "ctc")
 PLOTS = ("curves", "figure1", "figure3")
 
 _ENV = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)(?::-([^}]*))?\}")
@@ -109,6 +115,13 @@ class SceneSpec:
     n_train: int = rigs.N_TRAIN
     n_test: int = rigs.N_TEST
     suites: tuple[str, ...] = ()
+    #: an MPEG content folder (harness.io.sequences): per-frame PLYs + cameras, native resolution,
+    #: every camera measured unless ``test`` / ``test_every`` name the views
+    sequence: str | None = None
+    test: tuple[str, ...] = ()
+    test_every: int = 0
+    width: int | None = None    # image size for header camera lines without one (default 1920x1080)
+    height: int | None = None
 
 
 @dataclass(frozen=True)
@@ -138,6 +151,7 @@ class RunConfig:
     plots: tuple[str, ...] = PLOTS
     source_path: str = ""
     raw: dict = field(default_factory=dict)
+    anchor: str = "lightgs"  # the BD table's anchor method (harness.report.bd)
 
 
 # --------------------------------------------------------------------------- small validators
@@ -240,7 +254,9 @@ def _cameras(d, where, src) -> CameraSpec:
     return CameraSpec(path=expand_env(_str(d["path"], f"{where}.path", src)), test=tuple(test), test_every=every)
 
 
-_SCENE_KEYS = {"name", "label", "source", "frames", "kind", "rig", "cameras", "lod", "n_train", "n_test", "suites"}
+_SCENE_KEYS = {"name", "label", "source", "frames", "kind", "rig", "cameras", "lod", "n_train", "n_test", "suites",
+               "sequence", "test", "test_every", "width", "height"}
+_SEQUENCE_ONLY = ("test", "test_every", "width", "height")
 
 
 def _scene(d, i, protocol: Protocol, src) -> SceneSpec:
@@ -259,6 +275,11 @@ def _scene(d, i, protocol: Protocol, src) -> SceneSpec:
     suites = d.get("suites", [])
     if not isinstance(suites, list) or not all(isinstance(s, str) for s in suites):
         raise InputError(src, f"{where}.suites: expected a list of tags")
+    if "sequence" in d:
+        return _sequence_scene(d, where, name, suites, src)
+    stray = [k for k in _SEQUENCE_ONLY if k in d]
+    if stray:
+        raise InputError(src, f"{where}: {', '.join(stray)} go with `sequence` (for `cameras`, inside it)")
     lod = d.get("lod")
     return SceneSpec(
         name=name,
@@ -272,6 +293,27 @@ def _scene(d, i, protocol: Protocol, src) -> SceneSpec:
         n_train=_num(d.get("n_train", protocol.n_train), f"{where}.n_train", src, lo=0, integer=True),
         n_test=_num(d.get("n_test", protocol.n_test), f"{where}.n_test", src, lo=1, integer=True),
         suites=tuple(suites),
+    )
+
+
+def _sequence_scene(d, where, name, suites, src) -> SceneSpec:
+    """A scene given as an MPEG content folder (``sequence: DIR``)."""
+    clash = [k for k in ("source", "frames", "cameras", "rig", "lod") if k in d]
+    if clash:
+        raise InputError(src, f"{where}: `sequence` brings its own frames and cameras; drop {', '.join(clash)}")
+    test = d.get("test", [])
+    if not isinstance(test, list) or not all(isinstance(t, str) for t in test):
+        raise InputError(src, f"{where}.test: expected a list of view names")
+    size = [None if d.get(k) is None else _num(d[k], f"{where}.{k}", src, lo=1, hi=16384, integer=True)
+            for k in ("width", "height")]
+    if (size[0] is None) != (size[1] is None):
+        raise InputError(src, f"{where}: give both width and height, or neither")
+    return SceneSpec(
+        name=name, label=str(d.get("label", name)), source=None,
+        kind=_choice(d.get("kind", "object-centric"), KINDS, f"{where}.kind", src),
+        sequence=expand_env(_str(d["sequence"], f"{where}.sequence", src)), test=tuple(test),
+        test_every=_num(d.get("test_every", 0), f"{where}.test_every", src, lo=0, integer=True),
+        width=size[0], height=size[1], suites=tuple(suites),
     )
 
 
@@ -336,12 +378,24 @@ def _method(d, i, default_ratios, scene_names, src) -> list[MethodVariant]:
     return out
 
 
+def _anchor(v, src) -> str:
+    """The BD anchor: a registered pruner name."""
+    from methods.registry import get_pruner
+
+    name = _str(v, "anchor", src)
+    try:
+        get_pruner(name)
+    except KeyError as err:
+        raise InputError(src, f"anchor: {err.args[0]}") from None
+    return name
+
+
 def parse_config(data: Any, source: str = "<config>") -> RunConfig:
     """Validate a parsed YAML document and expand method sweeps."""
     src = source
     d = _mapping(data, "top level", src)
-    _only(d, {"name", "output", "workers", "protocol", "ratios", "keep", "scenes", "methods", "tables", "plots"},
-          "top level", src)
+    _only(d, {"name", "output", "workers", "protocol", "ratios", "keep", "scenes", "methods", "tables", "plots",
+              "anchor"}, "top level", src)
     protocol = _protocol(d.get("protocol"), src)
     scenes_raw = d.get("scenes")
     if not isinstance(scenes_raw, list) or not scenes_raw:
@@ -378,6 +432,7 @@ def parse_config(data: Any, source: str = "<config>") -> RunConfig:
         plots=_names(d.get("plots", list(PLOTS)), PLOTS, "plots", src),
         source_path=str(source),
         raw=d,
+        anchor=_anchor(d.get("anchor", "lightgs"), src),
     )
 
 

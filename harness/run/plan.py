@@ -2,7 +2,7 @@
 
 Stages and their cache keys (every key also holds the code digest of what computes it):
 
-* **load**  — per (scene, frame): file digest (+ LOD) -> splat count, SH degree.
+* **load**  — per (scene, frame): file digest (+ LOD) -> splat count, SH degree, size model of its .ply.
 * **views** — per scene: rig (or camera file digest) + counts, resolution, aspect, seed -> train/test
   cameras. Multi-frame sequences use the rig of their first frame for every frame, so all frames
   are seen from the same held-out views.
@@ -44,6 +44,14 @@ class SceneItem:
     train: list[Camera]
     test: list[Camera]
     load_s: float = 0.0
+    ply_base: int = 0  # size model of the pruned .ply (harness.io.plysize): base + digits + N·row
+    ply_row: int = 0
+
+    def ply_bytes(self, count: int) -> int | None:
+        """Bytes of the .ply the harness writes for ``count`` of this frame's splats (None: unknown)."""
+        from harness.io.plysize import PlySize
+
+        return PlySize(self.ply_base, self.ply_row)(count) if self.ply_row else None
 
     @property
     def train_digest(self) -> str:
@@ -63,6 +71,12 @@ class Skip:
 # --------------------------------------------------------------------------- resolving sources
 def resolve_paths(spec: SceneSpec, toolkit: Toolkit, base: Path) -> tuple[list[tuple[str, Path]], str | None]:
     """[(frame, path)] for a scene, or ([], reason) when its files are absent."""
+    if spec.sequence is not None:
+        from harness.io.sequences import find_sequence
+
+        root = Path(spec.sequence) if Path(spec.sequence).is_absolute() else base / spec.sequence
+        seq, reason = find_sequence(root)
+        return ([(p.stem, p) for p in seq.frames], None) if seq else ([], reason)
     if spec.frames is not None:
         pattern = spec.frames if Path(spec.frames).is_absolute() else str(base / spec.frames)
         files = sorted(Path(p) for p in glob.glob(pattern))
@@ -104,6 +118,8 @@ def scene_views(item_spec: SceneSpec, scene, path: Path, protocol, cache: StageC
                 versions: Versions, scene_digest: str, base: Path):
     """(rig name, train, test) for a scene, cached by its inputs."""
     p = protocol
+    if item_spec.sequence is not None:
+        return _sequence_views(item_spec, cache, versions, base)
     if item_spec.cameras is not None:
         cpath = Path(item_spec.cameras.path)
         cpath = cpath if cpath.is_absolute() else base / cpath
@@ -135,6 +151,45 @@ def scene_views(item_spec: SceneSpec, scene, path: Path, protocol, cache: StageC
     cache.put_json("views", key, {"rig": rig, "train": [c.to_dict() for c in train],
                                   "test": [c.to_dict() for c in test]})
     return rig, train, test
+
+
+def _sequence_views(spec: SceneSpec, cache: StageCache, versions: Versions, base: Path):
+    """("sequence", train, test) of an MPEG content folder: every camera at its native size, framed
+    as the metric tool frames them; named views (``test``/``test_every``) are held out, else every
+    camera is measured and also handed to camera-aware pruners (MPEG scores the capture views)."""
+    from harness.io.sequences import find_sequence, sequence_cameras
+
+    root = Path(spec.sequence) if Path(spec.sequence).is_absolute() else base / spec.sequence
+    seq, reason = find_sequence(root)
+    if seq is None:
+        from harness.core.errors import InputError
+
+        raise InputError(root, reason)
+    src = seq.cameras if seq.cameras is not None and seq.cameras.is_file() else None
+    digest = {"cameras": cache.files.digest(src) if src else str(seq.cameras),
+              "frame0": cache.files.digest(seq.frames[0]) if seq.cameras is None else None}
+    if seq.cameras is not None and seq.cameras.is_dir():
+        digest["cameras"] = [cache.files.digest(f) for f in sorted(seq.cameras.iterdir()) if f.is_file()]
+    from harness.run.versions import module_versions
+
+    code = [versions.rigs, module_versions(("harness.io.sequences", "harness.io.gscameras", "harness.io.colmap"))]
+    key = cache.key("views", source={"sequence": digest, "test": list(spec.test), "test_every": spec.test_every,
+                                     "size": [spec.width, spec.height]}, code=code)
+    hit = cache.get_json("views", key)
+    if hit is not None:
+        return hit["rig"], [Camera.from_dict(c) for c in hit["train"]], [Camera.from_dict(c) for c in hit["test"]]
+    cams = sequence_cameras(seq, spec.width, spec.height)
+    if spec.test or spec.test_every:
+        train, test = _select_test(cams, spec)
+        if not test:
+            from harness.core.errors import InputError
+
+            raise InputError(seq.camera_source, f"none of the views {list(spec.test)} is among its {len(cams)} cameras")
+    else:
+        train, test = cams, cams
+    cache.put_json("views", key, {"rig": "sequence", "train": [c.to_dict() for c in train],
+                                  "test": [c.to_dict() for c in test]})
+    return "sequence", train, test
 
 
 class _LazyScene:
@@ -186,15 +241,18 @@ def _scene_items(spec, frames, config, cache, toolkit, versions, base) -> list[S
         scene = _LazyScene(toolkit, str(path), spec.lod)
         key = cache.key("load", scene=digest, code=versions.reader)
         info = cache.get_json("load", key, check=load_check())
-        if info is None:
+        if info is None or "ply_row" not in info:
+            from harness.io.plysize import ply_size_model
+
             s = scene()
-            info = {"n_splats": len(s), "sh_degree": int(s.sh_degree)}
+            size = ply_size_model(s)
+            info = {"n_splats": len(s), "sh_degree": int(s.sh_degree), "ply_base": size.base, "ply_row": size.row}
             cache.put_json("load", key, info)
         if views is None:  # the first frame's views serve the whole sequence
             views = scene_views(spec, scene, path, config.protocol, cache, toolkit, versions, digest, base)
         rig, train, test = views
         items.append(SceneItem(spec, frame, str(path), digest, info["n_splats"], info["sh_degree"], rig,
-                               train, test, time.perf_counter() - t0))
+                               train, test, time.perf_counter() - t0, info["ply_base"], info["ply_row"]))
     return items
 
 

@@ -366,7 +366,8 @@ class Runner:
                     if prec is None:  # its scores failed verification after they were computed
                         rows.append({**row0, "status": "error", "reason": "pruning failed (see run.json errors)"})
                         continue
-                    row0.update(splats_out=prec["splats_out"], tau=prec["tau"], tau_quantile=prec["tau_quantile"],
+                    row0.update(splats_out=prec["splats_out"], bytes=item.ply_bytes(prec["splats_out"]),
+                                tau=prec["tau"], tau_quantile=prec["tau_quantile"],
                                 score_s=srec["seconds"], prune_s=prec["seconds"])
                     for v, (cam, rk, rrec) in enumerate(zip(item.test, ref_keys, ref_recs)):
                         mkey = self._metrics_key(rk, prec["mask"])
@@ -377,7 +378,7 @@ class Runner:
                             row.update(status="error", reason="render or metrics failed (see run.json errors)")
                         else:
                             row.update(status="ok", render_s=m["render_s"], metrics_s=m["metrics_s"],
-                                       **{k: m[k] for k in p.metrics})
+                                       **{k: m[k] for k in (*p.metrics, "occupancy") if k in m})
                             if v == 0:
                                 images[(item.spec.name, item.frame, mv.method, mv.variant, r)] = \
                                     self.cache.path("images", mkey, "png")

@@ -177,6 +177,18 @@ class ViewTask:
         return {"ref_key": self.ref_key, "errors": [(None, message)], "done": 0}
 
 
+def render_alpha(renderer, scene, cam: Camera, background) -> tuple[np.ndarray, np.ndarray]:
+    """(image, alpha) of a render; a renderer without ``render_with_alpha`` renders twice (black and
+    white backgrounds: image(bg) = C + (1 − alpha)·bg)."""
+    if hasattr(renderer, "render_with_alpha"):
+        img, alpha = renderer.render_with_alpha(scene, cam, background=background)
+        return np.asarray(img, np.float32), np.asarray(alpha, np.float32)
+    img = np.asarray(renderer.render(scene, cam, background=background), np.float32)
+    black = np.asarray(renderer.render(scene, cam, background=(0.0, 0.0, 0.0)), np.float64)
+    white = np.asarray(renderer.render(scene, cam, background=(1.0, 1.0, 1.0)), np.float64)
+    return img, (1.0 - (white - black).mean(axis=2)).astype(np.float32)
+
+
 def run_view(task: ViewTask, progress=None) -> dict:
     """Reference render of one view (cached), then each not-yet-measured pruned set of it.
 
@@ -190,14 +202,23 @@ def run_view(task: ViewTask, progress=None) -> dict:
     try:
         scene = _scene(task.toolkit, task.path, task.lod, task.scene_digest)
         renderer = _renderer(task.toolkit, task.renderer, task.device)
-        from harness.run.verify import image_check, mask_check
+        from harness.metrics.registry import needs_alpha
+        from harness.run.verify import alpha_check, image_check, mask_check
 
+        alpha = needs_alpha(task.metrics)  # OM metrics: occupancy from both renders (stored with the reference)
         # a cached reference that fails its checksum or shape is discarded and rendered again
         ref = None if task.render_ref else cache.get_array("render_ref", task.ref_key, count=False,
                                                            check=image_check(cam.width, cam.height))
-        if ref is None:
+        ref_alpha = cache.get_array("render_alpha", task.ref_key, count=False,
+                                    check=alpha_check(cam.width, cam.height)) \
+            if alpha and todo and ref is not None else None
+        if ref is None or (alpha and todo and ref_alpha is None):
             t0 = time.perf_counter()
-            ref = np.asarray(renderer.render(scene, cam, background=task.background), dtype=np.float32)
+            if alpha:
+                ref, ref_alpha = render_alpha(renderer, scene, cam, task.background)
+                cache.put_array("render_alpha", task.ref_key, ref_alpha)
+            else:
+                ref = np.asarray(renderer.render(scene, cam, background=task.background), dtype=np.float32)
             ref_rec = {"seconds": time.perf_counter() - t0, "height": int(ref.shape[0]), "width": int(ref.shape[1])}
             cache.put_array("render_ref", task.ref_key, ref)
             cache.put_json("render_ref", task.ref_key, ref_rec)
@@ -206,7 +227,7 @@ def run_view(task: ViewTask, progress=None) -> dict:
         if todo:
             suite = _metrics(task.toolkit, task.metrics, task.device)
             t0 = time.perf_counter()
-            suite.reference(task.ref_key, ref)
+            suite.reference(task.ref_key, ref, alpha=ref_alpha) if alpha else suite.reference(task.ref_key, ref)
             feat_s = time.perf_counter() - t0
             for job in todo:
                 try:
@@ -216,14 +237,17 @@ def run_view(task: ViewTask, progress=None) -> dict:
                         raise RuntimeError(f"mask {job.mask_key[:12]} is missing or failed verification")
                     keep = np.unpackbits(packed, count=task.n_splats).astype(bool)
                     t0 = time.perf_counter()
-                    img = np.asarray(renderer.render(scene.subset(keep), cam, background=task.background),
-                                     dtype=np.float32)
+                    if alpha:
+                        img, img_alpha = render_alpha(renderer, scene.subset(keep), cam, task.background)
+                    else:
+                        img = np.asarray(renderer.render(scene.subset(keep), cam, background=task.background),
+                                         dtype=np.float32)
                     t1 = time.perf_counter()
-                    values = suite.score(task.ref_key, img)
+                    values = suite.score(task.ref_key, img, alpha=img_alpha) if alpha else suite.score(task.ref_key, img)
                     t2 = time.perf_counter()
                     if job.png:
                         put_png(cache, job.metrics_key, img)
-                    rec = {k: float(values[k]) for k in task.metrics}
+                    rec = {k: float(values[k]) for k in (*task.metrics, "occupancy") if k in values}
                     rec.update(render_s=t1 - t0, metrics_s=t2 - t1, ref_features_s=feat_s)
                     cache.put_json("metrics", job.metrics_key, rec)
                     out["done"] += 1

@@ -56,6 +56,10 @@ def load_check():
             return f"n_splats {n!r} is not a splat count"
         if sh not in (0, 1, 2, 3):
             return f"sh_degree {sh!r} is not 0..3"
+        for k in ("ply_base", "ply_row"):  # the pruned .ply's size model (harness.io.plysize)
+            v = rec.get(k)
+            if v is not None and not (isinstance(v, int) and not isinstance(v, bool) and v > 0):
+                return f"{k} {v!r} is not a byte count"
         return None
     return check
 
@@ -165,6 +169,18 @@ def image_check(width: int, height: int):
             return f"render of shape {img.shape} / {img.dtype}, expected ({height}, {width}, 3|4) floats"
         if not np.isfinite(img).all():
             return "render holds NaN/inf pixels"
+        return None
+    return check
+
+
+def alpha_check(width: int, height: int):
+    """An accumulated-opacity image (H, W) with values in [0, 1]."""
+    def check(img):
+        img = np.asarray(img)
+        if img.shape != (height, width) or img.dtype.kind != "f":
+            return f"alpha of shape {img.shape} / {img.dtype}, expected ({height}, {width}) floats"
+        if not (np.isfinite(img).all() and img.min(initial=0.0) >= -1e-6 and img.max(initial=0.0) <= 1.0 + 1e-6):
+            return "alpha outside [0, 1] or not finite"
         return None
     return check
 
