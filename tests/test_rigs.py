@@ -173,3 +173,25 @@ def test_run_rig_honours_the_protocol_aspect(dataset, aspect, size):
     _, _, test = run_rig("default", blob(), kind="object-centric", dataset=dataset, n_train=1, n_test=1,
                          longest_side=512, aspect=aspect, seed=0)
     assert (test[0].width, test[0].height) == size
+
+
+def test_shifted_protocol_views_come_from_another_distribution():
+    """The shifted protocol's test views sit on higher rings, with a narrower field of view, at other
+    azimuths than the rig's — no test camera coincides with a training camera's distribution."""
+    from harness.run.toolkit import protocol_views
+    from harness.views.rigs import PROTOCOLS
+
+    scene = blob()
+    place = placement(scene)
+    rig = scene_rig(None, scene, "orbit", n_train=12, n_test=6)
+    shifted = protocol_views("orbit", scene, PROTOCOLS["shifted"], kind="object-centric", dataset=None, n_test=6,
+                             longest_side=1024, aspect=None, seed=0)
+
+    def elevation(cam):
+        d = cam.center - place.center
+        return np.degrees(np.arcsin(d @ place.up / np.linalg.norm(d)))
+
+    assert min(elevation(c) for c in shifted) > max(elevation(c) for c in rig.train) - 5.0
+    assert np.mean([elevation(c) for c in shifted]) > np.mean([elevation(c) for c in rig.train]) + 15.0
+    assert all(c.fov_x < 0.7 * rig.train[0].fov_x for c in shifted)
+    assert all(c.name.startswith("shifted/") for c in shifted)

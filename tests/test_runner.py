@@ -241,3 +241,37 @@ def test_progress_lines_count_what_was_done(scenes, tmp_path, workers):
     assert done and all(line.split("done ")[1].split()[0].split("/")[0] == line.split("done ")[1].split()[0].split("/")[1]
                         for line in done), done
     assert any(line.strip().startswith("render_ref: done 4/4") for line in done)
+
+
+def test_shifted_view_protocol(scenes, tmp_path):
+    """protocols: [rig, shifted] — the same scores and masks measured on the rig's held-out views and
+    on views from another camera distribution; rows name their protocol; tables come per protocol."""
+    from harness.report.outputs import write_outputs
+    from harness.report.tracking import summarize_groups
+
+    cfg = _config({"s0": scenes["s0"]}, ["opacity", "random"], protocols=["rig", "shifted"])
+    res, df = _run(cfg, tmp_path)
+    assert (df["status"] == "ok").all() and set(df["protocol"]) == {"rig", "shifted"}
+    rig = df[df["protocol"] == "rig"]
+    shifted = df[df["protocol"] == "shifted"]
+    assert len(rig) == len(shifted) == 2 * 2 * 2  # methods x ratios x 2 held-out views
+    assert all(v.startswith("shifted/") for v in shifted["view"]) and not any("/" in v for v in rig["view"])
+    assert res.counts["score"]["misses"] == 2  # scored once for both protocols
+    written = write_outputs(tmp_path / "out", df, ["comparison", "versus"], [])
+    names = {p.name for p in written.paths}
+    assert {"comparison.md", "comparison-shifted.md", "versus-shifted.csv"} <= names
+    assert "held-out views: shifted" in (tmp_path / "out" / "tables" / "comparison-shifted.md").read_text()
+    keys = summarize_groups(df)
+    assert any(k.startswith("s0@shifted|") for k in keys) and any(k.startswith("s0|") for k in keys)
+
+
+def test_protocol_config_errors():
+    from harness.core.errors import InputError
+
+    base = {"scenes": ["a"], "methods": ["opacity"], "ratios": [0.1]}
+    for protocols, msg in ((["shifted"], "first protocol must be the training rig"), (["rig", "tilted"], "not one of"),
+                           ([], "non-empty list"), (["rig", {"name": "x", "fov_scale": 9}], "fov_scale")):
+        with pytest.raises(InputError, match=msg):
+            parse_config({**base, "protocols": protocols}, "c.yaml")
+    cfg = parse_config({**base, "protocols": ["rig", {"name": "steep", "rings_above": [40]}]}, "c.yaml")
+    assert [p.name for p in cfg.protocols] == ["rig", "steep"] and cfg.protocols[1].rings_above == (40.0,)

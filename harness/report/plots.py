@@ -197,6 +197,10 @@ def _taus(df: pd.DataFrame, method: str) -> dict:
 
 
 def write_plots(df: pd.DataFrame, run_dir: str | Path, names) -> Written:
+    """The plots of the primary held-out view protocol (the training rig's views)."""
+    from harness.report.summary import protocol_subsets
+
+    df = protocol_subsets(df)[0][2]
     run_dir = Path(run_dir)
     out = run_dir / "plots"
     images = run_dir / "images"

@@ -1,7 +1,8 @@
 """Tidy results: one row per (scene, frame, method, variant, ratio, view), written atomically.
 
 Columns (see :data:`COLUMNS`): identification (``run, scene, label, kind, frame, method, variant,
-params`` as canonical JSON, ``ratio``, ``keep = 1 - ratio``, ``view``), ``status`` (``ok``,
+params`` as canonical JSON, ``ratio``, ``keep = 1 - ratio``, ``protocol`` — the held-out view
+protocol, :class:`harness.views.rigs.ViewProtocol`: ``rig`` or e.g. ``shifted`` — ``view``), ``status`` (``ok``,
 ``skipped``, ``error``) with ``reason``, metrics (``psnr`` — +inf for identical images — ``ssim``,
 ``lpips``; the MPEG set ``rgb_psnr, yuv_psnr, yuv_ssim, …_om`` and ``occupancy`` % when measured), counts
 (``splats_in``, ``splats_out``, and ``bytes``: the size of the pruned ``.ply`` the harness writes — the
@@ -27,11 +28,11 @@ from harness.metrics.registry import METRICS as _METRICS
 #: metrics beyond the 3DGS set (the MPEG families, :mod:`harness.metrics.registry`), then occupancy (%)
 EXTRA_METRICS = [m.name for m in _METRICS if m.name not in ("psnr", "ssim", "lpips")] + ["occupancy"]
 COLUMNS = [
-    "run", "scene", "label", "kind", "frame", "method", "variant", "params", "ratio", "keep", "view",
+    "run", "scene", "label", "kind", "frame", "method", "variant", "params", "ratio", "keep", "protocol", "view",
     "status", "reason", "psnr", "ssim", "lpips", *EXTRA_METRICS, "splats_in", "splats_out", "bytes", "tau",
     "tau_quantile", "score_s", "prune_s", "render_ref_s", "render_s", "metrics_s", "renderer", "width", "height",
 ]
-_TEXT = {"run", "scene", "label", "kind", "frame", "method", "variant", "params", "view", "status", "reason",
+_TEXT = {"run", "scene", "label", "kind", "frame", "method", "variant", "params", "protocol", "view", "status", "reason",
          "renderer"}
 _INT = {"splats_in", "splats_out", "bytes", "width", "height"}
 
@@ -46,7 +47,7 @@ def to_frame(rows: list[dict]) -> pd.DataFrame:
             df[c] = pd.to_numeric(df[c], errors="coerce").astype("Int64")
         else:
             df[c] = pd.to_numeric(df[c], errors="coerce").astype(np.float64)
-    return df.sort_values(["scene", "frame", "method", "variant", "ratio", "view"], kind="stable",
+    return df.sort_values(["scene", "frame", "method", "variant", "ratio", "protocol", "view"], kind="stable",
                           ignore_index=True)
 
 

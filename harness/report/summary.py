@@ -32,3 +32,22 @@ def summarise(df: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
+
+
+#: the held-out view protocol of the training rig (harness.views.rigs.PROTOCOLS)
+PRIMARY_PROTOCOL = "rig"
+PROTOCOL_NOTES = {"rig": "held-out views of the rig the camera-aware methods train on",
+                  "shifted": "held-out views from another camera distribution (higher rings, narrower field of "
+                             "view, other azimuths) than the camera-aware methods' training views"}
+
+
+def protocol_subsets(df: pd.DataFrame) -> list[tuple[str, str, pd.DataFrame]]:
+    """(protocol, file-name suffix, its rows) per held-out view protocol of a run, the primary one
+    first and unsuffixed (rows without a protocol — skips, errors — belong to every subset). A run
+    with one protocol is one subset, as before protocols existed."""
+    names = [p for p in dict.fromkeys(df["protocol"]) if p] if "protocol" in df else []
+    if len(names) <= 1:
+        return [(names[0] if names else "", "", df)]
+    primary = PRIMARY_PROTOCOL if PRIMARY_PROTOCOL in names else names[0]
+    order = [primary] + sorted(n for n in names if n != primary)
+    return [(n, "" if n == primary else f"-{n}", df[df["protocol"].isin([n, ""])]) for n in order]

@@ -35,7 +35,7 @@ import pandas as pd
 from harness.core import ratios
 from harness.io.files import atomic_write_text
 from harness.report import bd, catalog, cells
-from harness.report.summary import summarise
+from harness.report.summary import PROTOCOL_NOTES, protocol_subsets, summarise
 from harness.report.tabledata import Missing, Table, Written, as_table
 
 KEEPS = cells.KEEPS
@@ -212,26 +212,35 @@ def build_tables(df: pd.DataFrame, names, **opts) -> dict[str, Table | Missing]:
 
 def write_tables(df: pd.DataFrame, out_dir: str | Path, names, **opts) -> Written:
     """Write ``tables/<name>.md|csv|tex`` for each table that can be made, plus ``tables/summary.csv``;
-    the others are listed in ``missing`` (and their files from an earlier build removed)."""
+    the others are listed in ``missing`` (and their files from an earlier build removed). A run with
+    several held-out view protocols gets each table per protocol: the primary (training rig) one as
+    ``<name>.*``, the others as ``<name>-<protocol>.*`` (:func:`harness.report.summary.protocol_subsets`)."""
     from harness.report.formats import to_latex, to_markdown
 
     out_dir = Path(out_dir) / "tables"
     out_dir.mkdir(parents=True, exist_ok=True)
-    s = summarise(df)
+    subsets = protocol_subsets(df)
+    summaries = [summarise(sub).assign(protocol=proto) if len(subsets) > 1 else summarise(sub)
+                 for proto, _, sub in subsets]
     out = Written([out_dir / "summary.csv"])
-    atomic_write_text(out.paths[0], s.to_csv(index=False))
-    out.built = build_tables(df, names, **opts)
-    for name, t in out.built.items():
-        if isinstance(t, Missing):
-            out.missing.append(f"table {name} not written: {t.reason}")
-            for ext in ("md", "csv", "tex"):
-                (out_dir / f"{name}.{ext}").unlink(missing_ok=True)
-            continue
-        out.warnings += t.warnings
-        title = TITLES.get(name, name)
-        for ext, text in (("md", to_markdown(t, title)), ("csv", t.tidy.to_csv(index=False)),
-                          ("tex", to_latex(t.disp, title, t.notes, label=f"table:{name}"))):
-            p = out_dir / f"{name}.{ext}"
-            atomic_write_text(p, text)
-            out.paths.append(p)
+    atomic_write_text(out.paths[0], pd.concat(summaries, ignore_index=True).to_csv(index=False))
+    for proto, suffix, sub in subsets:
+        for name, t in build_tables(sub, names, **opts).items():
+            key = name + suffix
+            out.built[key] = t
+            if isinstance(t, Missing):
+                out.missing.append(f"table {key} not written: {t.reason}")
+                for ext in ("md", "csv", "tex"):
+                    (out_dir / f"{key}.{ext}").unlink(missing_ok=True)
+                continue
+            out.warnings += t.warnings
+            title = TITLES.get(name, name)
+            if len(subsets) > 1:
+                title += f" — held-out views: {proto} ({PROTOCOL_NOTES.get(proto, 'a named view protocol')})"
+            tidy = t.tidy.assign(protocol=proto) if len(subsets) > 1 else t.tidy
+            for ext, text in (("md", to_markdown(t, title)), ("csv", tidy.to_csv(index=False)),
+                              ("tex", to_latex(t.disp, title, t.notes, label=f"table:{key}"))):
+                path = out_dir / f"{key}.{ext}"
+                atomic_write_text(path, text)
+                out.paths.append(path)
     return out

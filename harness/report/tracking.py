@@ -57,7 +57,17 @@ def _finite_or_none(x) -> float | None:
 
 
 def summarize_groups(df: pd.DataFrame) -> dict[str, dict]:
-    """Per (scene, method, variant, ratio) means over measured views (PSNR: finite values only)."""
+    """Per (scene, method, variant, ratio) means over measured views (PSNR: finite values only); a
+    held-out view protocol other than the primary one tracks its groups as ``<scene>@<protocol>``."""
+    from harness.report.summary import protocol_subsets
+
+    subsets = protocol_subsets(df)
+    if len(subsets) > 1:
+        out = {}
+        for proto, suffix, sub in subsets:
+            sub = sub if not suffix else sub[sub["protocol"] == proto].assign(scene=lambda d: d["scene"] + "@" + proto)
+            out.update(summarize_groups(sub.drop(columns=["protocol"])))
+        return out
     ok = df[df["status"] == "ok"]
     out: dict[str, dict] = {}
     for (scene, method, variant, ratio), g in ok.groupby(["scene", "method", "variant", "ratio"], sort=True):

@@ -152,6 +152,8 @@ class RunConfig:
     source_path: str = ""
     raw: dict = field(default_factory=dict)
     anchor: str = "lightgs"  # the BD table's anchor method (harness.report.bd)
+    #: held-out view protocols (harness.views.rigs.ViewProtocol); the first is the primary one
+    protocols: tuple = (rigs.PROTOCOLS["rig"],)
 
 
 # --------------------------------------------------------------------------- small validators
@@ -390,12 +392,45 @@ def _anchor(v, src) -> str:
     return name
 
 
+def _protocols(v, src) -> tuple:
+    """``protocols: [rig, shifted, {name: steep, rings_above: [20, 40], fov_scale: 0.5, seed_offset: 7}]``."""
+    if not isinstance(v, list) or not v:
+        raise InputError(src, "protocols: expected a non-empty list of view protocols (e.g. [rig, shifted])")
+    out = []
+    for i, e in enumerate(v):
+        where = f"protocols[{i}]"
+        if isinstance(e, str):
+            out.append(rigs.PROTOCOLS.get(e) or _fail(src, f"{where}: {e!r} is not one of "
+                                                           f"{', '.join(rigs.PROTOCOLS)} (or give a mapping)"))
+            continue
+        e = _mapping(e, where, src)
+        _only(e, {"name", "rings_above", "fov_scale", "seed_offset"}, where, src)
+        above = e.get("rings_above", [])
+        if not isinstance(above, list):
+            raise InputError(src, f"{where}.rings_above: expected a list of degrees")
+        out.append(rigs.ViewProtocol(
+            _str(e.get("name"), f"{where}.name", src),
+            tuple(float(_num(a, f"{where}.rings_above[{j}]", src, lo=-80, hi=80)) for j, a in enumerate(above)),
+            float(_num(e.get("fov_scale", 1.0), f"{where}.fov_scale", src, lo=0.1, hi=2.5)),
+            _num(e.get("seed_offset", 0), f"{where}.seed_offset", src, lo=0, integer=True)))
+    names = [p.name for p in out]
+    if len(set(names)) != len(names):
+        raise InputError(src, f"protocols: duplicate names in {names}")
+    if out[0].shifted:
+        raise InputError(src, "protocols[0]: the first protocol must be the training rig's own views (`rig`)")
+    return tuple(out)
+
+
+def _fail(src, problem):
+    raise InputError(src, problem)
+
+
 def parse_config(data: Any, source: str = "<config>") -> RunConfig:
     """Validate a parsed YAML document and expand method sweeps."""
     src = source
     d = _mapping(data, "top level", src)
     _only(d, {"name", "output", "workers", "protocol", "ratios", "keep", "scenes", "methods", "tables", "plots",
-              "anchor"}, "top level", src)
+              "anchor", "protocols"}, "top level", src)
     protocol = _protocol(d.get("protocol"), src)
     scenes_raw = d.get("scenes")
     if not isinstance(scenes_raw, list) or not scenes_raw:
@@ -433,6 +468,7 @@ def parse_config(data: Any, source: str = "<config>") -> RunConfig:
         source_path=str(source),
         raw=d,
         anchor=_anchor(d.get("anchor", "lightgs"), src),
+        protocols=_protocols(d.get("protocols", ["rig"]), src),
     )
 
 

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import glob
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from harness.core.cameras import Camera
@@ -46,6 +46,13 @@ class SceneItem:
     load_s: float = 0.0
     ply_base: int = 0  # size model of the pruned .ply (harness.io.plysize): base + digits + N·row
     ply_row: int = 0
+    #: held-out views of the other protocols (the primary protocol's are ``test``)
+    shifted: dict[str, list[Camera]] = field(default_factory=dict)
+
+    def views(self, primary: str = "rig") -> list[tuple[str, int, Camera]]:
+        """(protocol, index within it, camera) of every held-out view, the primary protocol first."""
+        return ([(primary, v, c) for v, c in enumerate(self.test)]
+                + [(name, v, c) for name, cams in self.shifted.items() for v, c in enumerate(cams)])
 
     def ply_bytes(self, count: int) -> int | None:
         """Bytes of the .ply the harness writes for ``count`` of this frame's splats (None: unknown)."""
@@ -234,7 +241,7 @@ def load_items(config: RunConfig, cache: StageCache, toolkit: Toolkit, versions:
 def _scene_items(spec, frames, config, cache, toolkit, versions, base) -> list[SceneItem]:
     from harness.run.verify import load_check
 
-    items, views = [], None
+    items, views, shifted = [], None, None
     for frame, path in frames:
         t0 = time.perf_counter()
         digest = digest_json({"file": cache.files.digest(path), "lod": spec.lod})
@@ -251,9 +258,36 @@ def _scene_items(spec, frames, config, cache, toolkit, versions, base) -> list[S
         if views is None:  # the first frame's views serve the whole sequence
             views = scene_views(spec, scene, path, config.protocol, cache, toolkit, versions, digest, base)
         rig, train, test = views
+        if shifted is None:
+            shifted = shifted_views(spec, scene, config, cache, toolkit, versions, digest, rig)
         items.append(SceneItem(spec, frame, str(path), digest, info["n_splats"], info["sh_degree"], rig,
-                               train, test, time.perf_counter() - t0, info["ply_base"], info["ply_row"]))
+                               train, test, time.perf_counter() - t0, info["ply_base"], info["ply_row"], shifted))
     return items
+
+
+def shifted_views(spec: SceneSpec, scene, config: RunConfig, cache: StageCache, toolkit: Toolkit,
+                  versions: Versions, scene_digest: str, rig: str) -> dict[str, list[Camera]]:
+    """Held-out views of every protocol but the primary one (cached like the rig's views): the same
+    rig kind with the protocol's camera distribution (:class:`harness.views.rigs.ViewProtocol`).
+    Scenes whose views come from camera files or MPEG content have no shifted protocol."""
+    out: dict[str, list[Camera]] = {}
+    if spec.cameras is not None or getattr(spec, "sequence", None) or rig in ("file", "sequence"):
+        return out
+    p = config.protocol
+    dataset = spec.source if spec.source and toolkit.resolve_dataset(spec.source) else None
+    for proto in config.protocols[1:]:
+        source = {"rig": spec.rig, "scene": scene_digest, "dataset": dataset, "kind": spec.kind,
+                  "n_test": spec.n_test, "aspect": p.aspect, "seed": p.seed, "protocol": proto.__dict__}
+        key = cache.key("views", source=source, longest_side=p.longest_side, code=versions.rigs)
+        hit = cache.get_json("views", key)
+        if hit is not None:
+            out[proto.name] = [Camera.from_dict(c) for c in hit["test"]]
+            continue
+        cams = toolkit.protocol_views(spec.rig, scene(), proto, kind=spec.kind, dataset=dataset, n_test=spec.n_test,
+                                      longest_side=p.longest_side, aspect=p.aspect, seed=p.seed)
+        cache.put_json("views", key, {"rig": proto.name, "train": [], "test": [c.to_dict() for c in cams]})
+        out[proto.name] = cams
+    return out
 
 
 def variants_for(item: SceneItem, methods: list[MethodVariant]) -> list[MethodVariant]:

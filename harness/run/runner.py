@@ -103,6 +103,7 @@ class Runner:
         self.log = log
         self.base = Path(base_dir) if base_dir else Path.cwd()
         self.threads = max(1, (os.cpu_count() or 1) // self.workers)
+        self.primary = config.protocols[0].name  # the held-out views of the rig the methods train on
         self.stage_s: dict[str, float] = {}
         self.errors: list[str] = []
 
@@ -300,15 +301,15 @@ class Runner:
         for i, item in enumerate(items):
             masks = list(dict.fromkeys(rec["mask"] for mv in variants_for(item, self.config.methods)
                                        for r in mv.ratios if (rec := prunes.get((i, mv.key, r))) is not None))
-            for v, cam in enumerate(item.test):
+            for proto, v, cam in item.views(self.primary):
                 ref_key = self._ref_key(item, cam)
+                first = proto == self.primary and v == 0  # its pruned renders are kept as images (figures, report)
                 jobs = []
                 for mask in masks:
                     mkey = self._metrics_key(ref_key, mask)
-                    # the first view's pruned render is kept as an image (figures, report page)
                     measured = self.cache.get_json("metrics", mkey, check=metrics_check(p.metrics)) is not None
-                    if not measured or (v == 0 and not self.cache.has("images", mkey, "png")):
-                        jobs.append(MaskJob(mkey, mask, v == 0))
+                    if not measured or (first and not self.cache.has("images", mkey, "png")):
+                        jobs.append(MaskJob(mkey, mask, first))
                 have_ref = self.cache.get_json("render_ref", ref_key,
                                                check=render_ref_record_check(cam.width, cam.height)) is not None
 
@@ -344,9 +345,10 @@ class Runner:
                          "kind": spec.kind if spec else "", "frame": sk.frame, "method": sk.method,
                          "variant": sk.variant, "status": sk.status, "reason": sk.reason})
         for i, item in enumerate(items):
-            ref_keys = [self._ref_key(item, cam) for cam in item.test]
+            views = item.views(self.primary)
+            ref_keys = [self._ref_key(item, cam) for _, _, cam in views]
             ref_recs = [self.cache.load_json("render_ref", k, check=render_ref_record_check(c.width, c.height)) or {}
-                        for k, c in zip(ref_keys, item.test)]
+                        for k, (_, _, c) in zip(ref_keys, views)]
             if ref_keys:
                 images[(item.spec.name, item.frame, "input", "", 0.0)] = self.cache.path("images", ref_keys[0], "png")
             for mv in variants_for(item, self.config.methods):
@@ -369,17 +371,17 @@ class Runner:
                     row0.update(splats_out=prec["splats_out"], bytes=item.ply_bytes(prec["splats_out"]),
                                 tau=prec["tau"], tau_quantile=prec["tau_quantile"],
                                 score_s=srec["seconds"], prune_s=prec["seconds"])
-                    for v, (cam, rk, rrec) in enumerate(zip(item.test, ref_keys, ref_recs)):
+                    for (proto, v, cam), rk, rrec in zip(views, ref_keys, ref_recs):
                         mkey = self._metrics_key(rk, prec["mask"])
                         m = self.cache.load_json("metrics", mkey, check=metrics_check(p.metrics))
-                        row = {**row0, "view": cam.name or f"view{v:02d}", "width": cam.width, "height": cam.height,
-                               "render_ref_s": rrec.get("seconds")}
+                        row = {**row0, "protocol": proto, "view": cam.name or f"view{v:02d}", "width": cam.width,
+                               "height": cam.height, "render_ref_s": rrec.get("seconds")}
                         if m is None:
                             row.update(status="error", reason="render or metrics failed (see run.json errors)")
                         else:
                             row.update(status="ok", render_s=m["render_s"], metrics_s=m["metrics_s"],
                                        **{k: m[k] for k in (*p.metrics, "occupancy") if k in m})
-                            if v == 0:
+                            if proto == self.primary and v == 0:
                                 images[(item.spec.name, item.frame, mv.method, mv.variant, r)] = \
                                     self.cache.path("images", mkey, "png")
                         rows.append(row)

@@ -58,6 +58,7 @@ LONGEST_SIDE = 1024  # px, the CTC setting
 ASPECT = 4.0 / 3.0
 N_TRAIN = 48
 N_TEST = 8
+FOV_DEG = 60.0  # across the long side
 NEAR_MARGIN = 0.3  # keep content beyond the renderer's z > 0.2 cull
 DISTANCE_QUANTILE = 99.0
 ENCLOSURE_ROOM = 0.5
@@ -200,11 +201,13 @@ def choose_rig(place: Placement) -> str:
 
 def make_rig(name: str, scene: GaussianScene, *, n_train: int = N_TRAIN, n_test: int = N_TEST,
              longest_side: int = LONGEST_SIDE, aspect: float = ASPECT, seed: int = 0, up=None,
-             elevations=None, fov_deg: float = 60.0, front=None) -> RigViews:
+             elevations=None, fov_deg: float = FOV_DEG, front=None, rings_above=None) -> RigViews:
     """Build rig ``name`` (one of :data:`RIG_NAMES`) around ``scene``; see the module docstring.
 
     ``elevations`` (degrees) are the rings of ``orbit``/``room`` and, for ``forward``, the angles across
     the arc (default 0). ``up`` defaults to −y; ``front`` (forward only) to :func:`front_direction`.
+    ``rings_above`` (degrees) replaces the rings by a band above the highest one (``forward``: arc
+    angles above its highest; views stay within ±85°): the shifted held-out views of :data:`PROTOCOLS`.
     """
     if name not in RIG_NAMES:
         raise ValueError(f"unknown rig {name!r}; known: {', '.join(RIG_NAMES)}")
@@ -215,7 +218,9 @@ def make_rig(name: str, scene: GaussianScene, *, n_train: int = N_TRAIN, n_test:
         name = choose_rig(place)
     width, height = image_size(longest_side, aspect)
     n = n_train + n_test
-    els = tuple(elevations) if elevations else _RIG_DEFAULT_ELEVATIONS[name]
+    els = tuple(elevations or _RIG_DEFAULT_ELEVATIONS[name])
+    if rings_above:  # a band above the rig's own rings (a shifted protocol's test views)
+        els = tuple(max(els) + a for a in rings_above)
     common = {"up": place.up, "width": width, "height": height, "fov_deg": fov_deg}
     if name in ("orbit", "room"):
         dirs = [place.direction(az, el) for az, el in _path(n, els, seed, 2 * math.pi, 0.0, 0.0)]
@@ -236,6 +241,30 @@ def make_rig(name: str, scene: GaussianScene, *, n_train: int = N_TRAIN, n_test:
     cams = [_look(target, u, float(d), name=f"{name}_{i:0{digits}d}", **common)
             for i, (u, d) in enumerate(zip(dirs, dist))]
     return _split(cams, n_test, name)
+
+
+@dataclass(frozen=True)
+class ViewProtocol:
+    """Where the held-out views come from. ``rig``: the rig the camera-aware methods train on (its
+    held-out views interleave with the training views). Any other protocol builds its test views
+    from the same rig kind with a different camera distribution: rings ``rings_above`` degrees above
+    the training rig's highest ring (outside its band), a field of view ``fov_scale`` times as wide
+    (the distance fit moves the cameras back accordingly) and other azimuths (seed + ``seed_offset``)
+    — so "camera-aware" is not the same as "trained on the test distribution"."""
+
+    name: str
+    rings_above: tuple[float, ...] = ()
+    fov_scale: float = 1.0
+    seed_offset: int = 0
+
+    @property
+    def shifted(self) -> bool:
+        return (self.rings_above, self.fov_scale, self.seed_offset) != ((), 1.0, 0)
+
+
+#: named protocols a config can list (``protocols: [rig, shifted]``)
+PROTOCOLS = {"rig": ViewProtocol("rig"),
+             "shifted": ViewProtocol("shifted", rings_above=(15.0, 30.0), fov_scale=0.6, seed_offset=1000)}
 
 
 def scene_rig(dataset: str | None, scene: GaussianScene, rig: str = "default", **overrides) -> RigViews:
