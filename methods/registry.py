@@ -81,6 +81,9 @@ class PrunerSpec:
     #: parameters with which the pruner uses cameras when they are given (e.g. betadesc's view_weight
     #: > 0): the runner then hands it the rig's training views although it does not need them
     uses_cameras: Callable[[Params], bool] = field(default=lambda p: False)
+    #: a note for tables when these parameters make the pruner's numbers a bound of what it can do
+    #: (e.g. ConfSplat trained for fewer iterations than its own default): "lower bound (100 iterations)"
+    budget_note: Callable[[Params], str | None] = field(default=lambda p: None)
 
     def parse_params(self, values: Mapping[str, Any] | Params | None = None) -> Params:
         """The resolved parameters (``ParamError`` naming the key for a bad one)."""
@@ -115,7 +118,8 @@ PRUNERS: Registry[PrunerSpec] = Registry("pruner", modules=BUILTIN_MODULES, grou
 
 def register_pruner(name: str, *, params: type[Params] = NoParams, needs=(), label: str | None = None,
                     group: str = "other", ablation: Ablation | None = None, summary: str | None = None,
-                    uses_cameras: Callable[[Params], bool] | None = None):
+                    uses_cameras: Callable[[Params], bool] | None = None,
+                    budget_note: Callable[[Params], str | None] | None = None):
     """Decorator registering ``fn(scene, ctx) -> scores`` under ``name`` with its metadata.
 
     ``summary`` defaults to the first line of the function's docstring, ``label`` to ``name``.
@@ -132,7 +136,8 @@ def register_pruner(name: str, *, params: type[Params] = NoParams, needs=(), lab
         doc = (fn.__doc__ or "").strip().splitlines()
         spec = PrunerSpec(name=name, fn=fn, params=params, needs=frozenset(needs), label=label or name,
                           group=group, ablation=ablation, summary=summary or (doc[0] if doc else name),
-                          uses_cameras=uses_cameras or (lambda p: False))
+                          uses_cameras=uses_cameras or (lambda p: False),
+                          budget_note=budget_note or (lambda p: None))
         PRUNERS.add(name, spec, same=lambda old, new: old.fn.__qualname__ == new.fn.__qualname__
                     and old.fn.__module__ == new.fn.__module__)
         return fn

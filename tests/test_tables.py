@@ -211,3 +211,23 @@ def test_tables_command_says_why_a_table_is_missing_and_exits_2(tmp_path, capsys
     assert len(err) == 1 and err[0].startswith("harness: table ablation not written: no ablation variant measured")
     assert not (tmp_path / "tables" / "ablation.md").exists()  # no stale table beside the new ones
     assert (tmp_path / "tables" / "comparison.md").exists()
+
+
+def test_confsplat_below_its_own_iterations_is_labelled_a_lower_bound(tmp_path):
+    """ConfSplat trained for fewer iterations than its default (600) reads "lower bound (N iterations)"
+    in every table; at its defaults it reads plainly."""
+    import json as _json
+
+    from harness.report import catalog
+    from harness.report.outputs import write_outputs
+
+    df = _rows()
+    df.loc[df["method"] == "lightgs", "method"] = "confsplat"
+    df.loc[df["method"] == "confsplat", "params"] = _json.dumps({"iterations": 100})
+    write_outputs(tmp_path, df, ["comparison"], [])
+    assert "ConfSplatPrune — lower bound (100 iterations)" in (tmp_path / "tables" / "comparison.md").read_text()
+    df.loc[df["method"] == "confsplat", "params"] = _json.dumps({"iterations": 600})
+    write_outputs(tmp_path, df, ["comparison"], [])
+    text = (tmp_path / "tables" / "comparison.md").read_text()
+    assert "ConfSplatPrune" in text and "lower bound" not in text
+    assert catalog.method_label("confsplat") == "ConfSplatPrune"  # no note outside a report build

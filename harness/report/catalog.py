@@ -6,6 +6,12 @@ under their own name, in the ``other`` group.
 
 from __future__ import annotations
 
+import contextvars
+import json
+from contextlib import contextmanager
+
+import pandas as pd
+
 from harness.metrics.registry import METRICS
 from methods.registry import GROUPS, PRUNERS, ablation_grid
 
@@ -23,9 +29,39 @@ def _spec(name: str):
         return None
 
 
+_NOTES: contextvars.ContextVar[dict] = contextvars.ContextVar("method_notes", default={})
+
+
+@contextmanager
+def budget_notes(df: pd.DataFrame):
+    """Within the block, :func:`method_label` appends each method's budget note for these results
+    (from the parameters of its ``default`` variant, :attr:`methods.registry.PrunerSpec.budget_note`):
+    "ConfSplatPrune — lower bound (100 iterations)" in every table, plot and the report page."""
+    notes = {}
+    if {"method", "variant", "params"} <= set(df.columns):
+        rows = df[df["variant"] == "default"].drop_duplicates("method")
+        for method, text in zip(rows["method"], rows["params"]):
+            spec = _spec(method)
+            if spec is None or not text:
+                continue
+            try:
+                note = spec.budget_note(spec.parse_params(json.loads(text)))
+            except (ValueError, TypeError):
+                continue
+            if note:
+                notes[method] = note
+    token = _NOTES.set(notes)
+    try:
+        yield notes
+    finally:
+        _NOTES.reset(token)
+
+
 def method_label(name: str) -> str:
     spec = _spec(name)
-    return spec.label if spec is not None else name
+    label = spec.label if spec is not None else name
+    note = _NOTES.get().get(name)
+    return f"{label} — {note}" if note else label
 
 
 def method_order(names) -> list[str]:

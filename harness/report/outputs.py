@@ -6,6 +6,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from harness.report import catalog
 from harness.report.plots import write_plots
 from harness.report.tabledata import Written
 from harness.report.tables import write_tables
@@ -14,4 +15,5 @@ from harness.report.tables import write_tables
 def write_outputs(run_dir: str | Path, df: pd.DataFrame, tables, plots, **opts) -> Written:
     """Tables and plots of a run folder from its results (no recomputation); ``opts`` reach the
     table builders that take them (``reference=``). ``missing`` names what could not be made, and why."""
-    return write_tables(df, run_dir, tables, **opts) + write_plots(df, run_dir, plots)
+    with catalog.budget_notes(df):  # e.g. "ConfSplatPrune — lower bound (100 iterations)"
+        return write_tables(df, run_dir, tables, **opts) + write_plots(df, run_dir, plots)

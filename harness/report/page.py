@@ -237,6 +237,13 @@ def render_page(*, title: str, subtitle: str, warnings, tables: str, plots: str,
 
 def write_report(run_dir: str | Path, df: pd.DataFrame, meta: dict, built: dict | None = None,
                  missing=(), **opts) -> Path:
+    """:func:`_write_report` with each method's budget note in its label (:func:`catalog.budget_notes`)."""
+    with catalog.budget_notes(df):
+        return _write_report(run_dir, df, meta, built, missing, **opts)
+
+
+def _write_report(run_dir: str | Path, df: pd.DataFrame, meta: dict, built: dict | None = None,
+                  missing=(), **opts) -> Path:
     """Write ``<run>/report.html`` from the results, the run record, ``plots/`` and ``images/``.
     ``built``: tables already built (``{name: Table | Missing}``), else built here from run.json's
     table list; ``missing``: lines about what else could not be made (plots)."""

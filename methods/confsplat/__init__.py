@@ -44,8 +44,14 @@ class ConfSplatParams(Params):
     threads: int = param(1, ge=0, doc="torch intra-op threads while scoring (0 = unchanged)")
 
 
+def _budget(p: ConfSplatParams) -> str | None:
+    """Fewer steps than its own default: its numbers are a lower bound of what ConfSplat reaches."""
+    default = ConfSplatParams().iterations
+    return f"lower bound ({p.iterations} iterations)" if p.iterations < default else None
+
+
 @register_pruner("confsplat", params=ConfSplatParams, needs=("cameras",), label="ConfSplatPrune",
-                 group="camera-aware")
+                 group="camera-aware", budget_note=_budget)
 def confsplat_score(scene, ctx: PruneContext) -> np.ndarray:
     """Confident Splatting Beta confidence α/(α+β), learned with frozen geometry to match the unpruned render."""
     from methods.confsplat.train import optimise_confidence
