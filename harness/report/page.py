@@ -118,8 +118,12 @@ def html_table(disp: pd.DataFrame, heading: str = "") -> str:
 
 def tables_html(built: dict, titles: dict) -> str:
     out = []
+    from harness.report.summary import PROTOCOL_NOTES
+
     for name, t in built.items():
-        title = titles.get(name, name)
+        base, _, proto = name.partition("-") if name not in titles else (name, "", "")
+        title = titles.get(base, name) + (f" — held-out views: {proto} ({PROTOCOL_NOTES.get(proto, '')})"
+                                          if proto else "")
         out.append(f"<h3 id='t-{esc(name)}'>{esc(title)}</h3>")
         if isinstance(t, Missing):
             out.append(f"<p class='warn'>Not made from these results: {esc(t.reason)}</p>")
