@@ -39,7 +39,7 @@ if [ ! -f "$stamp" ]; then
   echo "setup: creating .venv and installing the package (torch comes from the machine's wheel store)"
   [ -x .venv/bin/python ] || "$PY" -m venv .venv
   .venv/bin/python -m pip install -q --upgrade pip
-  .venv/bin/python -m pip install -q -e ".[test,bench]"
+  .venv/bin/python -m pip install -q -e ".[test,bench,ray]"
   rm -f .venv/.installed-*
   touch "$stamp"
 fi

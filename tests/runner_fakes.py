@@ -2,8 +2,10 @@
 
 Importing this module registers the pruners ``fake-norm`` (camera-agnostic, score = −‖mean‖; its
 ``unused`` parameter does not change the scores, so two variants give identical keep masks),
-``fake-aware`` (needs cameras) and ``fake-broken`` (always raises). Call counters
-live in :data:`CALLS` (meaningful for in-process runs).
+``fake-aware`` (needs cameras), ``fake-broken`` (always raises), and for the executor tests
+``fake-slow`` (fake-norm's scores after ``seconds`` of sleep) and ``fake-raise`` (raises); these two
+append ``<pid>`` to the file ``marker`` at every attempt, so a test in another process sees each
+attempt and which worker runs it. Call counters live in :data:`CALLS` (meaningful for in-process runs).
 """
 
 from __future__ import annotations
@@ -46,6 +48,62 @@ def fake_aware(scene, ctx):
 def fake_broken(scene, ctx):
     """Always fails (the run must record it and go on)."""
     raise RuntimeError("this pruner is broken on purpose")
+
+
+@dataclass(frozen=True)
+class MarkerParams(Params):
+    marker: str = param("", doc="file that gets one line '<pid>' per attempt (empty: none)")
+    seconds: float = param(0.0, ge=0, doc="sleep before scoring")
+
+
+def _attempt(marker: str) -> None:
+    import os
+
+    if marker:
+        with open(marker, "a") as f:
+            f.write(f"{os.getpid()}\n")
+
+
+@register_pruner("fake-slow", params=MarkerParams)
+def fake_slow(scene, ctx):
+    """fake-norm's scores, after ``seconds`` of sleep (a window to kill its worker in)."""
+    import time
+
+    _attempt(ctx.params.marker)
+    time.sleep(ctx.params.seconds)
+    return -np.linalg.norm(scene.means.astype(np.float64), axis=1)
+
+
+@register_pruner("fake-raise", params=MarkerParams)
+def fake_raise(scene, ctx):
+    """Raises on every attempt (a deterministic failure)."""
+    _attempt(ctx.params.marker)
+    raise ValueError("fake-raise fails on purpose")
+
+
+@dataclass
+class MarkerTask:
+    """A task description for :func:`escaping_task` / :func:`crashing_task` (``path``: the marker file)."""
+
+    path: str
+    label: str = "marker"
+
+    def failed(self, message: str) -> dict:
+        return {"error": message}
+
+
+def escaping_task(task, scene=None):
+    """A stage function whose exception is not caught inside (as a bug would): records the attempt."""
+    _attempt(task.path)
+    raise KeyError("escaped on purpose")
+
+
+def crashing_task(task, scene=None):
+    """A stage function that kills its own process at every attempt (a deterministic segfault)."""
+    import os
+
+    _attempt(task.path)
+    os._exit(3)
 
 
 class PointRenderer:

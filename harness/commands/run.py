@@ -1,4 +1,5 @@
-"""`harness run CONFIG [--workers N] [--out DIR] [--force] [--cache DIR]`: the CTC-style evaluation.
+"""`harness run CONFIG [--workers N] [--executor local|ray] [--address A] [--out DIR] [--force] [--cache DIR|URL]`:
+the CTC-style evaluation.
 
 Reads and validates the YAML config (:mod:`harness.run.config`), runs the staged, cached plan
 (:mod:`harness.run.runner`), writes tidy results, the paper's tables and plots, contact sheets,
@@ -25,7 +26,13 @@ def add_arguments(parser) -> None:
     parser.add_argument("--out", default=None, help="output folder (default: the config's `output`)")
     parser.add_argument("--force", action="store_true", help="recompute every stage, ignoring cached results")
     parser.add_argument("--cache", default=None,
-                        help="stage cache folder (default: <harness cache>/stages, shared by all runs)")
+                        help="stage cache folder or fsspec URL such as s3://bucket/prefix (default: <harness "
+                             "cache>/stages, shared by all runs); with Ray on several nodes, a location every node reaches")
+    parser.add_argument("--executor", choices=("local", "ray"), default=None,
+                        help="where the work runs: local process pool (default) or Ray (default: the config's `executor`)")
+    parser.add_argument("--address", default=None,
+                        help="Ray cluster to use: auto, HOST:PORT or ray://HOST:10001 (implies --executor ray; "
+                             "without it Ray starts a local cluster of --workers workers on this machine)")
 
 
 def run(args) -> int:
@@ -50,21 +57,31 @@ def run(args) -> int:
     workers = args.workers if args.workers is not None else config.workers
     if not 1 <= workers <= 256:
         raise InputError("--workers", f"must be 1..256, got {workers}")
+    spec = executor_spec(config.executor, args.executor, args.address)
     from harness.core.devices import check_device
     from harness.io.files import make_output_folder, sweep_stale_temps
+    from harness.run.cache import is_url
+    from harness.run.executors import make_executor
 
-    check_device(config.protocol.device, f"{args.config}: protocol.device")
+    if spec.address is None:  # on a cluster the nodes' devices count (checked when it is joined)
+        check_device(config.protocol.device, f"{args.config}: protocol.device")
     out_dir = make_output_folder(Path(args.out or config.output), "--out" if args.out else f"{args.config}: output")
-    cache_root = make_output_folder(Path(args.cache) if args.cache else cache_dir() / "stages",
-                                    "--cache" if args.cache else "stage cache")
+    if args.cache and is_url(args.cache) and not args.cache.startswith("file://"):
+        cache_root = args.cache  # an fsspec URL: its entries are PUT one by one (harness.run.cache)
+    else:
+        cache_root = make_output_folder(Path(args.cache.removeprefix("file://")) if args.cache else cache_dir() / "stages",
+                                        "--cache" if args.cache else "stage cache").absolute()
     sweep_stale_temps(out_dir, recursive=True)
     console = Console(stderr=True, soft_wrap=True)
+    where = f"{workers} worker(s)" if spec.name == "local" else \
+        f"Ray ({'a local cluster of ' + str(workers) + ' worker(s)' if spec.address is None else spec.address})"
     console.print(f"[bold]harness run[/] {config.name}: {len(config.scenes)} scenes, "
-                  f"{len(config.methods)} method variants, {workers} worker(s) -> {out_dir}")
-    with StageProgress(console) as progress:
+                  f"{len(config.methods)} method variants, {where} -> {out_dir}")
+    with make_executor(spec, workers, device=config.protocol.device, cache_location=str(cache_root),
+                       log=lambda m: console.print(f"[yellow]{m}[/]")) as executor, StageProgress(console) as progress:
         runner = Runner(config, out_dir=out_dir, cache_root=cache_root, workers=workers, force=args.force,
                         progress=progress, log=lambda m: console.print(f"[yellow]{m}[/]"),
-                        base_dir=Path.cwd())
+                        base_dir=Path.cwd(), executor=executor)
         result = runner.run()
     df = to_frame(result.rows)
     pq, csv = write_results(df, out_dir)
@@ -87,3 +104,21 @@ def run(args) -> int:
         print(f"warning: {line}")
     print(f"wrote {len(written.paths)} table/plot files")
     return 1 if result.errors else 0
+
+
+def executor_spec(spec, name: str | None, address: str | None):
+    """The config's ``executor`` with ``--executor`` / ``--address`` applied (``--address`` means Ray)."""
+    import dataclasses
+
+    from harness.core.errors import InputError
+
+    if address is not None and name == "local":
+        raise InputError("--address", "is a Ray cluster address; it goes with --executor ray")
+    if name is None and address is not None:
+        name = "ray"
+    if name is not None and name != spec.name:
+        spec = dataclasses.replace(spec, name=name, address=None) if name == "local" else \
+            dataclasses.replace(spec, name=name)
+    if address is not None:
+        spec = dataclasses.replace(spec, address=address)
+    return spec

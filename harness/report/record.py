@@ -82,6 +82,7 @@ def write_run_json(out_dir: Path, config, result, *, workers: int, cache_root: P
         "commit": git_commit(),
         "machine": describe_machine(),
         "workers": workers,
+        "executor": getattr(result, "executor", None) or {"name": "local", "workers": workers},
         "cache": str(cache_root),
         "stage_seconds": result.stage_s,
         "cpu_seconds": cpu_seconds(),

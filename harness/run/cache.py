@@ -21,9 +21,13 @@ folder (name ``.<name>.<host>.<pid>.<random>.tmp``), fsynced and renamed into pl
 (:mod:`harness.io.files`), so a reader — in this process, another worker, or another node sharing
 the folder — sees the old entry, the complete new one, or none. Two writers of one key write the
 same content (keys are content addresses of deterministic computations) and the last rename wins;
-a reader that races a deletion of a bad entry sees a miss. All storage access goes through
-:class:`LocalStore` (read / write / delete / exists of a relative path), the one class to swap for
-an fsspec-backed store.
+a reader that races a deletion of a bad entry sees a miss. All storage access goes through a store
+(read / write / delete / exists of a relative path): :class:`LocalStore` for a folder (local, or a
+shared filesystem every node of a cluster mounts: NFS, CephFS, Lustre — rename is atomic there
+too), :class:`FsspecStore` for an fsspec URL (``s3://bucket/prefix``, ``gs://...``,
+``memory://...``), where each entry is published by **one** PUT (``pipe_file``): object stores
+make an object visible only once it is complete, so there is no temporary object and no
+non-atomic copy+delete "rename". ``file://PATH`` is the folder ``PATH`` (a :class:`LocalStore`).
 
 Hit/miss counts per stage are kept so a run can prove that a rerun recomputed nothing.
 """
@@ -130,6 +134,11 @@ class FileDigests:
 
 
 # --------------------------------------------------------------------------- storage
+def is_url(location) -> bool:
+    """Whether a cache location is an fsspec URL (``proto://...``) rather than a folder."""
+    return isinstance(location, str) and "://" in location
+
+
 class LocalStore:
     """Byte storage of the cache under a local folder (the one place that touches the disk).
 
@@ -162,6 +171,66 @@ class LocalStore:
         return (self.root / rel).is_file()
 
 
+class FsspecStore:
+    """Byte storage of the cache under an fsspec URL (object stores: s3://, gs://; memory://).
+
+    ``write`` is a single ``pipe_file`` (one PUT: atomic per object, a reader sees the old object or
+    the complete new one); ``read`` is ``cat_file`` (no listing cache is consulted, so an entry
+    written by another node is seen at once). Files that other code opens by path (the PNG images
+    copied into a run folder) are downloaded into ``mirror`` by :meth:`path`. The backend's own
+    package must be installed on every node (``s3fs`` for s3://) with its credentials."""
+
+    def __init__(self, url: str, mirror: Path):
+        import fsspec
+
+        self.url = url.rstrip("/")
+        self.fs, self.base = fsspec.core.url_to_fs(self.url)
+        self.base = self.base.rstrip("/")
+        self.mirror = Path(mirror)
+
+    def _p(self, rel: str) -> str:
+        return f"{self.base}/{rel}"
+
+    def path(self, rel: str) -> Path:
+        """A local copy of the entry (fetched now; a path that does not exist when it is absent)."""
+        local = self.mirror / rel
+        data = self.read(rel)
+        if data is not None:
+            atomic_write_bytes(local, data)
+        return local
+
+    def read(self, rel: str) -> bytes | None:
+        try:
+            return self.fs.cat_file(self._p(rel))
+        except (FileNotFoundError, IsADirectoryError, NotADirectoryError):
+            return None
+
+    def write(self, rel: str, data: bytes) -> None:
+        self.fs.pipe_file(self._p(rel), bytes(data))
+
+    def delete(self, rel: str) -> None:
+        try:
+            self.fs.rm_file(self._p(rel))
+        except FileNotFoundError:
+            pass
+
+    def exists(self, rel: str) -> bool:
+        self.fs.invalidate_cache(self._p(rel))  # s3fs/gcsfs cache listings: ask the store itself
+        return self.fs.isfile(self._p(rel))
+
+
+def open_store(location: str | Path) -> tuple[LocalStore | FsspecStore, Path]:
+    """(store, local root) of a cache location: a folder, ``file://FOLDER``, or an fsspec URL (its
+    local root is a mirror folder under the harness cache, for the files opened by path)."""
+    if is_url(location) and not str(location).startswith("file://"):
+        from harness.core.paths import cache_dir
+
+        mirror = cache_dir() / "mirror" / hashlib.sha256(str(location).encode()).hexdigest()[:16]
+        return FsspecStore(str(location), mirror), mirror
+    root = Path(str(location)[len("file://"):] if is_url(location) else location)
+    return LocalStore(root), root
+
+
 def envelope(payload: bytes) -> bytes:
     return _MAGIC + hashlib.sha256(payload).hexdigest().encode() + b"\n" + payload
 
@@ -189,11 +258,14 @@ class StageCache:
     ``put_*`` store atomically. ``check`` arguments are schema checks returning a problem or None."""
 
     def __init__(self, root: str | Path, force: bool = False, warn: Callable[[str], None] | None = None,
-                 store: LocalStore | None = None):
-        self.root = Path(root)
+                 store: LocalStore | FsspecStore | None = None):
+        """``root``: a folder, ``file://FOLDER`` or an fsspec URL (see :func:`open_store`)."""
+        opened, self.root = open_store(root)
+        #: what a worker is given to open the same cache (an absolute folder, or the URL)
+        self.location = str(root) if isinstance(opened, FsspecStore) else str(self.root.absolute())
         self.force = force  # every lookup misses (results are recomputed and overwritten)
         self.root.mkdir(parents=True, exist_ok=True)
-        self.store = store or LocalStore(self.root)
+        self.store = store or opened
         self.files = FileDigests()
         self.hits: Counter = Counter()
         self.misses: Counter = Counter()
@@ -263,6 +335,10 @@ class StageCache:
         buf = io.BytesIO()
         np.save(buf, np.asarray(arr), allow_pickle=False)
         self.store.write(self.rel(stage, key, "npy"), envelope(buf.getvalue()))
+
+    def put_bytes(self, stage: str, key: str, ext: str, data: bytes) -> None:
+        """A file as is, without the checksum envelope (PNG images that are opened by path)."""
+        self.store.write(self.rel(stage, key, ext), data)
 
     def load_json(self, stage: str, key: str, check: Check | None = None):
         """Read an entry regardless of ``force`` and without counting (results of this run)."""

@@ -5,6 +5,10 @@ A config is a YAML mapping::
     name: default                 # run name (default: the file's stem)
     output: runs/default          # results directory (relative to the working directory)
     workers: 2                    # local process pool size (--workers overrides)
+    executor: local               # or ray (--executor / --address override); as a mapping:
+                                  # {name: ray, address: auto, cpus_per_task: 2, gpus_per_task: 0.5,
+                                  #  max_retries: 2}; address: absent = a local Ray cluster of
+                                  # `workers` workers, auto, HOST:PORT or ray://HOST:10001
     protocol:                     # how every scene is evaluated
       longest_side: 512           # render resolution (px, longest image side; default 1024)
       aspect: 1.3333              # width / height of rig views (default: the rig's own — a named
@@ -54,9 +58,6 @@ is wrong. Variant names are stable: ``<variant or 'default'>`` for plain entries
 from __future__ import annotations
 
 import itertools
-import math
-import os
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -65,20 +66,21 @@ from harness.core import ratios
 from harness.core.errors import InputError
 from harness.core.params import Params
 from harness.metrics.registry import METRICS, expand
+from harness.run.config_checks import choice as _choice
+from harness.run.config_checks import expand_env
+from harness.run.config_checks import fractions as _fractions
+from harness.run.config_checks import mapping as _mapping
+from harness.run.config_checks import names as _names
+from harness.run.config_checks import num as _num
+from harness.run.config_checks import only as _only
+from harness.run.config_checks import string as _str
+from harness.run.executor_spec import ExecutorSpec, parse_executor
 from harness.views import rigs
 from renderers import RENDERERS
 
 KINDS = ("forward-facing", "object-centric")
 TABLES = ("comparison", "ablation", "keep", "sensitivity", "runtime", "per_scene", "versus", "bd", "ctc")
 PLOTS = ("curves", "figure1", "figure3")
-
-_ENV = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)(?::-([^}]*))?\}")
-
-
-def expand_env(text: str) -> str:
-    """Expand ``${VAR}`` and ``${VAR:-default}`` (shell semantics: default when unset or empty)."""
-    return _ENV.sub(lambda m: os.environ.get(m.group(1)) or (m.group(2) or ""), text)
-
 
 @dataclass(frozen=True)
 class Protocol:
@@ -154,55 +156,7 @@ class RunConfig:
     anchor: str = "lightgs"  # the BD table's anchor method (harness.report.bd)
     #: held-out view protocols (harness.views.rigs.ViewProtocol); the first is the primary one
     protocols: tuple = (rigs.PROTOCOLS["rig"],)
-
-
-# --------------------------------------------------------------------------- small validators
-def _mapping(value, where: str, src: str) -> dict:
-    if value is None:
-        return {}
-    if not isinstance(value, dict):
-        raise InputError(src, f"{where}: expected a mapping, got {type(value).__name__}")
-    return value
-
-
-def _only(d: dict, allowed: set[str], where: str, src: str) -> None:
-    unknown = sorted(set(d) - allowed)
-    if unknown:
-        raise InputError(src, f"{where}: unknown key(s) {', '.join(unknown)}; allowed: {', '.join(sorted(allowed))}")
-
-
-def _num(v, where: str, src: str, *, lo=None, hi=None, integer=False):
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or (integer and not isinstance(v, int)):
-        raise InputError(src, f"{where}: expected {'an integer' if integer else 'a number'}, got {v!r}")
-    if not math.isfinite(v):
-        raise InputError(src, f"{where}: expected a finite number, got {v!r}")
-    if (lo is not None and v < lo) or (hi is not None and v > hi):
-        raise InputError(src, f"{where}: {v!r} is outside [{lo}, {hi}]")
-    return v
-
-
-def _str(v, where: str, src: str) -> str:
-    if not isinstance(v, str) or not v.strip():
-        raise InputError(src, f"{where}: expected a non-empty string, got {v!r}")
-    return v
-
-
-def _choice(v, choices, where: str, src: str) -> str:
-    if v not in choices:
-        raise InputError(src, f"{where}: {v!r} is not one of {', '.join(choices)}")
-    return v
-
-
-def _fractions(v, where: str, src: str) -> tuple[float, ...]:
-    if not isinstance(v, list) or not v:
-        raise InputError(src, f"{where}: expected a non-empty list of fractions in [0, 1]")
-    return tuple(float(_num(x, f"{where}[{i}]", src, lo=0.0, hi=1.0)) for i, x in enumerate(v))
-
-
-def _names(v, choices, where: str, src: str) -> tuple[str, ...]:
-    if not isinstance(v, list):
-        raise InputError(src, f"{where}: expected a list of names from {', '.join(choices)}")
-    return tuple(_choice(x, choices, f"{where}[{i}]", src) for i, x in enumerate(v))
+    executor: ExecutorSpec = field(default_factory=ExecutorSpec)
 
 
 def merge_ratios(ratio_list, keep) -> tuple[float, ...]:
@@ -430,7 +384,7 @@ def parse_config(data: Any, source: str = "<config>") -> RunConfig:
     src = source
     d = _mapping(data, "top level", src)
     _only(d, {"name", "output", "workers", "protocol", "ratios", "keep", "scenes", "methods", "tables", "plots",
-              "anchor", "protocols"}, "top level", src)
+              "anchor", "protocols", "executor"}, "top level", src)
     protocol = _protocol(d.get("protocol"), src)
     scenes_raw = d.get("scenes")
     if not isinstance(scenes_raw, list) or not scenes_raw:
@@ -469,6 +423,7 @@ def parse_config(data: Any, source: str = "<config>") -> RunConfig:
         raw=d,
         anchor=_anchor(d.get("anchor", "lightgs"), src),
         protocols=_protocols(d.get("protocols", ["rig"]), src),
+        executor=parse_executor(d.get("executor"), src),
     )
 
 

@@ -18,9 +18,7 @@ from __future__ import annotations
 
 import os
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
-from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
@@ -28,12 +26,12 @@ import numpy as np
 from harness.core import ratios
 from harness.run.cache import StageCache, digest_mask
 from harness.run.config import RunConfig
+from harness.run.executors import Bars, Executor, LocalExecutor, Stage
 from harness.run.plan import SceneItem, Skip, Versions, load_items, variants_for
 from harness.run.tasks import (
     MaskJob,
     ScoreTask,
     ViewTask,
-    init_worker,
     run_score,
     run_view,
 )
@@ -47,15 +45,6 @@ from harness.run.verify import (
     score_record_check,
 )
 from harness.run.versions import module_versions
-
-
-def _pool_worker_init(parent_pid: int, threads: int, imports, preload) -> None:
-    """Pool initializer: die with the driver (even on its ``kill -9``), then :func:`init_worker`."""
-    from harness.core.lifecycle import die_with_parent
-
-    die_with_parent(parent_pid)
-    init_worker(threads, imports, preload)
-
 
 #: pruned sets per view task: small enough to balance two workers, large enough that the per-task
 #: reference LPIPS features (one VGG pass) stay a small overhead
@@ -71,26 +60,18 @@ class RunResult:
     stage_s: dict[str, float]
     counts: dict[str, dict[str, int]]
     images: dict = field(default_factory=dict)  # (scene, method, variant, ratio) -> cache png path
+    executor: dict = field(default_factory=dict)  # where the work ran (run.json)
 
 
-def _terminate(pool: ProcessPoolExecutor) -> None:
-    """Stop a pool now: cancel what is queued, SIGTERM then SIGKILL every worker, reap them."""
-    procs = list((getattr(pool, "_processes", None) or {}).values())
-    pool.shutdown(wait=False, cancel_futures=True)
-    for p in procs:
-        if p.is_alive():
-            p.terminate()
-    for p in procs:
-        p.join(timeout=2.0)
-        if p.is_alive():
-            p.kill()
-            p.join(timeout=2.0)
+def _where(item: SceneItem) -> str:
+    """``scene`` or ``scene/frame``: how messages and task names point at a (scene, frame)."""
+    return f"{item.spec.name}/{item.frame}" if item.frame else item.spec.name
 
 
 class Runner:
-    def __init__(self, config: RunConfig, *, out_dir: Path, cache_root: Path, workers: int = 1,
+    def __init__(self, config: RunConfig, *, out_dir: Path, cache_root: Path | str, workers: int = 1,
                  force: bool = False, toolkit: Toolkit | None = None, progress=None, log=print,
-                 base_dir: Path | None = None):
+                 base_dir: Path | None = None, executor: Executor | None = None):
         self.config = config
         self.out_dir = Path(out_dir)
         self.cache = StageCache(cache_root, force=force, warn=lambda m: log(f"warning: {m}"))
@@ -102,52 +83,22 @@ class Runner:
         self.progress = progress  # a harness.run.progress.StageProgress or None
         self.log = log
         self.base = Path(base_dir) if base_dir else Path.cwd()
-        self.threads = max(1, (os.cpu_count() or 1) // self.workers)
         self.primary = config.protocols[0].name  # the held-out views of the rig the methods train on
+        #: where the work units run (the caller closes an executor it passed; ours is closed by run())
+        self.executor = executor or LocalExecutor(self.workers, self.toolkit)
+        self._own_executor = executor is None
+        self.threads = getattr(self.executor, "threads", max(1, (os.cpu_count() or 1) // self.workers))
         self.stage_s: dict[str, float] = {}
         self.errors: list[str] = []
 
     # ------------------------------------------------------------------ execution helpers
+    def _stages(self, *stages: Stage) -> list[list[dict]]:
+        """Run the stages' tasks on the executor (one pipeline when it can), advancing their bars."""
+        return self.executor.run(stages, Bars(self.progress))
+
     def _map(self, stage: str, fn, tasks: list, weight=lambda t: 1):
-        """Run ``fn`` over ``tasks`` on the pool (or in-process), advancing the stage's bar."""
-        results = []
-        if not tasks:  # everything cached: no worker start-up, no heavy imports
-            return results
-        bar = self.progress.stage(stage, sum(weight(t) for t in tasks)) if self.progress else None
-        if self.workers == 1 or len(tasks) <= 1:
-            init_worker(self.threads, self.toolkit.imports, self.toolkit.preload)
-            for t in tasks:
-                done = [0]  # units the task reported itself (a view task reports each measured set)
-
-                def report(n=1, done=done):
-                    done[0] += n
-                    if bar:
-                        bar.advance(n)
-
-                results.append(fn(t, progress=report) if fn is run_view else fn(t))
-                if bar and weight(t) > done[0]:  # the rest of its weight (e.g. a reference render)
-                    bar.advance(weight(t) - done[0])
-        else:
-            ctx = get_context("spawn")
-            pool = ProcessPoolExecutor(self.workers, mp_context=ctx, initializer=_pool_worker_init,
-                                       initargs=(os.getpid(), self.threads, self.toolkit.imports,
-                                                 self.toolkit.preload))
-            try:
-                futures = {pool.submit(fn, t): t for t in tasks}
-                for fut in as_completed(futures):
-                    try:
-                        results.append(fut.result())
-                    except Exception as err:  # a worker died (e.g. killed, segfault): record, go on
-                        results.append(futures[fut].failed(f"worker failed: {type(err).__name__}: {err}"))
-                    if bar:
-                        bar.advance(weight(futures[fut]))
-            except BaseException:  # SIGTERM / Ctrl-C / an error here: the workers go with the run
-                _terminate(pool)
-                raise
-            pool.shutdown(wait=True)
-        if bar:
-            bar.finish()
-        return results
+        """Run ``fn`` over ``tasks`` on the executor, advancing the stage's bar."""
+        return self._stages(Stage(stage, fn, tasks, weight))[0]
 
     def _timed(self, stage: str, fn, *args):
         t0 = time.perf_counter()
@@ -160,6 +111,13 @@ class Runner:
     def run(self) -> RunResult:
         from methods.registry import get_pruner
 
+        try:
+            return self._run(get_pruner)
+        finally:
+            if self._own_executor:
+                self.executor.close()
+
+    def _run(self, get_pruner) -> RunResult:
         t_all = time.perf_counter()
         self.toolkit.check_metrics(self.config.protocol.metrics)
         versions = Versions.of(self.toolkit)
@@ -181,7 +139,8 @@ class Runner:
         # content hashing of the inputs (every run; part of "load"): its cost, reported in run.json
         self.stage_s["hash_inputs"] = self.cache.files.seconds
         self.hashed_bytes = self.cache.files.hashed_bytes
-        return RunResult(self.out_dir, rows, skips, self.errors, self.stage_s, self.cache.counts(), images)
+        return RunResult(self.out_dir, rows, skips, self.errors, self.stage_s, self.cache.counts(), images,
+                         executor=self.executor.describe())
 
     def _score_key(self, item: SceneItem, mv, spec) -> str:
         aware = spec.wants_cameras(mv.params)
@@ -212,16 +171,22 @@ class Runner:
                 if key not in pending:
                     pending[key] = []
                     tasks.append(ScoreTask(
-                        str(self.cache.root), key, item.path, item.spec.lod, item.digest, mv.method,
+                        self.cache.location, key, item.path, item.spec.lod, item.digest, mv.method,
                         mv.params, p.seed, [c.to_dict() for c in item.train] if spec.wants_cameras(mv.params) else None,
-                        p.device, self.toolkit))
+                        p.device, self.toolkit, label=f"{_where(item)} {mv.key}"))
                 pending[key].append((i, mv.key))
-        if self.workers > 1:  # camera-aware (rendering) and big scenes first, so the pool ends together
+        if self.executor.parallel:  # camera-aware (rendering) and big scenes first, so the pool ends together
             cost = {k: items[ik[0][0]].n_splats * (10 if t.train else 1) for t, (k, ik) in zip(tasks, pending.items())}
             tasks.sort(key=lambda t: -cost[t.key])
+
+        def who(key: str) -> str:  # every (scene, method, ratios) that a score entry serves
+            mvs = {m.key: m for m in self.config.methods}
+            return "; ".join(f"{_where(items[i])} {mk} (ratios {', '.join(format(r, 'g') for r in mvs[mk].ratios)})"
+                             for i, mk in pending[key])
+
         for res in self._map("score", run_score, tasks):
             if res["error"]:
-                self.errors.append(f"score {res['key'][:12]}: {res['error']}")
+                self.errors.append(f"score {who(res['key'])} [{res['key'][:12]}]: {res['error']}")
                 for ik in pending[res["key"]]:
                     out[ik] = (res["key"], {"error": res["error"]})
                 continue
@@ -229,7 +194,7 @@ class Runner:
             rec = self.cache.load_json("score", res["key"], check=score_record_check(n))
             if rec is None or self.cache.load_array("score", res["key"], check=score_array_check(n)) is None:
                 rec = {"error": "the stored scores failed verification"}
-                self.errors.append(f"score {res['key'][:12]}: {rec['error']}")
+                self.errors.append(f"score {who(res['key'])} [{res['key'][:12]}]: {rec['error']}")
             for ik in pending[res["key"]]:
                 out[ik] = (res["key"], rec)
         return out, skips
@@ -270,7 +235,8 @@ class Runner:
                         if arr is None:
                             arr = self.cache.load_array("score", skey, check=score_array_check(n))
                             if arr is None:
-                                self.errors.append(f"prune {key[:12]}: scores {skey[:12]} failed verification")
+                                self.errors.append(f"prune {_where(item)} {mv.key} ratio {r:g} [{key[:12]}]: "
+                                                   f"scores {skey[:12]} failed verification")
                                 break
                         t0 = time.perf_counter()
                         sel = select_by_ratio(arr, r)
@@ -298,15 +264,24 @@ class Runner:
         its view's reference features unless its worker measured the same view just before."""
         p = self.config.protocol
         refs, chunks = [], []
+        views: dict[str, str] = {}  # ref key -> "scene[/frame] view NAME" (error messages)
+        users: dict[str, str] = {}  # metrics key -> the methods and ratios that keep those splats
         for i, item in enumerate(items):
             masks = list(dict.fromkeys(rec["mask"] for mv in variants_for(item, self.config.methods)
                                        for r in mv.ratios if (rec := prunes.get((i, mv.key, r))) is not None))
+            kept_by: dict[str, list[str]] = {}
+            for mv in variants_for(item, self.config.methods):
+                for r in mv.ratios:
+                    if (rec := prunes.get((i, mv.key, r))) is not None:
+                        kept_by.setdefault(rec["mask"], []).append(f"{mv.key} ratio {r:g}")
             for proto, v, cam in item.views(self.primary):
                 ref_key = self._ref_key(item, cam)
+                views[ref_key] = f"{_where(item)} {proto} view {cam.name or f'view{v:02d}'}"
                 first = proto == self.primary and v == 0  # its pruned renders are kept as images (figures, report)
                 jobs = []
                 for mask in masks:
                     mkey = self._metrics_key(ref_key, mask)
+                    users[mkey] = ", ".join(kept_by.get(mask, ()))
                     measured = self.cache.get_json("metrics", mkey, check=metrics_check(p.metrics)) is not None
                     if not measured or (first and not self.cache.has("images", mkey, "png")):
                         jobs.append(MaskJob(mkey, mask, first))
@@ -314,23 +289,28 @@ class Runner:
                                                check=render_ref_record_check(cam.width, cam.height)) is not None
 
                 def task(jobs_, render_ref=False, ref_png=False, ref_key=ref_key, item=item, cam=cam):
-                    return ViewTask(str(self.cache.root), ref_key, item.path, item.spec.lod, item.digest,
+                    return ViewTask(self.cache.location, ref_key, item.path, item.spec.lod, item.digest,
                                     item.n_splats, cam.to_dict(), p.renderer, p.device, p.background, p.metrics,
-                                    jobs_, render_ref=render_ref, ref_png=ref_png, toolkit=self.toolkit)
+                                    jobs_, render_ref=render_ref, ref_png=ref_png, toolkit=self.toolkit,
+                                    label=views[ref_key])
 
                 ref_png = not self.cache.has("images", ref_key, "png")  # contact sheets and figures
                 if not have_ref or ref_png:
                     refs.append(task([], render_ref=not have_ref, ref_png=ref_png))
                 cost = len(jobs) * (1.0 + item.n_splats / 5e5)  # LPIPS pass + a render growing with N
                 chunks += [(cost, task(jobs[c:c + CHUNK])) for c in range(0, len(jobs), CHUNK)]
-        if self.workers > 1:  # longest first; in-process order keeps a view's chunks together
+        if self.executor.parallel:  # longest first; in-process order keeps a view's chunks together
             refs.sort(key=lambda t: -t.n_splats)
             chunks.sort(key=lambda ct: -ct[0])
-        results = self._map("render_ref", run_view, refs)
-        results += self._map("render+metrics", run_view, [t for _, t in chunks], weight=lambda t: len(t.masks))
-        for res in results:
+        # one call: an executor that pipelines (Ray) starts a view's pruned sets once its reference is
+        # rendered; the local one runs the two stages one after the other
+        done = self._stages(Stage("render_ref", run_view, refs),
+                            Stage("render+metrics", run_view, [t for _, t in chunks], weight=lambda t: len(t.masks)))
+        for res in done[0] + done[1]:
             for key, err in res["errors"]:
-                self.errors.append(f"view {res['ref_key'][:12]}{'' if key is None else ' mask ' + key[:12]}: {err}")
+                what = views.get(res["ref_key"], res["ref_key"][:12])
+                self.errors.append(f"render {what}" + ("" if key is None else f" pruned by {users.get(key) or '?'} "
+                                                       f"[{key[:12]}]") + f": {err}")
 
     # ------------------------------------------------------------------ aggregate
     def _rows(self, items, scores, prunes, skips):

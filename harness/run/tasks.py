@@ -5,6 +5,12 @@ atomically, and returns a small summary (timings, errors). The planner decided w
 loaded scene, the renderer (one GL context per process), the metric suite with its cached
 reference features — lives in :data:`_STATE`, so consecutive tasks on the same scene or view reuse it.
 
+The same functions run on every executor (:mod:`harness.run.executors`). An executor that holds
+inputs in shared memory (Ray's object store) hands them in: ``scene=`` the loaded scene, and for a
+view ``ref=`` its reference render ``(image, alpha or None)``; such arrays may be read-only, and
+nothing here writes into its inputs. ``keep_ref=True`` returns the reference a view task rendered
+(``out["ref_images"]``) so that it can be passed on instead of being read back from the cache.
+
 Thread budget: :func:`init_worker` sets torch/numba/BLAS threads to ``threads`` so that
 ``workers × threads ≤ cores``.
 """
@@ -57,7 +63,7 @@ def init_worker(threads: int, imports: tuple[str, ...] = (), preload: tuple[str,
 def _cache(root: str) -> StageCache:
     # a worker's warnings go to stderr as one line each (StageCache's default)
     c = _STATE.get("cache")
-    if c is None or str(c.root) != root:
+    if c is None or c.location != root:
         c = _STATE["cache"] = StageCache(root)
     return c
 
@@ -100,9 +106,7 @@ def png_bytes(img: np.ndarray) -> bytes:
 
 
 def put_png(cache: StageCache, key: str, img: np.ndarray) -> None:
-    from harness.io.files import atomic_write_bytes
-
-    atomic_write_bytes(cache.path("images", key, "png"), png_bytes(img))
+    cache.put_bytes("images", key, "png", png_bytes(img))
 
 
 # --------------------------------------------------------------------------- score
@@ -119,19 +123,22 @@ class ScoreTask:
     train: list[dict] | None  # camera dicts, for the pruners that use cameras
     device: str
     toolkit: Toolkit = field(default_factory=Toolkit)
+    label: str = ""  # what it computes, for task names and messages (scene, frame, method)
 
     def failed(self, message: str) -> dict:
         return {"key": self.key, "error": message, "seconds": 0.0}
 
 
-def run_score(task: ScoreTask) -> dict:
-    """Score every splat with one method variant; store scores (npy) then their record (json)."""
+def run_score(task: ScoreTask, scene=None) -> dict:
+    """Score every splat with one method variant; store scores (npy) then their record (json).
+    ``scene``: the loaded scene when the executor has it (else it is loaded here)."""
     from methods.registry import PruneContext, get_pruner
 
     cache = _cache(task.cache_root)
     out = {"key": task.key, "error": None, "seconds": 0.0}
     try:
-        scene = _scene(task.toolkit, task.path, task.lod, task.scene_digest)
+        if scene is None:
+            scene = _scene(task.toolkit, task.path, task.lod, task.scene_digest)
         spec = get_pruner(task.method)
         cams = [Camera.from_dict(c) for c in task.train] if task.train else None
         ctx = PruneContext(params=task.params, seed=task.seed, cameras=cams, device=task.device)
@@ -172,6 +179,7 @@ class ViewTask:
     render_ref: bool = True  # False: the reference render is cached, load it
     ref_png: bool = False
     toolkit: Toolkit = field(default_factory=Toolkit)
+    label: str = ""  # what it computes, for task names and messages (scene, frame, view)
 
     def failed(self, message: str) -> dict:
         return {"ref_key": self.ref_key, "errors": [(None, message)], "done": 0}
@@ -189,29 +197,35 @@ def render_alpha(renderer, scene, cam: Camera, background) -> tuple[np.ndarray, 
     return img, (1.0 - (white - black).mean(axis=2)).astype(np.float32)
 
 
-def run_view(task: ViewTask, progress=None) -> dict:
+def run_view(task: ViewTask, progress=None, scene=None, ref=None, keep_ref: bool = False) -> dict:
     """Reference render of one view (cached), then each not-yet-measured pruned set of it.
 
     The reference's metric features are computed once here and reused for every pruned render.
-    ``progress(n)`` is called after each stored metrics entry (in-process runs only).
+    ``progress(n)`` is called after each stored metrics entry (in-process runs only). ``scene``:
+    the loaded scene, ``ref``: ``(image, alpha or None)`` of the reference rendered by an earlier
+    task of this run, when the executor has them (else they are loaded / read from the cache).
     """
     cache = _cache(task.cache_root)
     out = {"ref_key": task.ref_key, "errors": [], "done": 0}
     cam = Camera.from_dict(task.camera)
     todo = task.masks
     try:
-        scene = _scene(task.toolkit, task.path, task.lod, task.scene_digest)
+        if scene is None:
+            scene = _scene(task.toolkit, task.path, task.lod, task.scene_digest)
         renderer = _renderer(task.toolkit, task.renderer, task.device)
         from harness.metrics.registry import needs_alpha
         from harness.run.verify import alpha_check, image_check, mask_check
 
         alpha = needs_alpha(task.metrics)  # OM metrics: occupancy from both renders (stored with the reference)
+        given = ref if ref is not None and not task.render_ref and image_check(cam.width, cam.height)(ref[0]) is None \
+            else None
         # a cached reference that fails its checksum or shape is discarded and rendered again
-        ref = None if task.render_ref else cache.get_array("render_ref", task.ref_key, count=False,
-                                                           check=image_check(cam.width, cam.height))
-        ref_alpha = cache.get_array("render_alpha", task.ref_key, count=False,
-                                    check=alpha_check(cam.width, cam.height)) \
-            if alpha and todo and ref is not None else None
+        ref = None if task.render_ref else given[0] if given is not None else \
+            cache.get_array("render_ref", task.ref_key, count=False, check=image_check(cam.width, cam.height))
+        ref_alpha = None
+        if alpha and todo and ref is not None:
+            ref_alpha = given[1] if given is not None and given[1] is not None else \
+                cache.get_array("render_alpha", task.ref_key, count=False, check=alpha_check(cam.width, cam.height))
         if ref is None or (alpha and todo and ref_alpha is None):
             t0 = time.perf_counter()
             if alpha:
@@ -224,6 +238,8 @@ def run_view(task: ViewTask, progress=None) -> dict:
             cache.put_json("render_ref", task.ref_key, ref_rec)
         if task.ref_png:
             put_png(cache, task.ref_key, ref)
+        if keep_ref:
+            out["ref_images"] = (ref, ref_alpha)
         if todo:
             suite = _metrics(task.toolkit, task.metrics, task.device)
             t0 = time.perf_counter()

@@ -1,0 +1,151 @@
+"""`harness bench executors`: the local process pool against Ray on one config, cold cache, one sitting.
+
+Runs ``harness run CONFIG --executor E --workers W`` as a fresh subprocess for E in (local, ray) and
+W in (1, 2) — each from an empty stage cache, so every stage is computed — and reports per run the
+wall time of the whole command (process start, Ray cluster start and stop included: what a user
+waits for) and the runner's own ``stage_seconds.total`` from ``run.json`` (the stages without start-up).
+
+Goals of issue 17, both ratios of runs taken in the same sitting (the order of the runs is
+interleaved over the repeats, so a drift in the machine's load hits every variant alike):
+
+* Ray overhead at equal workers: ``wall(ray-W) / wall(local-W) - 1`` ≤ 15 %;
+* speed-up from one to two workers: ``wall(E-1) / wall(E-2)`` ≥ 1.7.
+
+Every run's ``results.csv`` must equal the first run's except the wall-clock columns; the table
+says whether it did. Results: ``results/bench/executors.{json,md}``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+NAME = "executors"
+HELP = ("ci.yaml (cold cache) on the local pool and on Ray with 1 and 2 workers, in one run: Ray's overhead "
+        "at equal workers (goal: at most 15 percent) and the 1 -> 2 worker speed-up (goal >= 1.7x)")
+
+#: the columns of results.csv measured by the clock (differ between any two runs)
+TIMING = ["score_s", "prune_s", "render_ref_s", "render_s", "metrics_s"]
+VARIANTS = (("local", 1), ("local", 2), ("ray", 1), ("ray", 2))
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--config", default="ctc_configs/ci.yaml", help="run config (default ctc_configs/ci.yaml)")
+    parser.add_argument("--repeats", type=int, default=1, help="cold runs per variant (median reported; default 1)")
+    parser.add_argument("--timeout", type=float, default=1800, help="seconds one run may take (default 1800)")
+
+
+def _one_run(config: str, executor: str, workers: int, timeout: float) -> dict:
+    """One cold ``harness run`` in a fresh subprocess: wall seconds, run.json, results.csv."""
+    import pandas as pd
+
+    from harness.core.errors import InputError
+
+    with tempfile.TemporaryDirectory(prefix="bench-exec-") as tmp:
+        out, cache = Path(tmp) / "out", Path(tmp) / "cache"
+        cmd = [sys.executable, "-m", "harness", "run", config, "--executor", executor, "--workers", str(workers),
+               "--out", str(out), "--cache", str(cache)]
+        t0 = time.perf_counter()
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+        wall = time.perf_counter() - t0
+        if proc.returncode != 0:
+            tail = (proc.stderr or proc.stdout).strip().splitlines()[-1:] or ["(no output)"]
+            raise InputError(config, f"harness run --executor {executor} --workers {workers} failed "
+                                     f"(exit {proc.returncode}): {tail[0]}")
+        record = json.loads((out / "run.json").read_text())
+        results = pd.read_csv(out / "results.csv", keep_default_na=False, dtype=str).drop(columns=TIMING,
+                                                                                           errors="ignore")
+    return {"wall_s": wall, "stages_s": float(record["stage_seconds"]["total"]), "results": results,
+            "executor": record.get("executor", {})}
+
+
+def _median(xs: list[float]) -> float:
+    import statistics
+
+    return float(statistics.median(xs))
+
+
+def summarise(walls: dict[tuple[str, int], list[float]]) -> dict:
+    """Overhead of Ray at equal workers and the 1 -> 2 speed-up of each executor (medians)."""
+    med = {k: _median(v) for k, v in walls.items()}
+    out = {}
+    for w in (1, 2):
+        if ("local", w) in med and ("ray", w) in med:
+            out[f"ray_overhead_{w}"] = med[("ray", w)] / med[("local", w)] - 1.0
+    for e in ("local", "ray"):
+        if (e, 1) in med and (e, 2) in med:
+            out[f"speedup_{e}"] = med[(e, 1)] / med[(e, 2)]
+    return out
+
+
+def _markdown(config: str, runs: list[dict], walls, stages, summary: dict, identical: bool) -> str:
+    cores = os.cpu_count()
+    lines = [f"# harness bench executors ({config}, cold cache, {cores} cores)", "",
+             "| executor | workers | wall s (median) | stages s (median) | start-up + teardown s | runs |",
+             "|---|---|---|---|---|---|"]
+    for (e, w) in VARIANTS:
+        if (e, w) not in walls:
+            continue
+        wall, st = _median(walls[(e, w)]), _median(stages[(e, w)])
+        lines.append(f"| {e} | {w} | {wall:.1f} | {st:.1f} | {wall - st:.1f} | "
+                     f"{', '.join(f'{x:.1f}' for x in walls[(e, w)])} |")
+
+    def goal(value, ok):
+        return f"**{value}** ({'met' if ok else 'missed'})"
+
+    lines += ["", "| quantity | value |", "|---|---|"]
+    for w in (1, 2):
+        if (k := f"ray_overhead_{w}") in summary:
+            v = summary[k]
+            lines.append(f"| Ray overhead at {w} worker(s): wall(ray) / wall(local) - 1 (goal <= 15 %) | "
+                         f"{goal(f'{100 * v:+.1f} %', v <= 0.15)} |")
+    for e in ("local", "ray"):
+        if (k := f"speedup_{e}") in summary:
+            v = summary[k]
+            lines.append(f"| {e}: speed-up 1 -> 2 workers (goal >= 1.7x) | {goal(f'{v:.2f}x', v >= 1.7)} |")
+    lines.append(f"| results.csv identical across all {len(runs)} runs (timing columns aside) | "
+                 f"{'yes' if identical else '**no**'} |")
+    lines += ["", "Wall: the whole `harness run` command as a user waits for it (interpreter start, Ray cluster "
+              "start and stop); stages: the runner's `stage_seconds.total` from run.json. Runs interleaved "
+              "(local-1, local-2, ray-1, ray-2, then again per repeat)."]
+    return "\n".join(lines)
+
+
+def run(args) -> int:
+    from harness.benchmarks._common import write_result
+    from harness.core.errors import InputError
+
+    if args.repeats < 1:
+        raise InputError("--repeats", f"must be >= 1, got {args.repeats}")
+    if not Path(args.config).is_file():
+        raise InputError(args.config, "no such config file")
+    walls: dict = {}
+    stages: dict = {}
+    runs: list[dict] = []
+    first = None
+    identical = True
+    for rep in range(args.repeats):
+        for e, w in VARIANTS:
+            print(f"bench executors: {e}-{w} (repeat {rep + 1}/{args.repeats}) ...", flush=True)
+            r = _one_run(args.config, e, w, args.timeout)
+            print(f"  wall {r['wall_s']:.1f} s, stages {r['stages_s']:.1f} s", flush=True)
+            walls.setdefault((e, w), []).append(r["wall_s"])
+            stages.setdefault((e, w), []).append(r["stages_s"])
+            if first is None:
+                first = r["results"]
+            elif not r["results"].equals(first):
+                identical = False
+            runs.append({"executor": e, "workers": w, "repeat": rep, "wall_s": r["wall_s"],
+                         "stages_s": r["stages_s"], "executor_record": r["executor"]})
+    summary = summarise(walls)
+    md = _markdown(args.config, runs, walls, stages, summary, identical)
+    path = write_result("executors", {"config": args.config, "runs": runs, "summary": summary,
+                                      "results_identical": identical}, md)
+    print(md)
+    print(f"wrote {path}")
+    return 0 if identical else 1
