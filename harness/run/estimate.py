@@ -1,0 +1,323 @@
+"""What a **cold** run of a config costs, before running it: work units per stage × unit costs.
+
+Counting follows the runner's stages (:mod:`harness.run.runner`) and reads no more than headers:
+
+* **load** — one per (scene, frame): reading the file, ``read_splat · N`` (serial, in the driver;
+  hashing the files, ~0.5 s per GB, is not counted).
+* **score** — one task per distinct (scene, frame, method, resolved params) (the cache key's
+  inputs); a camera-aware pruner renders its training views: LightGS-like ones (no
+  ``iterations`` parameter) each of the ``n_train`` views once, ConfSplat-like ones each view once
+  to set up plus one view per iteration: ``cost = k_m · renders · render(N, P_train)``, with
+  ``P_train`` the training view resized to the method's ``train_longest_side``. Camera-free
+  pruners cost ``score_splat[m] · N``.
+* **prune** — one selection per distinct (score task, ratio): ``select_splat · N`` (serial, driver).
+* **render_ref** — one per (scene, frame, protocol, held-out view): ``render(N, W·H)``.
+* **render+metrics** — one image per pruned set × held-out view: ``render(N·keep, W·H)`` plus the
+  metric passes of the config's metrics (:func:`metric_passes`: 3dgs = PSNR + SSIM + LPIPS; mpeg =
+  4 PSNR-like passes on 8-bit images + 2 SSIM passes, YUV and occupancy-masked) plus
+  :data:`IMAGE_OVERHEAD_S`; every view task of :data:`CHUNK` sets also computes the view's LPIPS
+  reference features once (``lpips_ref_px · W·H``). Pruned sets are counted as distinct (score
+  task, ratio) pairs: an **upper bound**, since methods that keep identical splats share one entry
+  (the default study measures 114 sets where this counts 130).
+
+``render(N, P) = c_N·N + c_P·P`` and the other units are core-seconds per splat or pixel
+(:mod:`harness.run.unit_costs`). **Wall time on W workers** (one core each, parallel efficiency e):
+the pool stages run one after another, each taking ``max(core_s / (W·e), longest task)`` plus
+:data:`STARTUP_S` (spawn, imports, JIT); the driver's stages (load, prune) are serial. So doubling
+the workers halves a stage's wall time until its longest single task — camera-aware scoring of the
+largest scene, or one view task of the largest — bounds it from below.
+
+Scenes whose files are absent (the MPEG sequences are not public) are estimated from
+:class:`Assumptions`, and every row says whether it was read or assumed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from harness.core.errors import InputError
+from harness.run.config import RunConfig, SceneSpec
+from harness.run.unit_costs import UnitCosts, train_pixels
+
+#: pruned sets per view task (as :data:`harness.run.runner.CHUNK`)
+CHUNK = 8
+#: per pool stage: spawning workers, importing torch/lpips, numba's first compile (default study:
+#: its first score results came after ~15 s, its first reference renders after ~20 s)
+STARTUP_S = 20.0
+#: per measured image, work outside the timed render and metrics: reading and unpacking the mask,
+#: PNGs, cache writes, the driver (default study, second half on this machine: 2,009 CPU-s for
+#: 1,498 images where the render and metric units give 1.23 core-s each: +0.1 s)
+IMAGE_OVERHEAD_S = 0.1
+#: held-out cameras of the MPEG sequences whose count is public (VGSC evaluation scripts: test
+#: views 0..20, 0..14, 0..20); other sequences: :data:`DEFAULT_VIEWS`
+KNOWN_VIEWS = {"bartender": 21, "breakfast": 15, "cinema": 21}
+DEFAULT_VIEWS = 21
+STAGES = ("load", "score", "prune", "render_ref", "render+metrics")
+SERIAL = ("load", "prune")
+
+
+@dataclass(frozen=True)
+class Assumptions:
+    """What an absent scene is taken to be: ``frames`` per sequence (the issue's 32), ``views``
+    cameras (None: :data:`KNOWN_VIEWS` by name, else :data:`DEFAULT_VIEWS`), ``splats`` per frame
+    and the native ``size`` (the CTC's 1920×1080)."""
+
+    frames: int = 32
+    views: int | None = None
+    splats: int = 1_000_000
+    size: tuple[int, int] = (1920, 1080)
+
+
+@dataclass
+class SceneInfo:
+    name: str
+    status: str                    # "read" or "assumed"
+    note: str                      # what was read, or why it is assumed
+    splats: list[int]              # per frame
+    views: list[tuple[int, int]]   # (W, H) of every held-out view, all protocols
+    train: list[tuple[int, int]]   # (W, H) of the views handed to camera-aware pruners
+
+
+@dataclass
+class Stage:
+    name: str
+    units: int = 0
+    core_s: float = 0.0
+    longest_s: float = 0.0
+    detail: dict = field(default_factory=dict)
+
+    def add(self, units: int, core_s: float, longest_s: float = 0.0) -> None:
+        self.units += units
+        self.core_s += core_s
+        self.longest_s = max(self.longest_s, longest_s)
+
+
+@dataclass
+class Estimate:
+    stages: dict[str, Stage]
+    scenes: list[dict]
+    passes: dict[str, int]
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def core_s(self) -> float:
+        return sum(s.core_s for s in self.stages.values())
+
+    def wall_s(self, workers: int, efficiency: float) -> float:
+        """Projected wall seconds on ``workers`` one-core workers (module docstring)."""
+        out = 0.0
+        for s in self.stages.values():
+            if s.name in SERIAL:
+                out += s.core_s
+            elif s.units:
+                out += STARTUP_S + max(s.core_s / (workers * efficiency), s.longest_s)
+        return out
+
+    def nodes(self, hours: float, cores: int, efficiency: float) -> tuple[int, int | None]:
+        """(nodes by CPU-hours = ceil(core_s / (hours · cores · e)), the fewest nodes whose
+        projected wall time fits in ``hours`` — None when the serial stages and longest tasks alone
+        take longer)."""
+        by_cpu = max(1, math.ceil(self.core_s / (hours * 3600 * cores * efficiency)))
+        for n in range(by_cpu, by_cpu * 64 + 1):
+            if self.wall_s(n * cores, efficiency) <= hours * 3600:
+                return by_cpu, n
+        return by_cpu, None
+
+
+# --------------------------------------------------------------------------- what the scenes are
+def splat_count(path: Path, lod=None) -> int:
+    """Splats in a scene file from its header (PLY) or size (.splat); other formats are read."""
+    from harness.io.detect import detect
+
+    kind = detect(path).kind
+    if kind in ("ply", "compressed-ply"):
+        from harness.io.ply import read_ply_header
+
+        vertex = read_ply_header(path).element("vertex")
+        if vertex is not None and kind == "ply":
+            return vertex.count
+    if kind == "splat":
+        from harness.io.splat import SPLAT_RECORD
+
+        return path.stat().st_size // SPLAT_RECORD.itemsize
+    from harness.io.scenes import load_scene
+
+    return len(load_scene(path, lod=lod))
+
+
+def _rig_size(spec: SceneSpec, config: RunConfig, dataset: str | None) -> tuple[int, int]:
+    from harness.views import rigs
+
+    aspect = config.protocol.aspect
+    if aspect is None and spec.rig == "default" and dataset in rigs.SCENE_RIGS:
+        aspect = rigs.SCENE_RIGS[dataset].aspect
+    return rigs.image_size(config.protocol.longest_side, aspect or rigs.ASPECT)
+
+
+def _split(n: int, names: tuple, every: int) -> tuple[int, int]:
+    """(train, test) counts of ``n`` cameras split by test names / every k-th (none: all are both)."""
+    if names:
+        test = min(len(names), n)
+    elif every:
+        test = math.ceil(n / every)
+    else:
+        return n, n
+    return n - test, test
+
+
+def _sizes(cams) -> list[tuple[int, int]]:
+    return [(c.width, c.height) for c in cams]
+
+
+def _present_views(spec, config, toolkit, base, dataset):
+    from harness.run.plan import _select_test
+
+    if spec.sequence is not None:
+        from harness.io.sequences import find_sequence, sequence_cameras
+
+        root = Path(spec.sequence) if Path(spec.sequence).is_absolute() else base / spec.sequence
+        cams = sequence_cameras(find_sequence(root)[0], spec.width, spec.height)
+        train, test = _select_test(cams, spec) if spec.test or spec.test_every else (cams, cams)
+        return _sizes(test), _sizes(train)
+    if spec.cameras is not None:
+        path = Path(spec.cameras.path) if Path(spec.cameras.path).is_absolute() else base / spec.cameras.path
+        cams = [c.resized(config.protocol.longest_side) for c in toolkit.load_cameras(str(path))]
+        train, test = _select_test(cams, spec.cameras)
+        return _sizes(test), _sizes(train)
+    size = _rig_size(spec, config, dataset)
+    return [size] * (spec.n_test * len(config.protocols)), [size] * spec.n_train
+
+
+def _assumed(spec, config, assume: Assumptions, dataset, reason: str) -> SceneInfo:
+    frames = 1 if spec.source is not None else assume.frames
+    if spec.sequence is None and spec.cameras is None:  # a rig: its views need no scene
+        views, train = _present_views(spec, config, None, Path("."), dataset)
+        return SceneInfo(spec.name, "assumed", f"{reason}; assumed {frames} frame(s) of {assume.splats:,} splats",
+                         [assume.splats] * frames, views, train)
+    n = assume.views or next((v for k, v in KNOWN_VIEWS.items() if k in spec.name.lower()), DEFAULT_VIEWS)
+    if spec.sequence is not None:
+        size = (spec.width, spec.height) if spec.width else assume.size
+        n_train, n_test = _split(n, spec.test, spec.test_every)
+    else:
+        from harness.views import rigs
+
+        size = rigs.image_size(config.protocol.longest_side, config.protocol.aspect or rigs.ASPECT)
+        n_train, n_test = _split(n, spec.cameras.test, spec.cameras.test_every)
+    note = (f"{reason}; assumed {frames} frame(s) × {assume.splats:,} splats, {n} cameras at "
+            f"{size[0]}×{size[1]} ({n_test} measured, {n_train} for training)")
+    return SceneInfo(spec.name, "assumed", note, [assume.splats] * frames, [size] * n_test, [size] * n_train)
+
+
+def scene_info(spec: SceneSpec, config: RunConfig, assume: Assumptions, toolkit=None, base: Path | None = None):
+    """A scene as the estimate sees it: read (file headers, camera files) when present, else assumed."""
+    from harness.run.plan import _cameras_missing, resolve_paths
+    from harness.run.toolkit import Toolkit
+
+    toolkit, base = toolkit or Toolkit(), Path(base or ".")
+    dataset = spec.source if spec.source and toolkit.resolve_dataset(spec.source) else None
+    frames, reason = resolve_paths(spec, toolkit, base)
+    reason = reason or _cameras_missing(spec, base)
+    if not reason:
+        try:
+            splats = [splat_count(Path(p), spec.lod) for _, p in frames]
+            views, train = _present_views(spec, config, toolkit, base, dataset)
+            return SceneInfo(spec.name, "read", f"{len(frames)} frame(s) read", splats, views, train)
+        except InputError as err:
+            reason = f"cannot read it ({err})"
+    return _assumed(spec, config, assume, dataset, reason)
+
+
+# --------------------------------------------------------------------------- counting and costing
+def metric_passes(names) -> dict[str, int]:
+    """Passes per measured image: ``lpips`` (LPIPS-VGG trunk), ``ssim`` (3-plane SSIM) and ``psnr``
+    (a PSNR-like pass: squared errors, 8-bit quantisation, colour conversion)."""
+    out = {"lpips": 0, "ssim": 0, "psnr": 0}
+    for n in names:
+        out["lpips" if n == "lpips" else "ssim" if "ssim" in n else "psnr"] += 1
+    return out
+
+
+def _score_cost(mv, spec, n: int, train, units: UnitCosts, notes: set) -> tuple[float, int]:
+    """(core-seconds, training renders) of one score task on a frame of ``n`` splats."""
+    if "cameras" not in spec.needs:
+        unit = units.score_splat.get(mv.method)
+        if unit is None and units.score_splat:
+            unit = max(units.score_splat.values())
+            notes.add(f"{mv.method}: no scoring benchmark; costed like the costliest camera-free method")
+        return (unit or 0.0) * n, 0
+    iters = getattr(mv.params, "iterations", None)
+    shape = "views" if iters is None else "iterations"
+    renders = len(train) + (int(iters) if iters is not None else 0)
+    k = units.aware.get(mv.method, (None, shape))[0]
+    if k is None and units.aware:
+        k = next((k for k, s in units.aware.values() if s == shape), 1.0)
+        notes.add(f"{mv.method}: no scoring benchmark; costed like a benchmarked {shape}-shaped camera-aware method")
+    side = int(getattr(mv.params, "train_longest_side", 0) or 0)
+    px = sum(train_pixels(s, side) for s in train) / max(1, len(train))
+    return (k or 0.0) * renders * units.render(n, px), renders
+
+
+def estimate(config: RunConfig, infos: list[SceneInfo], units: UnitCosts | None) -> Estimate:
+    """Counts per stage of a cold run of ``config`` on ``infos``; with ``units`` also core-seconds
+    and the longest single task of each stage (``units=None``: counts only)."""
+    from methods.registry import get_pruner
+
+    try:  # the runner's own chunk size, when it still has one
+        from harness.run.runner import CHUNK as chunk
+    except ImportError:
+        chunk = CHUNK
+    u = units or UnitCosts(0, 0, 0, 0, 0, 0, 0, 0, {}, {})
+    passes = metric_passes(config.protocol.metrics)
+    per_px = passes["lpips"] * u.lpips_px + passes["ssim"] * u.ssim_px + passes["psnr"] * u.psnr_px
+    ref_px = u.lpips_ref_px if passes["lpips"] else 0.0
+    st = {n: Stage(n) for n in STAGES}
+    st["score"].detail = {"training_renders": 0, "camera_aware_tasks": 0}
+    st["render+metrics"].detail = {"view_tasks": 0, **{f"{k}_passes": 0 for k in passes}}
+    notes: set[str] = set()
+    rows = []
+    specs = {s.name: s for s in config.scenes}
+    for info in infos:
+        spec = specs[info.name]
+        tasks: dict[str, tuple] = {}  # distinct score tasks: (method, params) -> (variant, pruner, ratios)
+        for mv in (m for m in config.methods if m.scenes is None or spec.name in m.scenes):
+            pruner = get_pruner(mv.method)
+            if "cameras" in pruner.needs and not info.train:
+                notes.add(f"{spec.name}: {mv.method} needs training cameras and is skipped")
+                continue
+            key = f"{mv.method}|{sorted(mv.params.to_dict().items())!r}"
+            prev = tasks.get(key, (mv, pruner, ()))
+            tasks[key] = (prev[0], pruner, tuple(dict.fromkeys(prev[2] + tuple(mv.ratios))))
+        keeps = [1.0 - r for _, _, rs in tasks.values() for r in rs]
+        n_sets = len(keeps)
+        before = {k: (s.units, s.core_s) for k, s in st.items()}
+        for n in info.splats:
+            st["load"].add(1, u.read_splat * n)
+            for mv, pruner, _ in tasks.values():
+                cost, renders = _score_cost(mv, pruner, n, info.train, u, notes)
+                st["score"].add(1, cost, cost)
+                st["score"].detail["training_renders"] += renders
+                st["score"].detail["camera_aware_tasks"] += bool("cameras" in pruner.needs)
+            st["prune"].add(n_sets, u.select_splat * n * n_sets, u.select_splat * n)
+            for w, h in info.views:
+                px = w * h
+                st["render_ref"].add(1, u.render(n, px), u.render(n, px))
+                if not n_sets:
+                    continue
+                image = [u.render(n * k, px) + per_px * px + IMAGE_OVERHEAD_S for k in keeps]
+                tasks_v = math.ceil(n_sets / chunk)
+                longest = ref_px * px + sum(sorted(image, reverse=True)[:chunk])
+                st["render+metrics"].add(n_sets, sum(image) + tasks_v * ref_px * px, longest)
+                st["render+metrics"].detail["view_tasks"] += tasks_v
+        for k, v in passes.items():
+            st["render+metrics"].detail[f"{k}_passes"] = v * st["render+metrics"].units
+        images = st["render+metrics"].units - before["render+metrics"][0]
+        sizes = sorted(set(info.views))
+        rows.append({"scene": info.name, "status": info.status, "note": info.note, "frames": len(info.splats),
+                     "splats": round(sum(info.splats) / max(1, len(info.splats))),
+                     "views": len(info.views), "train_views": len(info.train),
+                     "size": "/".join(f"{w}×{h}" for w, h in sizes[:3]) + ("/…" if len(sizes) > 3 else ""),
+                     "score_tasks": len(tasks) * len(info.splats), "sets": n_sets, "images": images,
+                     "core_s": sum(s.core_s - before[k][1] for k, s in st.items())})
+    return Estimate(st, rows, passes, sorted(notes))
