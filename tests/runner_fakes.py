@@ -147,3 +147,10 @@ def toolkit(**overrides) -> Toolkit:
     base = dict(make_rig=make_rig, make_renderer=make_renderer, imports=("tests.runner_fakes",), preload=(),
                 renderer_modules=("tests.runner_fakes",), rig_modules=("tests.runner_fakes",))
     return Toolkit(**{**base, **overrides})
+
+
+def pid_task(task, scene=None):
+    """A stage function that reports which process ran it."""
+    import os
+
+    return {"pid": os.getpid(), "label": task.label}

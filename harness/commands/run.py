@@ -1,4 +1,4 @@
-"""`harness run CONFIG [--workers N] [--executor local|ray] [--address A] [--out DIR] [--force] [--cache DIR|URL]`:
+"""`harness run CONFIG [--workers N] [--threads T] [--executor local|ray] [--address A] [--out DIR] [--force] [--cache DIR|URL]`:
 the CTC-style evaluation.
 
 Reads and validates the YAML config (:mod:`harness.run.config`), runs the staged, cached plan
@@ -23,6 +23,9 @@ HELP = "evaluate pruning methods on scenes per a YAML config (cached, resumable)
 def add_arguments(parser) -> None:
     parser.add_argument("config", help="run config (YAML), e.g. ctc_configs/default.yaml")
     parser.add_argument("--workers", type=int, default=None, help="process pool size (default: the config's)")
+    parser.add_argument("--threads", type=int, default=None,
+                        help="threads (CPUs) per worker (default: cores // workers; with Ray: the config's "
+                             "executor.cpus_per_task, else the same)")
     parser.add_argument("--out", default=None, help="output folder (default: the config's `output`)")
     parser.add_argument("--force", action="store_true", help="recompute every stage, ignoring cached results")
     parser.add_argument("--cache", default=None,
@@ -57,6 +60,8 @@ def run(args) -> int:
     workers = args.workers if args.workers is not None else config.workers
     if not 1 <= workers <= 256:
         raise InputError("--workers", f"must be 1..256, got {workers}")
+    if args.threads is not None and not 1 <= args.threads <= 1024:
+        raise InputError("--threads", f"must be 1..1024, got {args.threads}")
     spec = executor_spec(config.executor, args.executor, args.address)
     from harness.core.devices import check_device
     from harness.io.files import make_output_folder, sweep_stale_temps
@@ -77,7 +82,7 @@ def run(args) -> int:
         f"Ray ({'a local cluster of ' + str(workers) + ' worker(s)' if spec.address is None else spec.address})"
     console.print(f"[bold]harness run[/] {config.name}: {len(config.scenes)} scenes, "
                   f"{len(config.methods)} method variants, {where} -> {out_dir}")
-    with make_executor(spec, workers, device=config.protocol.device, cache_location=str(cache_root),
+    with make_executor(spec, workers, device=config.protocol.device, cache_location=str(cache_root), threads=args.threads,
                        log=lambda m: console.print(f"[yellow]{m}[/]")) as executor, StageProgress(console) as progress:
         runner = Runner(config, out_dir=out_dir, cache_root=cache_root, workers=workers, force=args.force,
                         progress=progress, log=lambda m: console.print(f"[yellow]{m}[/]"),

@@ -42,11 +42,12 @@ __all__ = ["LOCAL_ENV", "QUIET_ENV", "Bars", "Executor", "LocalExecutor", "RayEx
 
 
 def make_executor(spec, workers: int, *, toolkit=None, device: str = "cpu", cache_location: str | None = None,
-                  log=print) -> Executor:
+                  threads: int | None = None, log=print) -> Executor:
     """The executor a :class:`harness.run.config.ExecutorSpec` names (Ray is started lazily, at the
-    first stage with work, so a fully cached rerun starts no cluster)."""
+    first stage with work, so a fully cached rerun starts no cluster). ``threads``: per worker
+    (default ``cores // workers``; for Ray it overrides ``cpus_per_task``)."""
     if spec.name == "ray":
-        return RayExecutor(workers, toolkit, address=spec.address, cpus_per_task=spec.cpus_per_task,
+        return RayExecutor(workers, toolkit, address=spec.address, cpus_per_task=threads or spec.cpus_per_task,
                            gpus_per_task=spec.gpus_per_task, max_retries=spec.max_retries, device=device,
                            cache_location=cache_location, log=log)
-    return LocalExecutor(workers, toolkit)
+    return LocalExecutor(workers, toolkit, threads=threads)

@@ -34,7 +34,11 @@ def _terminate(pool: ProcessPoolExecutor) -> None:
 
 
 class LocalExecutor(Executor):
-    """In-process (one worker) or a spawned process pool per stage, ``cores // workers`` threads each."""
+    """In-process (one worker) or a spawned process pool, ``cores // workers`` threads each.
+
+    The pool is started at the first stage that needs it and kept for the executor's life (closed by
+    :meth:`close`), so the workers' imports, GL contexts and metric suites are paid once per run, not
+    once per stage; a pool broken by a dead worker is replaced at the next stage."""
 
     name = "local"
 
@@ -45,6 +49,25 @@ class LocalExecutor(Executor):
         self.toolkit = toolkit or Toolkit()
         self.threads = threads or max(1, (os.cpu_count() or 1) // self.workers)
         self.parallel = self.workers > 1
+        self._pool: ProcessPoolExecutor | None = None
+
+    def _get_pool(self) -> ProcessPoolExecutor:
+        if self._pool is None or getattr(self._pool, "_broken", False):
+            if self._pool is not None:
+                _terminate(self._pool)
+            self._pool = ProcessPoolExecutor(self.workers, mp_context=get_context("spawn"),
+                                             initializer=_pool_worker_init,
+                                             initargs=(os.getpid(), self.threads, self.toolkit.imports,
+                                                       self.toolkit.preload))
+        return self._pool
+
+    def close(self) -> None:
+        if self._pool is not None:
+            pool, self._pool = self._pool, None
+            if getattr(pool, "_broken", False):
+                _terminate(pool)
+            else:
+                pool.shutdown(wait=True)
 
     def describe(self) -> dict:
         return {"name": self.name, "workers": self.workers, "threads": self.threads}
@@ -71,9 +94,7 @@ class LocalExecutor(Executor):
                 if weight(t) > done[0]:  # the rest of its weight (e.g. a reference render)
                     bars.advance(stage.name, weight(t) - done[0])
         else:
-            pool = ProcessPoolExecutor(self.workers, mp_context=get_context("spawn"), initializer=_pool_worker_init,
-                                       initargs=(os.getpid(), self.threads, self.toolkit.imports,
-                                                 self.toolkit.preload))
+            pool = self._get_pool()
             try:
                 futures = {pool.submit(stage.fn, t): t for t in stage.tasks}
                 for fut in as_completed(futures):
@@ -83,9 +104,9 @@ class LocalExecutor(Executor):
                         results.append(futures[fut].failed(f"worker failed: {type(err).__name__}: {err}"))
                     bars.advance(stage.name, weight(futures[fut]))
             except BaseException:  # SIGTERM / Ctrl-C / an error here: the workers go with the run
+                self._pool = None
                 _terminate(pool)
                 raise
-            pool.shutdown(wait=True)
         bars.finish(stage.name)
         return results
 

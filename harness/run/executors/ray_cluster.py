@@ -164,7 +164,9 @@ class RayExecutor(Executor):
             # the cluster (a local one) from the run's `finally`
             install_signal_handlers()
         self._check_resources()
-        if self.cache_location is not None:
+        # a private local cluster shares this machine's filesystem by construction; a cluster that
+        # was joined may span nodes that do not see the cache: probe it from every node
+        if self.cache_location is not None and (self.address is not None or not self._owns):
             self.check_cache(self.cache_location)
         return self._ray
 
