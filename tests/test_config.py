@@ -137,3 +137,29 @@ def test_shipped_configs_are_valid(name):
         assert all(s.sequence and "${" not in s.sequence for s in cfg.scenes)  # MPEG content folders
         assert not any(s.test or s.test_every for s in cfg.scenes)  # every camera of the content
         assert "mpeg" not in cfg.protocol.metrics and "yuv_psnr_om" in cfg.protocol.metrics
+
+
+def _with_executor(value):
+    return parse_config({"scenes": [{"name": "luigi"}], "methods": ["opacity"], "ratios": [0.1], "executor": value},
+                        "x.yaml")
+
+
+def test_executor_section():
+    assert _with_executor("ray").executor.name == "ray"
+    spec = _with_executor({"name": "ray", "address": "auto", "cpus_per_task": 4, "gpus_per_task": 0.5,
+                           "max_retries": 0}).executor
+    assert (spec.address, spec.cpus_per_task, spec.gpus_per_task, spec.max_retries) == ("auto", 4, 0.5, 0)
+    assert parse_config({"scenes": [{"name": "luigi"}], "methods": ["opacity"], "ratios": [0.1]},
+                        "x.yaml").executor.name == "local"
+
+
+@pytest.mark.parametrize("value, message", [
+    ("dask", "is not one of local, ray"),
+    ({"name": "local", "address": "auto"}, "go with `name: ray`"),
+    ({"name": "ray", "cpus": 2}, "unknown key"),
+    ({"name": "ray", "cpus_per_task": 0}, "outside"),
+    ({"name": "ray", "max_retries": 1.5}, "integer"),
+])
+def test_bad_executor_section_is_one_line(value, message):
+    with pytest.raises(InputError, match=message):
+        _with_executor(value)
