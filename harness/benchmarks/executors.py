@@ -17,7 +17,9 @@ interleaved over the repeats, so a drift in the machine's load hits every varian
   plots, report page: ~10 s on ci.yaml) no executor can shorten.
 
 Every run's ``results.csv`` must equal the first run's except the wall-clock columns; the table
-says whether it did. Results: ``results/bench/executors.{json,md}``.
+says whether it did. Results: ``results/bench/executors.{json,md}`` for ci.yaml,
+``executors-<config stem>.{json,md}`` for another ``--config`` (e.g. ``ctc_configs/executors.yaml``, a
+larger workload where the fixed costs matter less).
 """
 
 from __future__ import annotations
@@ -155,7 +157,8 @@ def run(args) -> int:
                          "stages_s": r["stages_s"], "executor_record": r["executor"]})
     summary = {**summarise(walls), **summarise(stages, prefix="stages_")}
     md = _markdown(args.config, args.threads, runs, walls, stages, summary, identical)
-    path = write_result("executors", {"config": args.config, "threads": args.threads, "runs": runs, "summary": summary,
+    name = "executors" if Path(args.config).stem == "ci" else f"executors-{Path(args.config).stem}"
+    path = write_result(name, {"config": args.config, "threads": args.threads, "runs": runs, "summary": summary,
                                       "results_identical": identical}, md)
     print(md)
     print(f"wrote {path}")
