@@ -74,3 +74,32 @@ def test_verdict():
     assert stats.verdict(0.1, 0.5, False) == "worse"
     assert stats.verdict(-0.1, 0.5, True) == "unclear"
     assert stats.verdict(np.nan, np.nan, True) == "unclear"
+
+
+def _merge_diffs(cur, ref, metric, keys=("frame", "view")):
+    """The inner-join definition paired_diffs implements (a pandas merge, NaN keys matching)."""
+    keys = [k for k in keys if k in cur and k in ref]
+    j = cur[keys + [metric, "near"]].merge(ref[keys + [metric, "near"]], on=keys, suffixes=("", "_ref"))
+    d = (j[metric] - j[f"{metric}_ref"]).to_numpy(dtype=float)
+    excluded = (j["near"] | j["near_ref"]).to_numpy(dtype=bool)
+    return d[~excluded & np.isfinite(d)], int(excluded.sum())
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_paired_diffs_equals_an_inner_join(seed):
+    import pandas as pd
+
+    from harness.report.stats import paired_diffs
+
+    rng = np.random.default_rng(seed)
+
+    def frame(n):
+        return pd.DataFrame({"frame": rng.choice([np.nan, 0.0, 1.0], n), "view": rng.choice(["a", "b", "c"], n),
+                             "psnr": np.where(rng.random(n) < 0.1, np.inf, rng.normal(40, 5, n)),
+                             "near": rng.random(n) < 0.2})
+
+    cur, ref = frame(int(rng.integers(0, 9))), frame(int(rng.integers(0, 9)))
+    d, excluded = paired_diffs(cur, ref, "psnr")
+    d0, excluded0 = _merge_diffs(cur, ref, "psnr")
+    np.testing.assert_array_equal(d, d0)
+    assert excluded == excluded0

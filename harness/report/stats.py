@@ -86,11 +86,27 @@ def summary(values, near, metric: str) -> dict:
 def paired_diffs(cur: pd.DataFrame, ref: pd.DataFrame, metric: str, keys=("frame", "view")) -> tuple[np.ndarray, int]:
     """Per-view differences cur − ref of ``metric`` over the views both have (matched on ``keys``)
     and the number of pairs left out as near-identical (dB metrics). ``cur`` and ``ref`` carry a
-    boolean ``near`` column (:func:`near_identical`)."""
+    boolean ``near`` column (:func:`near_identical`).
+
+    The pairs are those of an inner join on ``keys`` in ``cur``'s row order (a key repeated in
+    ``ref`` pairs with each of its rows, in ``ref``'s order), built with a dict: a table has
+    thousands of cells of a few views each, where a DataFrame merge per cell cost most of a rerun."""
     keys = [k for k in keys if k in cur and k in ref]
-    j = cur[keys + [metric, "near"]].merge(ref[keys + [metric, "near"]], on=keys, suffixes=("", "_ref"))
-    d = (pd.to_numeric(j[metric], errors="coerce") - pd.to_numeric(j[f"{metric}_ref"], errors="coerce")).to_numpy()
-    excluded = (j["near"] | j["near_ref"]).to_numpy(dtype=bool) if is_db(metric) else np.zeros(len(j), bool)
+    cv = pd.to_numeric(cur[metric], errors="coerce").to_numpy(dtype=np.float64)
+    rv = pd.to_numeric(ref[metric], errors="coerce").to_numpy(dtype=np.float64)
+    cn, rn = cur["near"].to_numpy(dtype=bool), ref["near"].to_numpy(dtype=bool)
+    def key_rows(df):  # NaN keys match each other, as in a merge
+        return zip(*([None if isinstance(x, float) and x != x else x for x in df[c].tolist()] for c in keys))
+
+    rows: dict = {}
+    for j, k in enumerate(key_rows(ref)):
+        rows.setdefault(k, []).append(j)
+    pairs = [(i, j) for i, k in enumerate(key_rows(cur)) for j in rows.get(k, ())]
+    if not pairs:
+        return np.empty(0, np.float64), 0
+    ci, ri = np.array(pairs, dtype=np.intp).T
+    d = cv[ci] - rv[ri]
+    excluded = (cn[ci] | rn[ri]) if is_db(metric) else np.zeros(len(ci), bool)
     return d[~excluded & np.isfinite(d)].astype(np.float64), int(excluded.sum())
 
 
