@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -42,15 +43,16 @@ class Bars:
             self._bars.pop(name).finish()
 
 
-class Executor:
+class Executor(ABC):
     """Runs stages; :meth:`run` returns each stage's task summaries (completion order)."""
 
     name = "executor"
     #: whether tasks run concurrently (the runner then orders them longest first)
     parallel = False
 
+    @abstractmethod
     def run(self, stages: Sequence[Stage], bars: Bars) -> list[list[dict]]:
-        raise NotImplementedError
+        """Every task of ``stages`` run once; per stage, the tasks' summary dicts."""
 
     def describe(self) -> dict:
         return {"name": self.name}
