@@ -44,7 +44,8 @@ def stress_counts() -> _Counter:
 
 
 def _report_path(config) -> Path:
-    if FULL:
+    # only a whole full run (no -k selection) replaces the kept report
+    if FULL and not config.option.keyword:
         from harness.core.paths import results_dir
 
         return results_dir() / "stress" / "counts.json"
