@@ -154,3 +154,16 @@ def pid_task(task, scene=None):
     import os
 
     return {"pid": os.getpid(), "label": task.label}
+
+
+def write_two_scenes(folder) -> dict[str, str]:
+    """Two small random scenes ``s0`` (300 splats) and ``s1`` (500) as .ply files: {name: path}."""
+    from harness.io.scenes import write_scene
+    from tests.scene_factory import random_scene
+
+    paths = {}
+    for i, n in enumerate((300, 500)):
+        p = folder / f"s{i}.ply"
+        write_scene(random_scene(n, sh_degree=1, seed=i), p)
+        paths[f"s{i}"] = str(p)
+    return paths

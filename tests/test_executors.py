@@ -21,13 +21,11 @@ from pathlib import Path
 
 import pytest
 
-from harness.io.scenes import write_scene
 from harness.report.results import to_frame
 from harness.run.config import parse_config
 from harness.run.executors import Bars, RayExecutor, Stage
 from harness.run.runner import Runner
 from tests import runner_fakes as fakes
-from tests.scene_factory import random_scene
 
 ray = pytest.importorskip("ray", reason="the ray package is not installed (pip install -e '.[test]')")
 
@@ -65,12 +63,7 @@ def cluster():
 
 @pytest.fixture
 def scenes(tmp_path):
-    paths = {}
-    for i, n in enumerate((300, 500)):
-        p = tmp_path / f"s{i}.ply"
-        write_scene(random_scene(n, sh_degree=1, seed=i), p)
-        paths[f"s{i}"] = str(p)
-    return paths
+    return fakes.write_two_scenes(tmp_path)
 
 
 def _config(scenes, methods):

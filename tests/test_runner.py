@@ -15,12 +15,7 @@ from tests.scene_factory import random_scene
 
 @pytest.fixture
 def scenes(tmp_path):
-    paths = {}
-    for i, n in enumerate((300, 500)):
-        p = tmp_path / f"s{i}.ply"
-        write_scene(random_scene(n, sh_degree=1, seed=i), p)
-        paths[f"s{i}"] = str(p)
-    return paths
+    return fakes.write_two_scenes(tmp_path)
 
 
 def _config(scenes, methods, **extra):
