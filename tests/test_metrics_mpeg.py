@@ -58,6 +58,9 @@ def test_float_renders_quantised_like_the_tool():
     expected = [int(np.clip(np.sign(x) * np.floor(abs(x) + 0.5), 0, 255)) if np.isfinite(x) else 0 for x in p]
     assert q.tolist() == expected
     assert q[:3].tolist() == [1, 2, 3]  # np.round would give 0, 2, 2
+    below_half = np.nextafter(np.float32(0.5), np.float32(0))  # floor(p + 0.5) rounds this one up
+    c = np.float32(below_half) / np.float32(255)
+    assert np.float32(c) * np.float32(255) == below_half and mpeg.quantize(np.full((1, 1, 3), c, np.float32)).max() == 0
     k = np.arange(256, dtype=np.uint8)  # an 8-bit PNG read as k/255 comes back as k
     f = np.repeat((k.astype(np.float32) / np.float32(255))[None, :, None], 3, 2)
     assert np.array_equal(mpeg.quantize(f)[0, :, 0], k)

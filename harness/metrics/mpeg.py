@@ -54,6 +54,7 @@ import math
 
 import numpy as np
 
+from harness.io.codecs import round_half_away
 from harness.metrics import ivssim, mpeg_ssim
 
 PEAK = 255.0
@@ -73,8 +74,8 @@ def quantize(image) -> np.ndarray:
     if a.dtype == np.uint8:
         return np.ascontiguousarray(a[..., :3])
     p = np.asarray(a[..., :3], np.float32) * np.float32(255.0)  # float32 product, as `c.x * scale`
-    r = np.where(p >= 0, np.floor(p + np.float32(0.5)), np.ceil(p - np.float32(0.5)))  # half away from 0
-    # p + 0.5 is exact in float32 for |p| < 2^22; larger values are clamped anyway
+    with np.errstate(invalid="ignore"):
+        r = round_half_away(p)  # std::round; floor(p + 0.5) would send 0.49999997 to 1
     return np.clip(np.nan_to_num(r, nan=0.0), 0, 255).astype(np.uint8)
 
 
