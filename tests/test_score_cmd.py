@@ -83,7 +83,8 @@ def test_text_output_and_errors(files, tmp_path, capsys):
     write_ply(scene, tmp_path / "bare.ply")
     status, out, _ = _run(capsys, tmp_path / "bare.ply", tmp_path / "bare.ply", "--renderer", "reference",
                           "--width", 16, "--height", 12)
-    assert status == 0 and "16 cameras from 16 viewpoints placed as mpeg-gsc-metrics -n 16 (no PLY header" in out
+    assert status == 0 and ("16 cameras from mpeg-gsc-metrics' own viewpoints (-n 16, its default: no PLY header "
+                            "has camera_position lines): radius-5 sphere") in out
     write_ply(scene, tmp_path / "other.ply", comments=ply_camera_comments(_cams()[:2]))
     status, _, err = _run(capsys, src, tmp_path / "other.ply", "--renderer", "reference")
     assert status == 2 and "differ" in err
@@ -143,7 +144,7 @@ def test_views_flag_scores_the_placed_viewpoints(files, capsys):
     status, out, err = _run(capsys, src, dst, "-n", 3, "--renderer", "reference", "--json", "--width", 40, "--height", 30)
     assert status == 0, err
     obj = json.loads(out)
-    assert obj["cameras"].startswith("3 viewpoints placed as mpeg-gsc-metrics -n 3 (radius-5 sphere")
+    assert obj["cameras"].startswith("mpeg-gsc-metrics' own viewpoints (-n 3): radius-5 sphere")
     cams, _ = vp.tool_viewpoints(a_scene.means, 3, 40, 30)
     r = ReferenceRenderer(device="cpu")
     for cam, row in zip(cams, obj["views"]):

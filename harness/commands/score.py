@@ -101,8 +101,8 @@ def _placed(args, source, n: int, why: str) -> Viewpoints:
         cams, c = tool_viewpoints(source.means, n, args.width, args.height)
     except ViewpointError as err:
         raise InputError(args.source, f"{err}; give --cameras") from None
-    return Viewpoints(cams, f"{n} viewpoints placed as mpeg-gsc-metrics -n {n}{why} (radius-5 sphere around the "
-                            f"source's box centre ({c[0]:.4g}, {c[1]:.4g}, {c[2]:.4g}), focal 2000 px)", None)
+    return Viewpoints(cams, f"mpeg-gsc-metrics' own viewpoints (-n {n}{why}): radius-5 sphere around the source's "
+                            f"box centre ({c[0]:.4g}, {c[1]:.4g}, {c[2]:.4g}), focal 2000 px", None)
 
 
 def select_cameras(args, source, processed) -> Viewpoints:
@@ -128,7 +128,7 @@ def select_cameras(args, source, processed) -> Viewpoints:
                                              "the tool needs the same viewpoints (or give --cameras or -n)")
         cams = a or b
         if not cams:
-            return _placed(args, source, DEFAULT_VIEWS, " (no PLY header has camera_position lines: the tool's default)")
+            return _placed(args, source, DEFAULT_VIEWS, ", its default: no PLY header has camera_position lines")
         origin = f"{'source' if a else 'processed'} PLY header"
     sizes = tuple(sorted({(c.width, c.height) for c in cams}))
     crops = args.width is not None and sizes != ((args.width, args.height),)
