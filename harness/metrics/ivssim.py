@@ -75,28 +75,37 @@ def global_colour_shift(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 @nb.njit(cache=True)
 def _shift_compensate(ref, tst, shift, weights, out):
-    """``xShftCompPic::xGenShftCompPic``: ``ref`` is padded by MARGIN (edge-replicated)."""
-    h, w = tst.shape[0], tst.shape[1]
+    """``xShftCompPic::xGenShftCompPic`` on planar pictures (3, H, W); ``ref`` is padded by MARGIN
+    (edge-replicated). The 25 candidates are visited in the tool's order (dy outer, dx inner), each
+    over whole rows (vectorisable); a strictly smaller error replaces the best, so the first minimum
+    wins, as in ``xFindBestPixelWithinBlock``."""
+    h, w = tst.shape[1], tst.shape[2]
+    side = 2 * SEARCH + 1
+    best = np.full((h, w), np.int32(2147483647), np.int32)
+    best_k = np.zeros((h, w), np.int32)
+    t0, t1, t2 = tst[0] + shift[0], tst[1] + shift[1], tst[2] + shift[2]
+    w0, w1, w2 = weights[0], weights[1], weights[2]
+    k = 0
+    for dy in range(-SEARCH, SEARCH + 1):
+        for dx in range(-SEARCH, SEARCH + 1):
+            for y in range(h):
+                r0 = ref[0, y + MARGIN + dy, MARGIN + dx:MARGIN + dx + w]
+                r1 = ref[1, y + MARGIN + dy, MARGIN + dx:MARGIN + dx + w]
+                r2 = ref[2, y + MARGIN + dy, MARGIN + dx:MARGIN + dx + w]
+                a0, a1, a2, b, bk = t0[y], t1[y], t2[y], best[y], best_k[y]
+                for x in range(w):
+                    d0, d1, d2 = a0[x] - r0[x], a1[x] - r1[x], a2[x] - r2[x]
+                    err = d0 * d0 * w0 + d1 * d1 * w1 + d2 * d2 * w2
+                    better = err < b[x]
+                    b[x] = err if better else b[x]
+                    bk[x] = k if better else bk[x]
+            k += 1
     for y in range(h):
         for x in range(w):
-            t0 = np.int32(tst[y, x, 0]) + shift[0]
-            t1 = np.int32(tst[y, x, 1]) + shift[1]
-            t2 = np.int32(tst[y, x, 2]) + shift[2]
-            best = np.int32(2147483647)
-            by = 0
-            bx = 0
-            for yy in range(y - SEARCH, y + SEARCH + 1):
-                for xx in range(x - SEARCH, x + SEARCH + 1):
-                    d0 = t0 - np.int32(ref[yy + MARGIN, xx + MARGIN, 0])
-                    d1 = t1 - np.int32(ref[yy + MARGIN, xx + MARGIN, 1])
-                    d2 = t2 - np.int32(ref[yy + MARGIN, xx + MARGIN, 2])
-                    err = d0 * d0 * weights[0] + d1 * d1 * weights[1] + d2 * d2 * weights[2]
-                    if err < best:
-                        best = err
-                        by = yy
-                        bx = xx
+            yy = y + MARGIN + best_k[y, x] // side - SEARCH
+            xx = x + MARGIN + best_k[y, x] % side - SEARCH
             for c in range(3):
-                v = np.int32(ref[by + MARGIN, bx + MARGIN, c]) - shift[c]
+                v = ref[c, yy, xx] - shift[c]
                 out[y, x, c] = 0 if v < 0 else (255 if v > 255 else v)
 
 
@@ -162,9 +171,10 @@ def _component_ssim(tst: np.ndarray, ref: np.ndarray) -> float:
 
 
 def _shifted(ref: np.ndarray, tst: np.ndarray, shift: np.ndarray, weights) -> np.ndarray:
-    padded = np.pad(ref, ((MARGIN, MARGIN), (MARGIN, MARGIN), (0, 0)), mode="edge").astype(np.int32)
+    planar = np.ascontiguousarray(np.moveaxis(ref, 2, 0), np.int32)
+    padded = np.pad(planar, ((0, 0), (MARGIN, MARGIN), (MARGIN, MARGIN)), mode="edge")
     out = np.empty(tst.shape, np.int32)
-    _shift_compensate(padded, np.ascontiguousarray(tst, np.int32), shift.astype(np.int32),
+    _shift_compensate(padded, np.ascontiguousarray(np.moveaxis(tst, 2, 0), np.int32), shift.astype(np.int32),
                       np.asarray(weights, np.int32), out)
     return out
 
