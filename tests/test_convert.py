@@ -224,7 +224,7 @@ def test_convert_writes_the_format_the_name_asks_for(tmp_path, capsys, name, lab
 
 @pytest.mark.parametrize("name, phrase", [
     ("o.sog", "SOG is read but not written"), ("meta.json", "SOG is read but not written"),
-    ("o.spx", "did you mean '.spz'"), ("o", "a name without an extension"), ("o.ksplat", "not written"),
+    ("o.spx", "did you mean '.spz'"), ("o", "files without an extension"), ("o.ksplat", "not written"),
 ])
 def test_unwritable_names_are_refused_before_reading(tmp_path, capsys, name, phrase):
     status, out, err = _convert(capsys, tmp_path / "missing.ply", tmp_path / name)

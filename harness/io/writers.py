@@ -90,8 +90,8 @@ def writer_for(path) -> Writer:
             raise InputError(path, f"{what} is read but not written{why}; write one of {known}")
     suffix = Path(name).suffix
     hint = did_you_mean(suffix, endings()) if suffix else ""
-    raise InputError(path, f"cannot tell the output format from {suffix or 'a name without an extension'}{hint}; "
-                           f"the name must end in one of {known}")
+    raise InputError(path, f"cannot write {suffix + ' files' if suffix else 'files without an extension'}{hint}; "
+                           f"the output name picks the format and must end in one of {known}")
 
 
 def write(scene: GaussianScene, path, **options) -> Writer:
