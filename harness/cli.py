@@ -2,17 +2,23 @@
 
     NAME = "info"                      # the sub-command
     HELP = "one line"                  # shown in `harness --help`
-    def add_arguments(parser): ...     # argparse arguments
+    def add_arguments(parser): ...     # argparse arguments (the command's one parser builder)
     def run(args) -> int: ...          # exit status
 
-Modules are discovered, so adding a command touches no shared file. Bad input anywhere raises
-:class:`harness.core.errors.InputError`, printed here as one line on stderr with exit status 2.
+Modules are discovered, so adding a command touches no shared file. ``harness NAME ...`` is parsed by
+that command's own parser (:func:`command_parser`), so its usage, its ``--help`` and its errors are
+its own; a builder that needs the command's arguments to decide its options (``prune``: the
+flags of the chosen ``--method``) takes them as a second parameter, ``add_arguments(parser, argv)``.
+Unknown options, commands and choices get a "did you mean" (:class:`Parser`). Bad input anywhere
+raises :class:`harness.core.errors.InputError`, printed here as one line on stderr with exit status 2.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.util
+import inspect
 import os
 import pkgutil
 import sys
@@ -30,20 +36,77 @@ def _command_modules():
             yield importlib.import_module(f"harness.commands.{info.name}")
 
 
+def _command_module(name: str):
+    """The module of sub-command ``name`` (imported on its own), or None."""
+    if not name.isidentifier() or name.startswith("_"):
+        return None
+    try:
+        spec = importlib.util.find_spec(f"harness.commands.{name}")
+    except (ImportError, ValueError):
+        return None
+    return importlib.import_module(f"harness.commands.{name}") if spec is not None else None
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse's parser with "did you mean" for unknown options and invalid choices (commands,
+    ``--renderer`` ...). ``hints`` maps option strings to a sentence for options a command knows
+    of but does not take here (``prune --method lightgs --voxel``)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.hints: dict[str, str] = {}
+
+    def error(self, message: str):
+        from harness.core.suggest import did_you_mean
+
+        extra = ""
+        if message.startswith("unrecognized arguments: "):
+            options = [o for a in self._actions for o in a.option_strings]
+            for word in message.split(": ", 1)[1].split():
+                flag = word.split("=", 1)[0]
+                if flag.startswith("-") and len(flag) > 1:
+                    extra += f"; {flag}: {self.hints[flag]}" if flag in self.hints else \
+                        (f"; {flag}{did_you_mean(flag, options)}" if did_you_mean(flag, options) else "")
+        elif "invalid choice: " in message and "(choose from " in message:
+            value = message.split("invalid choice: ", 1)[1].split(" (choose from", 1)[0].strip("'")
+            choices = [c.strip().strip("'") for c in message.split("(choose from ", 1)[1].rstrip(")").split(",")]
+            extra = did_you_mean(value, choices)
+        super().error(message + extra)
+
+
+def _fill(parser: argparse.ArgumentParser, mod, argv=()) -> argparse.ArgumentParser:
+    wants_argv = len(inspect.signature(mod.add_arguments).parameters) > 1
+    mod.add_arguments(parser, list(argv)) if wants_argv else mod.add_arguments(parser)
+    parser.set_defaults(_run=mod.run, command=mod.NAME)
+    return parser
+
+
+def command_parser(mod, argv=()) -> Parser:
+    """The parser of one sub-command, ``harness NAME``, built from its module (and its arguments)."""
+    return _fill(Parser(prog=f"harness {mod.NAME}", description=help_text(mod.HELP)), mod, argv)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    """The top-level parser: ``harness --help``, ``--version`` and the list of commands."""
+    parser = Parser(
         prog="harness",
         description="Camera-agnostic 3DGS pruning (BetaDescPrune) and its MPEG-CTC-style evaluation harness.",
     )
     parser.add_argument("--version", action="version", version=f"harness {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for mod in _command_modules():
-        p = sub.add_parser(mod.NAME, help=help_text(mod.HELP), description=help_text(mod.HELP))
-        mod.add_arguments(p)
-        p.set_defaults(_run=mod.run)
+        _fill(sub.add_parser(mod.NAME, help=help_text(mod.HELP), description=help_text(mod.HELP)), mod)
     return parser
 
 
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    """``argv`` parsed by the parser of the command it names; anything else (``--help``,
+    ``--version``, no or an unknown command) by the top-level parser."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    mod = _command_module(argv[0]) if argv and not argv[0].startswith("-") else None
+    if mod is None:
+        return build_parser().parse_args(argv)
+    return command_parser(mod, argv[1:]).parse_args(argv[1:])
 
 
 def _os_error_line(err: OSError) -> str:
@@ -56,10 +119,9 @@ def _os_error_line(err: OSError) -> str:
 def main(argv: list[str] | None = None) -> int:
     from harness.core.lifecycle import Terminated, install_signal_handlers
 
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parse_args(argv)
     if not getattr(args, "_run", None):
-        parser.print_help()
+        build_parser().print_help()
         return 2
     install_signal_handlers()
     try:

@@ -4,7 +4,10 @@ Copied, as test code, from the project's research notes (/work/notes/mpeg_ref.py
 the tool's metric.cpp / image.hpp at github.com/little-little-point-cloud-group/gscem @ c4a0c1ca…,
 checked there bit for bit against a compiled C++ transcription on 44 image pairs). It shares no code
 with harness.metrics.mpeg: plain per-tap numpy loops in the tool's order, np.cumsum for running sums.
-IV-SSIM is included for completeness (used by the optional IV-SSIM test only).
+IV-SSIM (``iv_ssim``) re-states PMBB's xIVSSIM as metric.cpp calls it, from QMIV v2.0's sources
+(github.com/jstankowski/QMIV @ a601648f8a48, the file set the tool vendors): vectorised numpy with exact
+integer block sums, sharing nothing with harness.metrics.ivssim (numba loops); both were checked equal
+(0.0 difference) to a locally compiled PMBB v2.0 driver on 42 synthetic pairs and 12 GL renders.
 """
 
 from __future__ import annotations
@@ -435,3 +438,63 @@ def quantize_render_to_u8(rgb_float: np.ndarray) -> np.ndarray:
     p = (np.asarray(rgb_float, np.float32) * np.float32(255.0)).astype(np.float64)
     rnd = np.where(p >= 0, np.floor(p + 0.5), np.ceil(p - 0.5))
     return np.clip(rnd, 0, 255).astype(np.uint8)
+
+
+# ----------------------------------------------------------------------------------------------
+# viewpoints the tool places itself (util/viewpoints.hpp Viewpoints::create, util/camera.hpp
+# Camera::setLookAt/viewMat, glm::lookAt), float32 as in the tool, line by line
+# ----------------------------------------------------------------------------------------------
+def _f32(*v):
+    return np.array(v, np.float32)
+
+
+def _normalize(v):                      # glm::normalize: v * inversesqrt(dot(v, v))
+    return v * (np.float32(1.0) / np.sqrt(np.dot(v, v)))
+
+
+def _lookat_rh(eye, center, up):        # glm::lookAt (right-handed): rows s, u, -f
+    f = _normalize(center - eye)
+    s = _normalize(np.cross(f, up))
+    u = np.cross(s, f)
+    m = np.eye(4, dtype=np.float32)
+    m[0, :3], m[1, :3], m[2, :3] = s, u, -f
+    m[0, 3], m[1, 3], m[2, 3] = -np.dot(s, eye), -np.dot(u, eye), np.dot(f, eye)
+    return m
+
+
+def tool_viewpoints(num_points: int, center, radius=5.0, focal=2000.0):
+    """[(pos, view, up, focal)] of Viewpoints::create(numPoints, center, radius, focal)."""
+    center = _f32(*center)
+    radius = np.float32(radius)
+    out = []
+    if num_points == 1:
+        return [(center + _f32(radius, 0.0, 0.0), center, _f32(0.0, 1.0, 0.0), _f32(focal, focal))]
+    golden = np.float32(np.pi) * (np.float32(3.0) - np.sqrt(np.float32(5.0)))
+    for i in range(num_points):
+        z = np.float32(1.0) - (np.float32(2.0) * np.float32(i)) / np.float32(num_points - 1)
+        r = np.sqrt(np.float32(1.0) - z * z)
+        phi = np.float32(i) * golden
+        pos = center + radius * _f32(r * np.cos(phi), r * np.sin(phi), z)
+        view = center
+        world_up = _f32(0.0, 1.0, 0.0)
+        right = _normalize(np.cross(world_up, view))
+        up = np.cross(view, right)
+        out.append((pos, view, up, _f32(focal, focal)))
+    return out
+
+
+def tool_view_matrix(pos, view, up):
+    """RasterizerSoftware::render's viewMat: Camera::setLookAt(pos, view, up) then Camera::viewMat()
+    (the tool round-trips the basis through a float quaternion; taken here as the basis itself)."""
+    e_z = _normalize(pos - view)
+    e_x = _normalize(np.cross(up, e_z))
+    e_y = _normalize(np.cross(e_z, e_x))
+    dist = np.sqrt(np.dot(pos - view, pos - view))
+    eye = e_z * dist + view              # mat * (0, 0, dist) + center
+    return _lookat_rh(eye, view, e_y)    # lookAt(eye, center, mat * (0, 1, 0))
+
+
+def tool_bounding_box_center(xyz):
+    """Pointcloud::getBoundingBox then (max + min) * 0.5f."""
+    p = np.asarray(xyz, np.float32)
+    return (p.max(0) + p.min(0)) * np.float32(0.5)

@@ -83,7 +83,8 @@ def test_options_reach_the_pruner_and_text_report(scene_file, tmp_path, capsys):
     (["--keep", "-0.1"], "--keep"),
     (["--ratio", "nan"], "--ratio"),
     (["--ratio", "0.3", "--method", "nosuch"], "unknown pruner"),
-    (["--ratio", "0.3", "--method", "random", "--preset", "flat"], "--preset: method 'random': no such parameter"),
+    (["--ratio", "0.3", "--method", "random", "--param", "preset=flat"], "--param preset: method 'random': no such "
+                                                                          "parameter"),
     (["--ratio", "0.3", "--score", "mean"], "--score: method 'betadesc': 'mean' is not one of ucb, lcb"),
     (["--ratio", "0.3", "--preset", "heavy"], "'heavy' is not one of baseline, flat"),
     (["--ratio", "0.3", "--voxel", "0"], "--voxel: method 'betadesc': 0.0 is not > 0"),

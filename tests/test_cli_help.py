@@ -25,3 +25,51 @@ def test_benchmark_help(bench, capsys):
     with pytest.raises(SystemExit) as info:
         main(["bench", bench, "--help"])
     assert info.value.code == 0 and "usage:" in capsys.readouterr().out
+
+
+def _usage_error(capsys, *argv) -> str:
+    with pytest.raises(SystemExit) as info:
+        main(list(argv))
+    assert info.value.code == 2
+    return capsys.readouterr().err
+
+
+def _help(capsys, *argv) -> str:
+    with pytest.raises(SystemExit) as info:
+        main([*argv, "--help"])
+    assert info.value.code == 0
+    return capsys.readouterr().out
+
+
+def test_a_typo_gets_the_commands_usage_and_a_suggestion(capsys):
+    err = _usage_error(capsys, "prune", "a.ply", "b.ply", "--ratio", "0.3", "--voxl", "1")
+    assert err.startswith("usage: harness prune ") and "did you mean '--voxel'?" in err
+    assert "usage: harness [-h]" not in err
+    err = _usage_error(capsys, "prun", "a.ply")
+    assert "did you mean 'prune'" in err
+    err = _usage_error(capsys, "score", "a.ply", "b.ply", "--renderer", "glx")
+    assert err.startswith("usage: harness score ") and "did you mean 'gl'?" in err
+
+
+def test_another_pruners_flag_names_its_owners(capsys):
+    err = _usage_error(capsys, "prune", "a.ply", "b.ply", "--ratio", "0.3", "--method", "random", "--voxel", "1")
+    assert "--voxel: a parameter of betadesc" in err and "not of random" in err
+
+
+def test_prune_help_shows_the_chosen_pruners_flags_only(capsys):
+    default = _help(capsys, "prune")
+    assert "betadesc parameters" in default and "--voxel" in default and "--iterations" not in default
+    assert "INRIA .ply" not in default and ".spz" in default and ".compressed.ply" in default
+    lightgs = _help(capsys, "prune", "--method", "lightgs")
+    assert "lightgs parameters" in lightgs and "--train-longest-side" in lightgs and "--voxel" not in lightgs
+    assert len(default.splitlines()) < 115 and len(lightgs.splitlines()) < 50  # every pruner's: 178 lines
+
+
+def test_names_get_did_you_mean(tmp_path, capsys):
+    assert main(["info", "luigii"]) == 2
+    assert "did you mean 'luigi'?" in capsys.readouterr().err
+    assert main(["prune", "luigi", str(tmp_path / "o.ply"), "--ratio", "0.3", "--method", "lightgss"]) == 2
+    assert "did you mean 'lightgs'?" in capsys.readouterr().err
+    assert main(["prune", "luigi", str(tmp_path / "o.ply"), "--ratio", "0.3", "--param", "voxl=1"]) == 2
+    assert "did you mean 'voxel'?" in capsys.readouterr().err
+    assert not (tmp_path / "o.ply").exists()

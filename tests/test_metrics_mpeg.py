@@ -20,16 +20,16 @@ from tests import mpeg_reference as ref
 KEYS = {"rgb_psnr": "psnr_rgb_avg", "yuv_psnr": "psnr_yuv_avg", "yuv_ssim": "ssim_avg",
         "rgb_psnr_om": "psnr_rgb_om_avg", "yuv_psnr_om": "psnr_yuv_om_avg", "yuv_ssim_om": "ssim_om_avg",
         "occupancy": "occupancy", "mse_rgb": "mse_rgb", "mse_yuv": "mse_yuv", "psnr_yuv": "psnr_yuv",
-        "ssim_yuv": "ssim", "ssim_yuv_om": "ssim_om", "mse_yuv_om": "mse_yuv_om"}
+        "ssim_yuv": "ssim", "ssim_yuv_om": "ssim_om", "mse_yuv_om": "mse_yuv_om",
+        "rgb_ivssim": "rgb_ivssim", "yuv_ivssim": "yuv_ivssim"}
 
 
 def _check_exact(a, b, mask, qmiv):
     got = mpeg.tool_metrics(a, b, mask, qmiv=qmiv)
     want = ref.mpeg_metrics(ref.quantize_render_to_u8(a) if a.dtype != np.uint8 else a,
-                            ref.quantize_render_to_u8(b) if b.dtype != np.uint8 else b, mask, qmiv,
-                            compute_ivssim=False)
+                            ref.quantize_render_to_u8(b) if b.dtype != np.uint8 else b, mask, qmiv)
     for k, k2 in KEYS.items():
-        assert got[k] == want[k2], (k, qmiv, got[k], want[k2])
+        assert np.array_equal(got[k], want[k2], equal_nan=True), (k, qmiv, got[k], want[k2])  # IV-SSIM: NaN < 8 px
     return got
 
 
@@ -58,6 +58,9 @@ def test_float_renders_quantised_like_the_tool():
     expected = [int(np.clip(np.sign(x) * np.floor(abs(x) + 0.5), 0, 255)) if np.isfinite(x) else 0 for x in p]
     assert q.tolist() == expected
     assert q[:3].tolist() == [1, 2, 3]  # np.round would give 0, 2, 2
+    below_half = np.nextafter(np.float32(0.5), np.float32(0))  # floor(p + 0.5) rounds this one up
+    c = np.float32(below_half) / np.float32(255)
+    assert np.float32(c) * np.float32(255) == below_half and mpeg.quantize(np.full((1, 1, 3), c, np.float32)).max() == 0
     k = np.arange(256, dtype=np.uint8)  # an 8-bit PNG read as k/255 comes back as k
     f = np.repeat((k.astype(np.float32) / np.float32(255))[None, :, None], 3, 2)
     assert np.array_equal(mpeg.quantize(f)[0, :, 0], k)
@@ -110,7 +113,7 @@ def test_gcc_o3_rounding_option_is_within_a_micro_db():
 
 def test_registry_families():
     assert expand(["mpeg"]) == mpeg_names() == ("rgb_psnr", "yuv_psnr", "yuv_ssim", "rgb_psnr_om",
-                                                 "yuv_psnr_om", "yuv_ssim_om")
+                                                 "yuv_psnr_om", "yuv_ssim_om", "rgb_ivssim", "yuv_ivssim")
     assert expand(["3dgs"]) == ("psnr", "ssim", "lpips")
     assert all(n.endswith("_qmiv") for n in expand(["mpeg-qmiv"]))
 
@@ -174,9 +177,10 @@ def test_suite_and_compare_use_the_union_mask(luigi_renders, tmp_path, capsys):
         assert main(argv) == 0
         obj = json.loads(capsys.readouterr().out)
         want = ref.mpeg_metrics(ref.quantize_render_to_u8(a), ref.quantize_render_to_u8(b),
-                                mpeg.occupancy_mask(alpha_a, alpha_b), qmiv, compute_ivssim=False)
+                                mpeg.occupancy_mask(alpha_a, alpha_b), qmiv)
         for k in ("rgb_psnr", "yuv_psnr", "yuv_ssim", "rgb_psnr_om", "yuv_psnr_om", "yuv_ssim_om", "occupancy"):
             assert obj[k] == want[KEYS[k]], (k, qmiv)
+        assert obj["rgb_ivssim"] == want["rgb_ivssim"] and obj["yuv_ivssim"] == want["yuv_ivssim"]
         assert obj.get("mode") == ("qmiv" if qmiv else None)
 
 

@@ -127,6 +127,7 @@ def to_json(args, config, est, units, assume, workers: int) -> dict:
     by_cpu, fits = est.nodes(args.hours, args.cores_per_node, e)
     big = max(est.scenes, key=lambda r: _px(r["size"]), default=None)
     doc.update(cpu_hours=est.core_s / 3600, efficiency=e, workers=workers,
+               workers_from="--workers" if args.workers else "config",
                wall_hours={str(w): est.wall_s(w, e) / 3600 for w in counts},
                overnight={"hours": args.hours, "cores_per_node": args.cores_per_node, "nodes": by_cpu,
                           "nodes_to_fit": fits,
@@ -208,7 +209,9 @@ def _wall(doc: dict) -> list[str]:
             f"after another, each at least as long as its longest task (score: {_n(st['score']['longest_task_s'])} s, "
             f"camera-aware scoring of the largest frame; render+metrics: "
             f"{_n(st['render+metrics']['longest_task_s'])} s, one view task of the largest) plus ~20 s start-up; "
-            f"load and prune run in the driver, serially ({_n(serial)} h). Config's workers: {doc['workers']}.",
+            f"load and prune run in the driver, serially ({_n(serial)} h). "
+            + (f"Workers asked for (--workers): {doc['workers']}." if doc.get("workers_from") == "--workers"
+               else f"Config's workers: {doc['workers']}."),
             "", f"**Overnight ({o['hours']:g} h) on {o['cores_per_node']}-core nodes: {o['nodes']} node(s)** = "
             f"ceil({_n(doc['cpu_hours'])} CPU-h / ({o['hours']:g} h × {o['cores_per_node']} × {doc['efficiency']:g})); "
             f"projected wall on {o['nodes'] * o['cores_per_node']} workers: {_n(o['wall_hours'])} h. "

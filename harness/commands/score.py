@@ -7,38 +7,45 @@ renders' occupancy), then averages every value over the views. This command does
 this harness's renderer (``--renderer``, default ``gl``) and the tool's arithmetic
 (:mod:`harness.metrics.mpeg`, bit for bit; ``--qmiv`` for its QMIV mode).
 
-Cameras:
+Viewpoints, in this order:
 
 * ``--cameras FILE``: any camera file :func:`harness.io.cameras.load_cameras` reads (COLMAP,
   cameras.json, transforms.json, a PLY with camera lines);
-* else the ``camera_position`` lines of SOURCE's header (gsTools syntax), else PROCESSED's; when both
-  carry lines they must be the same cameras (as the tool requires).
+* ``-n/--views N``: the N viewpoints the tool places itself (``mpeg-gsc-metrics -n N`` without
+  ``--useCameraPosition``): a Fibonacci sphere of radius 5 around the source's bounding-box centre,
+  focal 2000 px, 1024×768 (:mod:`harness.views.mpeg_viewpoints`);
+* else the ``camera_position`` lines of SOURCE's header (gsTools syntax; the CTC's
+  ``--useCameraPosition=1``), else PROCESSED's; when both carry lines they must be the same cameras
+  (as the tool requires);
+* else, like the tool, its default ``-n 16``.
 
 Every camera is rendered as the tool renders it: a ``--width × --height`` window (default: the
-cameras' own size; for header lines without a size, the tool's 1024×768), principal point at the
-centre and focal.y on both axes (the tool's projection; the focal length is not rescaled when the
-window differs from the capture, as in the tool). Prints one row per view and the mean (``--json``:
-one object; ``--csv``: CSV with a final ``mean`` row).
+cameras' own size; for header lines without a size and for placed viewpoints, the tool's 1024×768),
+principal point at the centre and focal.y on both axes (the tool's projection). The focal length is
+*not* rescaled with the window (as in the tool), so a smaller window is the centre **crop** of the
+view, not a scaled-down image; the output says so. Prints one row per view and the mean
+(``--json``: one object; ``--csv``: CSV with a final ``mean`` row).
 """
 
 from __future__ import annotations
 
 import csv
 import io
-import json
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from harness.core.errors import InputError
+from harness.views.mpeg_viewpoints import DEFAULT_VIEWS
 
 NAME = "score"
 HELP = "score a processed scene against its source like mpeg-gsc-metrics (same cameras, 8-bit renders)"
 COLUMNS = (("rgb_psnr", "RGB-PSNR", 4), ("yuv_psnr", "YUV-PSNR", 4), ("yuv_ssim", "YUV-SSIM", 6),
            ("rgb_psnr_om", "OM-RGB-PSNR", 4), ("yuv_psnr_om", "OM-YUV-PSNR", 4), ("yuv_ssim_om", "OM-YUV-SSIM", 6),
-           ("occupancy", "Occupancy%", 2))
+           ("rgb_ivssim", "RGB-IVSSIM", 6), ("yuv_ivssim", "YUV-IVSSIM", 6), ("occupancy", "Occupancy%", 2))
 
 
 def add_arguments(parser) -> None:
@@ -46,10 +53,15 @@ def add_arguments(parser) -> None:
 
     parser.add_argument("source", help="the original scene (.ply, or any scene the harness reads)")
     parser.add_argument("processed", help="the processed (pruned, decoded ...) scene")
-    parser.add_argument("--cameras", metavar="FILE", help="viewpoints (default: the camera_position lines of "
-                        "the source's PLY header, else the processed one's)")
-    parser.add_argument("--width", type=int, help="render width in pixels (the tool's --width)")
-    parser.add_argument("--height", type=int, help="render height in pixels (the tool's --height)")
+    views = parser.add_mutually_exclusive_group()
+    views.add_argument("--cameras", metavar="FILE", help="viewpoints from a camera file (default: the camera_position "
+                       "lines of the source's PLY header, else the processed one's, else -n 16)")
+    views.add_argument("-n", "--views", type=int, metavar="N", help="place N viewpoints as mpeg-gsc-metrics -n N does "
+                       f"(radius-5 sphere around the source's box centre, focal 2000 px; the tool's default is "
+                       f"{DEFAULT_VIEWS}, used when no file has cameras)")
+    parser.add_argument("--width", type=int, help="render width in pixels (the tool's --width). The focal length is "
+                        "kept, so a smaller window is the centre crop of the view (as the tool does), not a scaled image")
+    parser.add_argument("--height", type=int, help="render height in pixels (the tool's --height; crops like --width)")
     parser.add_argument("--renderer", default="gl", choices=RENDERERS.names(), help="renderer (default gl)")
     parser.add_argument("--device", default=None, help="torch device of the renderer/LPIPS (default: automatic)")
     parser.add_argument("--qmiv", action="store_true", help="the tool's QMIV mode (integer BT.709, 4:1:1)")
@@ -73,9 +85,30 @@ def _same(a, b) -> bool:
                                     and abs(x.fy - y.fy) <= 1e-6 * max(1.0, x.fy) for x, y in zip(a, b))
 
 
-def select_cameras(args, source, processed) -> tuple[list, str]:
-    """(cameras as the tool renders them, where they came from)."""
+@dataclass(frozen=True)
+class Viewpoints:
+    cameras: list          # as the tool renders them
+    origin: str            # where they came from, for people
+    native: tuple | None   # the cameras' own sizes when the window crops them, else None
+
+
+def _placed(args, source, n: int, why: str) -> Viewpoints:
+    from harness.views.mpeg_viewpoints import ViewpointError, tool_viewpoints
+
+    if not 1 <= n <= 10_000:
+        raise InputError("--views", f"must be between 1 and 10000, got {n}")
+    try:
+        cams, c = tool_viewpoints(source.means, n, args.width, args.height)
+    except ViewpointError as err:
+        raise InputError(args.source, f"{err}; give --cameras") from None
+    return Viewpoints(cams, f"mpeg-gsc-metrics' own viewpoints (-n {n}{why}): radius-5 sphere around the source's "
+                            f"box centre ({c[0]:.4g}, {c[1]:.4g}, {c[2]:.4g}), focal 2000 px", None)
+
+
+def select_cameras(args, source, processed) -> Viewpoints:
+    """The viewpoints, in the order of the module docstring."""
     from harness.io.cameras import embedded_cameras, load_cameras
+    from harness.views.mpeg_viewpoints import DEFAULT_VIEWS
 
     for flag in ("width", "height"):
         v = getattr(args, flag)
@@ -83,19 +116,33 @@ def select_cameras(args, source, processed) -> tuple[list, str]:
             raise InputError(f"--{flag}", f"must be between 1 and 16384 pixels, got {v}")
     if (args.width is None) != (args.height is None):
         raise InputError("--width/--height", "give both or neither")
+    if args.views is not None:
+        return _placed(args, source, args.views, "")
     if args.cameras:
         cams, origin = load_cameras(args.cameras), args.cameras
     else:
-        a = embedded_cameras(source, args.width, args.height)
-        b = embedded_cameras(processed, args.width, args.height)
+        a = embedded_cameras(source)
+        b = embedded_cameras(processed)
         if a and b and not _same(a, b):
             raise InputError(args.processed, f"its {len(b)} header cameras differ from the source's {len(a)}; "
-                                             "the tool needs the same viewpoints (or give --cameras)")
+                                             "the tool needs the same viewpoints (or give --cameras or -n)")
         cams = a or b
-        origin = f"{'source' if a else 'processed'} PLY header"
         if not cams:
-            raise InputError(args.source, "no cameras: neither PLY header has camera_position lines; give --cameras")
-    return [tool_camera(c, args.width, args.height) for c in cams], origin
+            return _placed(args, source, DEFAULT_VIEWS, ", its default: no PLY header has camera_position lines")
+        origin = f"{'source' if a else 'processed'} PLY header"
+    sizes = tuple(sorted({(c.width, c.height) for c in cams}))
+    crops = args.width is not None and sizes != ((args.width, args.height),)
+    return Viewpoints([tool_camera(c, args.width, args.height) for c in cams], origin, sizes if crops else None)
+
+
+def window_note(vp: Viewpoints) -> str | None:
+    """What a window other than the cameras' own size means (the tool crops; it does not scale)."""
+    if vp.native is None:
+        return None
+    w, h = vp.cameras[0].width, vp.cameras[0].height
+    own = " or ".join(f"{a}x{b}" for a, b in vp.native)
+    return (f"window {w}x{h}: the centre crop of each {own} view (focal length kept, as mpeg-gsc-metrics "
+            "renders it; the image is not scaled)")
 
 
 def score_views(source, processed, cams, renderer, *, qmiv: bool = False, lpips=None, progress=None) -> list[dict]:
@@ -137,7 +184,8 @@ def run(args) -> int:
     from renderers import get_renderer
 
     source, processed = load_scene(args.source), load_scene(args.processed)
-    cams, origin = select_cameras(args, source, processed)
+    vp = select_cameras(args, source, processed)
+    cams, note = vp.cameras, window_note(vp)
     try:
         renderer = get_renderer(args.renderer, args.device)
     except Exception as err:  # noqa: BLE001  no EGL/CUDA here: usage, not a crash
@@ -158,8 +206,10 @@ def run(args) -> int:
     if text:
         print(f"source    {src['path']}: {src['splats']:,} splats, {src['bytes']:,} bytes")
         print(f"processed {dst['path']}: {dst['splats']:,} splats, {dst['bytes']:,} bytes")
-        print(f"{len(cams)} cameras from {origin}, {cams[0].width}x{cams[0].height}, renderer {args.renderer}, "
+        print(f"{len(cams)} cameras from {vp.origin}, {cams[0].width}x{cams[0].height}, renderer {args.renderer}, "
               f"{'QMIV' if args.qmiv else 'MPEG default'} mode")
+        if note:
+            print(note)
         print(head)
     try:
         rows = score_views(source, processed, cams, renderer, qmiv=args.qmiv, lpips=lpips,
@@ -169,9 +219,11 @@ def run(args) -> int:
             renderer.close()
     mean = _mean(rows)
     if args.json:
-        print(json.dumps({"source": src, "processed": dst, "cameras": origin, "width": cams[0].width,
-                          "height": cams[0].height, "mode": "qmiv" if args.qmiv else "mpeg",
-                          "renderer": args.renderer, "views": rows, "mean": mean}, allow_nan=False))
+        from harness.core.jsonout import dumps
+
+        print(dumps({"source": src, "processed": dst, "cameras": vp.origin, "width": cams[0].width,
+                     "height": cams[0].height, "window": note or "the cameras' own size",
+                     "mode": "qmiv" if args.qmiv else "mpeg", "renderer": args.renderer, "views": rows, "mean": mean}))
     elif args.csv:
         buf = io.StringIO()
         w = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")

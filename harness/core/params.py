@@ -25,6 +25,12 @@ from dataclasses import dataclass
 from typing import Any, ClassVar, Literal, Mapping
 
 
+def _no_such(key: str, specs) -> str:
+    from harness.core.suggest import did_you_mean
+
+    return f"no such parameter{did_you_mean(key, specs)}; known: {', '.join(specs) or 'none'}"
+
+
 class ParamError(ValueError):
     """A bad parameter: ``key`` (None when the mapping itself is wrong) and the problem."""
 
@@ -119,7 +125,7 @@ class Params:
         specs = {s.name: s for s in cls.specs()}
         unknown = sorted(set(values) - set(specs), key=str)
         if unknown:
-            raise ParamError(str(unknown[0]), f"no such parameter; known: {', '.join(specs) or 'none'}")
+            raise ParamError(str(unknown[0]), _no_such(str(unknown[0]), specs))
         return cls(**{k: check_value(specs[k], v) for k, v in values.items()})
 
     @classmethod
@@ -129,7 +135,7 @@ class Params:
         converted = {}
         for k, text in values.items():
             if k not in specs:
-                raise ParamError(k, f"no such parameter; known: {', '.join(specs) or 'none'}")
+                raise ParamError(k, _no_such(k, specs))
             converted[k] = from_text(specs[k], text)
         return cls.parse(converted)
 

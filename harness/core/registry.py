@@ -55,7 +55,9 @@ class Registry(Generic[T]):
         try:
             return self._entries[name]
         except KeyError:
-            raise KeyError(f"unknown {self.kind} {name!r}; known: {', '.join(self.names())}") from None
+            from harness.core.suggest import unknown
+
+            raise KeyError(unknown(self.kind, name, self.names())) from None
 
     def names(self) -> list[str]:
         return [e for e in self._all()]

@@ -23,6 +23,16 @@ _ALPHA_OF_BYTE = np.clip(np.arange(256, dtype=np.float64) / 255.0, _ALPHA_EPS, 1
 LOGIT_OF_ALPHA_BYTE = np.log(_ALPHA_OF_BYTE / (1.0 - _ALPHA_OF_BYTE)).astype(np.float32)
 
 
+def round_half_away(x: np.ndarray) -> np.ndarray:
+    """C's ``round``/``std::round`` (half away from zero), exact in the input's dtype.
+
+    ``floor(x + 0.5)`` is not: for the float32 just below 0.5, ``x + 0.5`` rounds up to 1.0. Here the
+    fraction ``x − trunc(x)`` is exact, so only a true half rounds away."""
+    x = np.asarray(x)
+    t = np.trunc(x)
+    return t + np.where(np.abs(x - t) >= 0.5, np.sign(x), 0).astype(x.dtype)
+
+
 def unorm(values: np.ndarray, shift: int, bits: int) -> np.ndarray:
     """The ``bits``-wide field at ``shift`` of unsigned integers, as float64 in [0, 1]."""
     top = (1 << bits) - 1

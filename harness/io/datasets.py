@@ -139,7 +139,9 @@ def resolve_scene(path_or_name) -> Path:
         return path
     if path.suffix or os.sep in text or "/" in text:
         raise InputError(path, "no such file or folder")
-    raise InputError(text, f"unknown scene name; known names: {', '.join(SCENES)} "
+    from harness.core.suggest import did_you_mean
+
+    raise InputError(text, f"unknown scene name{did_you_mean(text, SCENES)}; known names: {', '.join(SCENES)} "
                            "(`harness fetch NAME` downloads them), or give a path")
 
 

@@ -5,7 +5,7 @@ Formats are recognised by content first (:mod:`harness.io.detect`): INRIA ``.ply
 ``.splat``, SOG (a folder with ``lod-meta.json`` or ``meta.json``, either JSON file, or a ``.sog``
 bundle); anything else is "unsupported format: <what it looks like>". Named scenes
 (``bonsai-7k``, ``playbot``, ...) resolve through :mod:`harness.io.datasets`. Written:
-``.ply``, ``.splat`` and ``.compressed.ply`` (by the name's ending).
+``.ply``, ``.compressed.ply``, ``.splat`` and ``.spz``, by the name's ending (:mod:`harness.io.writers`).
 
 Validation after reading (every format):
 
@@ -30,7 +30,6 @@ from harness.core.scene import GaussianScene, bounding_box, opacities, scales
 log = logging.getLogger(__name__)
 
 _CORE = ("means", "scales_log", "quats", "opacity_logit", "sh_dc", "sh_rest")
-WRITABLE = (".ply", ".splat")  # and names ending in .compressed.ply
 
 
 @dataclass
@@ -133,34 +132,23 @@ def load_scene(path_or_name, *, lod: int | str | None = None, drop_nonfinite: bo
     return result.scene
 
 
-def write_scene(scene: GaussianScene, path, *, comments=None, sibr_layout: bool = False) -> Path:
-    """Write ``.ply`` (lossless), ``.splat`` or ``.compressed.ply`` (lossy, Morton-reordered)
-    atomically; returns the path.
+def write_scene(scene: GaussianScene, path, *, comments=None, sibr_layout: bool = False,
+                spz_version: int | None = None) -> Path:
+    """Write ``scene`` atomically in the format its name asks for (:mod:`harness.io.writers`:
+    ``.ply`` lossless, ``.compressed.ply``, ``.splat``, ``.spz`` lossy); returns the path.
 
     A ``.ply`` or ``.compressed.ply`` keeps the scene's header comments (``scene.meta``; ``comments``
     replaces those after the ``format`` line); ``sibr_layout`` applies to ``.ply``, see
-    :mod:`harness.io.ply`.
+    :mod:`harness.io.ply`; ``spz_version`` to ``.spz`` (default 4).
     """
+    from harness.io.writers import writer_for
+
     path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix not in WRITABLE:
-        raise InputError(path, f"cannot write {suffix or 'files without an extension'}; "
-                               "use .ply, .compressed.ply or .splat")
+    writer = writer_for(path)
     if not path.parent.is_dir():
         raise InputError(path, "output folder does not exist")
     try:
-        if path.name.lower().endswith(".compressed.ply"):
-            from harness.io.compressed_ply import write_compressed_ply
-
-            write_compressed_ply(scene, path, comments=comments)
-        elif suffix == ".ply":
-            from harness.io.ply import write_ply
-
-            write_ply(scene, path, comments=comments, sibr_layout=sibr_layout)
-        else:
-            from harness.io.splat import write_splat
-
-            write_splat(scene, path)
+        writer.write(scene, path, comments=comments, sibr_layout=sibr_layout, spz_version=spz_version)
     except OSError as err:  # permission, read-only or full disk: the temp file is already gone
         raise InputError(path, f"cannot write: {err.strerror or err}") from None
     return path

@@ -34,6 +34,7 @@ QMIV (``--computeQmiv=1``, ``getYuvQmiv``): 16-bit fixed point, floor shift, cla
              YUV-SSIM = (4 S_Y + S_U + S_V)/6
 
 SSIM / OM-SSIM per Y, U, V plane: :mod:`harness.metrics.mpeg_ssim` (its padding quirks included).
+IV-SSIM (RGB and YCbCr, PMBB ``xIVSSIM``, the same in both modes): :mod:`harness.metrics.ivssim`.
 
 **Occupancy-masked (OM) metrics.** The same sums over the pixels where the mask is non-zero,
 divided by their count; ``occupancy = 100·count/(W·H)`` %. With an empty mask every OM-PSNR field
@@ -53,7 +54,8 @@ import math
 
 import numpy as np
 
-from harness.metrics import mpeg_ssim
+from harness.io.codecs import round_half_away
+from harness.metrics import ivssim, mpeg_ssim
 
 PEAK = 255.0
 CAP = 999.99
@@ -72,8 +74,8 @@ def quantize(image) -> np.ndarray:
     if a.dtype == np.uint8:
         return np.ascontiguousarray(a[..., :3])
     p = np.asarray(a[..., :3], np.float32) * np.float32(255.0)  # float32 product, as `c.x * scale`
-    r = np.where(p >= 0, np.floor(p + np.float32(0.5)), np.ceil(p - np.float32(0.5)))  # half away from 0
-    # p + 0.5 is exact in float32 for |p| < 2^22; larger values are clamped anyway
+    with np.errstate(invalid="ignore"):
+        r = round_half_away(p)  # std::round; floor(p + 0.5) would send 0.49999997 to 1
     return np.clip(np.nan_to_num(r, nan=0.0), 0, 255).astype(np.uint8)
 
 
@@ -140,13 +142,14 @@ def _combine(values, qmiv: bool, kind: str) -> float:
 
 
 def tool_metrics(ref, test, mask=None, *, qmiv: bool = False, ssim: bool = True, om: bool = True,
-                 rows_top_down: bool = True, yuv_rounding: str = "float32") -> dict:
+                 iv: bool = True, rows_top_down: bool = True, yuv_rounding: str = "float32") -> dict:
     """Every per-view value the tool prints, for two renders (float or uint8, ``(H, W, 3)``).
 
     ``mask``: None → the tool's maskless overload (all ones: OM = full frame, occupancy 100 %);
     else a boolean/0-1 array, non-zero = occupied (:func:`occupancy_mask`). Keys: ``mse_rgb,
     psnr_rgb, mse_yuv, psnr_yuv`` (3-lists), ``rgb_psnr, yuv_psnr`` (combined), the same with
-    ``_om``, ``occupancy`` (%), ``ssim_yuv, ssim_yuv_om`` (3-lists), ``yuv_ssim, yuv_ssim_om``.
+    ``_om``, ``occupancy`` (%), ``ssim_yuv, ssim_yuv_om`` (3-lists), ``yuv_ssim, yuv_ssim_om``,
+    ``rgb_ivssim, yuv_ivssim`` (``iv=False``, the tool's ``--computeIvssim=0``: left at 0.0).
     """
     a, b = quantize(ref), quantize(test)
     if a.shape != b.shape:
@@ -193,6 +196,11 @@ def tool_metrics(ref, test, mask=None, *, qmiv: bool = False, ssim: bool = True,
         r["ssim_yuv"], r["yuv_ssim"] = full, _combine(full, qmiv, "ssim")
         if om:
             r["ssim_yuv_om"], r["yuv_ssim_om"] = masked, _combine(masked, qmiv, "ssim")
+    r["rgb_ivssim"] = r["yuv_ivssim"] = 0.0
+    if iv:  # PMBB's integer YCbCr whatever the mode: the QMIV planes when they are at hand
+        ia, ib = (ya, yb) if qmiv else (yuv_qmiv(a), yuv_qmiv(b))
+        r["rgb_ivssim"] = ivssim.iv_ssim_planes(a, b, ivssim.EQUAL_WEIGHTS)
+        r["yuv_ivssim"] = ivssim.iv_ssim_planes(ia, ib, ivssim.DEFAULT_WEIGHTS)
     return r
 
 

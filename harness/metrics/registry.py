@@ -74,6 +74,14 @@ for _sfx, _fam, _lab, _how in (("", "mpeg", "", "MPEG default: float BT.709, 1:1
     register_metric(MetricSpec(f"yuv_psnr_om{_sfx}", f"OM-YUV-PSNR{_lab}", True, 2, _fam, "occupancy-masked YUV-PSNR"))
     register_metric(MetricSpec(f"yuv_ssim_om{_sfx}", f"OM-YUV-SSIM{_lab}", True, 4, _fam, "occupancy-masked YUV-SSIM"))
 
+# IV-SSIM (harness.metrics.ivssim): PMBB's xIVSSIM as mpeg-gsc-metrics calls it, block-averaged 8×8 SSIM
+# after a ±2 px corresponding-pixel search and a global colour shift; the tool prints the same value in
+# both modes, so only the `mpeg` family carries it.
+register_metric(MetricSpec("rgb_ivssim", "RGB-IVSSIM", True, 4, "mpeg",
+                           "mpeg-gsc-metrics IV-SSIM on R, G, B (1:1:1), PMBB xIVSSIM block-averaged"))
+register_metric(MetricSpec("yuv_ivssim", "YUV-IVSSIM", True, 4, "mpeg",
+                           "mpeg-gsc-metrics IV-SSIM on integer BT.709 YCbCr (4:1:1), PMBB xIVSSIM block-averaged"))
+
 
 def mpeg_names(qmiv: bool = False) -> tuple[str, ...]:
     """The metric names of the mpeg (``qmiv=False``) or mpeg-qmiv family, registry order."""

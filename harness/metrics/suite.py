@@ -1,5 +1,6 @@
 """Image metrics used by the field: PSNR, SSIM (3DGS convention), LPIPS v0.1 VGG, and MPEG's
-mpeg-gsc-metrics set (:mod:`.mpeg`: RGB-/YUV-PSNR, YUV-SSIM and their occupancy-masked variants).
+mpeg-gsc-metrics set (:mod:`.mpeg`: RGB-/YUV-PSNR, YUV-SSIM and their occupancy-masked variants,
+RGB-/YUV-IV-SSIM).
 
 * :func:`compare_images` scores one pair.
 * :class:`MetricSuite` scores many images of the same view against that view's reference, computing
@@ -73,8 +74,9 @@ def mpeg_values(ref, img, names, mask=None) -> dict:
         if not wanted:
             continue
         om = any("_om" in n for n in wanted)
-        ssim_on = any("ssim" in n for n in wanted)
-        r = tool_metrics(ref, img, mask, qmiv=qmiv, ssim=ssim_on, om=om)
+        ssim_on = any(n.startswith("yuv_ssim") for n in wanted)
+        iv = any("ivssim" in n for n in wanted)
+        r = tool_metrics(ref, img, mask, qmiv=qmiv, ssim=ssim_on, om=om, iv=iv)
         out.update({n: float(r[n[: -len(sfx)] if sfx else n]) for n in wanted})
         if om:
             out["occupancy"] = float(r["occupancy"])

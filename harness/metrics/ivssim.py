@@ -1,0 +1,199 @@
+"""IV-SSIM of mpeg-gsc-metrics v3.0 (PMBB ``xIVSSIM``, block-averaged), number for number.
+
+Sources (BSD), read, no code copied: mpeg-gsc-metrics ``source/metric.cpp`` (``Metric::computeIVSSIM``)
+at github.com/little-little-point-cloud-group/gscem @ c4a0c1cae569…, and the PMBB library it vendors
+(``dependencies/pmbb-*``: QMIV v2.0's file set, STD kernels only), github.com/jstankowski/QMIV @
+a601648f8a48 ``libs/pmbb-ivqm/src/``: ``xSSIM.cpp`` (``xIVSSIM::calcPicIVSSIM``, ``xSSIM::xCalcPicSSIM``,
+``xCalcNumBlocks``), ``xStructSimSTD.cpp`` (``CalcBlckAvg``), ``xGlobClrDiff.cpp``, ``xShftCompPic.cpp``,
+``xCorrespPixelShift.cpp`` (``xFindBestPixelWithinBlock``); ``libs/pmbb-core/src/xKBNS.h``,
+``xPixelOpsSTD.cpp`` (``ExtendMargin``), ``xColorSpaceSTD.cpp`` (``ConvertRGB2YCbCr_I32``).
+
+The tool calls ``calcPicIVSSIM(Tst = A, Ref = B)`` with A the source render and B the processed one,
+8-bit planes in its bottom-up row order, ``setStructSimParams(BlockAveraged, -, 8, 4)``, search range 2::
+
+    g_c   = clip(round(Σ (B_c − A_c) / (W·H)), −3, 3)       c = 0, 1, 2; round half away from zero (the
+                                                           build has no SSE4.2: std::round); Σ in int32;
+                                                           3 = round(0.01f · 255f)
+    R̃     = shift(R = B, T = A, s = +g)                     T̃ = shift(R = A, T = B, s = −g)
+    shift(R, T, s)(p) = clip(R(p + d*) − s, 0, 255),  d* = first argmin over dy = −2..2 (outer),
+                        dx = −2..2 (inner) of Σ_c w_c (T_c(p) + s_c − R_c(p + d))²  (R edge-replicated)
+    S_c(X, Y) = Σ_blocks SSIM_8×8 / n_blocks                8×8 blocks at stride 4 from the top-left,
+                                                           inside the picture; n = xCalcNumBlocks
+    SSIM_8×8  = (2μxμy + C1)/(μx² + μy² + C1) · (2σxy + C2)/(σx² + σy² + C2)
+                μ = ΣX/64, σ² = ΣX²/64 − μ², σxy = ΣXY/64 − μxμy (integer sums, then double);
+                C1 = (0.01·255)², C2 = (0.03·255)²
+    IV-SSIM   = min(Σ_c w_c S_c(A, R̃), Σ_c w_c S_c(B, T̃)) / Σ_c w_c
+
+Block values are summed per block row, then over rows, with Kahan–Babuška–Neumaier summation
+(``xKBNS``), as the tool does. Two variants, both in either tool mode (``--computeQmiv`` does not
+change them): **RGB** (w = 1:1:1 for search and average, ``c_EqualCmpWeights``) and **YCbCr**
+(w = 4:1:1, ``c_DefaultCmpWeights``) on PMBB's integer BT.709 (:func:`harness.metrics.mpeg.yuv_qmiv`,
+the same ``ConvertRGB2YCbCr_I32`` arithmetic). A picture narrower or lower than 8 pixels has no
+block; the tool then divides by a zero (or negative) count: we return NaN.
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+BLOCK = 8
+STRIDE = 4
+SEARCH = 2
+#: PMBB's ExtendMargin pads each picture by its margin (4 in the tool; the search reads 2)
+MARGIN = 4
+#: c_DefaultUnntcbCoef · 255 rounded (xRoundFltToInt32(0.01f * 255.0f))
+MAX_SHIFT = 3
+C1 = (0.01 * 255.0) * (0.01 * 255.0)
+C2 = (0.03 * 255.0) * (0.03 * 255.0)
+EQUAL_WEIGHTS = (1, 1, 1)
+DEFAULT_WEIGHTS = (4, 1, 1)
+
+
+def block_count(length: int) -> int:
+    """``xSSIM::xCalcNumBlocks(length, 8, 4)`` (its power-of-two branch)."""
+    full = length >> 3
+    return ((full - 1) << 1) + ((length - (full << 3)) >> 2) + 1
+
+
+def global_colour_shift(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``xGlobClrDiff::CalcGlobalColorDiff(B, A)``: per component ``round(Σ(B − A)/area)`` in [−3, 3].
+
+    The int32 sum wraps as in the tool (only for pictures beyond 8.4 Mpx of one-sided differences);
+    rounding half away from zero of the exact quotient equals ``std::round`` of the double quotient
+    (a quotient of two integers < 2^32 is never within one double ulp of a half without being one)."""
+    h, w, _ = a.shape
+    out = np.empty(3, np.int64)
+    for c in range(3):
+        s = int((b[..., c].astype(np.int64) - a[..., c].astype(np.int64)).sum())
+        s = (s + (1 << 31)) % (1 << 32) - (1 << 31)  # int32 accumulator
+        q = h * w
+        r = (2 * abs(s) + q) // (2 * q)
+        out[c] = min(MAX_SHIFT, r) * (1 if s >= 0 else -1)
+    return out
+
+
+@nb.njit(cache=True)
+def _shift_compensate(ref, tst, shift, weights, out):
+    """``xShftCompPic::xGenShftCompPic`` on planar pictures (3, H, W); ``ref`` is padded by MARGIN
+    (edge-replicated). The 25 candidates are visited in the tool's order (dy outer, dx inner), each
+    over whole rows (vectorisable); a strictly smaller error replaces the best, so the first minimum
+    wins, as in ``xFindBestPixelWithinBlock``."""
+    h, w = tst.shape[1], tst.shape[2]
+    side = 2 * SEARCH + 1
+    best = np.full((h, w), np.int32(2147483647), np.int32)
+    best_k = np.zeros((h, w), np.int32)
+    t0, t1, t2 = tst[0] + shift[0], tst[1] + shift[1], tst[2] + shift[2]
+    w0, w1, w2 = weights[0], weights[1], weights[2]
+    k = 0
+    for dy in range(-SEARCH, SEARCH + 1):
+        for dx in range(-SEARCH, SEARCH + 1):
+            for y in range(h):
+                r0 = ref[0, y + MARGIN + dy, MARGIN + dx:MARGIN + dx + w]
+                r1 = ref[1, y + MARGIN + dy, MARGIN + dx:MARGIN + dx + w]
+                r2 = ref[2, y + MARGIN + dy, MARGIN + dx:MARGIN + dx + w]
+                a0, a1, a2, b, bk = t0[y], t1[y], t2[y], best[y], best_k[y]
+                for x in range(w):
+                    d0, d1, d2 = a0[x] - r0[x], a1[x] - r1[x], a2[x] - r2[x]
+                    err = d0 * d0 * w0 + d1 * d1 * w1 + d2 * d2 * w2
+                    better = err < b[x]
+                    b[x] = err if better else b[x]
+                    bk[x] = k if better else bk[x]
+            k += 1
+    for y in range(h):
+        for x in range(w):
+            yy = y + MARGIN + best_k[y, x] // side - SEARCH
+            xx = x + MARGIN + best_k[y, x] % side - SEARCH
+            for c in range(3):
+                v = ref[c, yy, xx] - shift[c]
+                out[y, x, c] = 0 if v < 0 else (255 if v > 255 else v)
+
+
+@nb.njit(cache=True)
+def _kbns_add(s, c, v):
+    t = s + v
+    if abs(s) >= abs(v):
+        c += (s - t) + v
+    else:
+        c += (v - t) + s
+    return t, c
+
+
+@nb.njit(cache=True)
+def _block_ssim_sum(tst, ref, c1, c2):
+    """Σ over 8×8 blocks (stride 4) of ``CalcBlckAvg`` with the luminance term, KBNS per row, then
+    KBNS over the row sums (``xKBNS::Accumulate`` starts from the first row's sum)."""
+    h, w = tst.shape
+    inv = 1.0 / 64.0
+    total = 0.0
+    comp = 0.0
+    first = True
+    for y in range(0, h - BLOCK + 1, STRIDE):
+        rs = 0.0
+        rc = 0.0
+        for x in range(0, w - BLOCK + 1, STRIDE):
+            sr = np.int64(0)
+            st = np.int64(0)
+            srr = np.int64(0)
+            stt = np.int64(0)
+            srt = np.int64(0)
+            for j in range(BLOCK):
+                for i in range(BLOCK):
+                    r = np.int64(ref[y + j, x + i])
+                    t = np.int64(tst[y + j, x + i])
+                    sr += r
+                    st += t
+                    srr += r * r
+                    stt += t * t
+                    srt += r * t
+            avg_r = sr * inv
+            avg_t = st * inv
+            var_r = srr * inv - avg_r * avg_r
+            var_t = stt * inv - avg_t * avg_t
+            cov = srt * inv - avg_r * avg_t
+            lum = (2 * avg_r * avg_t + c1) / (avg_r * avg_r + avg_t * avg_t + c1)
+            cs = (2 * cov + c2) / (var_r + var_t + c2)
+            rs, rc = _kbns_add(rs, rc, lum * cs)
+        row = rs + rc
+        if first:
+            total = row
+            first = False
+        else:
+            total, comp = _kbns_add(total, comp, row)
+    return total + comp
+
+
+def _component_ssim(tst: np.ndarray, ref: np.ndarray) -> float:
+    h, w = tst.shape
+    n = block_count(h) * block_count(w)
+    total = _block_ssim_sum(np.ascontiguousarray(tst, np.int32), np.ascontiguousarray(ref, np.int32), C1, C2)
+    return total / n if n > 0 else float("nan")
+
+
+def _shifted(ref: np.ndarray, tst: np.ndarray, shift: np.ndarray, weights) -> np.ndarray:
+    planar = np.ascontiguousarray(np.moveaxis(ref, 2, 0), np.int32)
+    padded = np.pad(planar, ((0, 0), (MARGIN, MARGIN), (MARGIN, MARGIN)), mode="edge")
+    out = np.empty(tst.shape, np.int32)
+    _shift_compensate(padded, np.ascontiguousarray(np.moveaxis(tst, 2, 0), np.int32), shift.astype(np.int32),
+                      np.asarray(weights, np.int32), out)
+    return out
+
+
+def iv_ssim_planes(a: np.ndarray, b: np.ndarray, weights) -> float:
+    """``xIVSSIM::calcPicIVSSIM(Tst = a, Ref = b)`` of two (H, W, 3) integer pictures in 0..255,
+    tool row order, with component weights ``weights`` for the search and the average."""
+    a = np.asarray(a, np.int32)
+    b = np.asarray(b, np.int32)
+    h, w, _ = a.shape
+    if h < BLOCK or w < BLOCK:
+        return float("nan")
+    g = global_colour_shift(a, b)
+    ref_scp = _shifted(b, a, g, weights)
+    tst_scp = _shifted(a, b, -g, weights)
+    t2r = [_component_ssim(a[..., c], ref_scp[..., c]) for c in range(3)]
+    r2t = [_component_ssim(b[..., c], tst_scp[..., c]) for c in range(3)]
+    inv = 1.0 / float(sum(weights))  # (SSIMs · weights).getSum(): ((s0·w0 + s1·w1) + s2·w2) + 0·0
+    s_t2r = (t2r[0] * weights[0] + t2r[1] * weights[1] + t2r[2] * weights[2]) * inv
+    s_r2t = (r2t[0] * weights[0] + r2t[1] * weights[1] + r2t[2] * weights[2]) * inv
+    return min(s_t2r, s_r2t)
+
