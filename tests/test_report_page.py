@@ -14,7 +14,7 @@ import pytest
 from PIL import Image
 
 from harness.cli import main
-from harness.report.page import write_report
+from harness.report.outputs import publish
 from harness.report.pageimages import AMPLIFY
 from harness.report.record import image_name
 from harness.report.results import to_frame, write_results
@@ -57,6 +57,11 @@ def _run_folder(tmp_path):
     return df, meta, ref, pruned
 
 
+def write_report(run_dir, df, meta):
+    """The page as every command writes it (with its tables and plots)."""
+    return publish(run_dir, df, meta).page
+
+
 def _decode(uri: str) -> np.ndarray:
     return np.asarray(Image.open(io.BytesIO(base64.b64decode(uri.split(",", 1)[1]))).convert("RGB"))
 
@@ -86,7 +91,7 @@ def test_page_shows_tables_with_cis_missing_tables_and_the_run_record(tmp_path):
     assert "scene &lt;A&gt;" in page and "scene <A>" not in page  # labels escaped
     for text in ("abc123", "page-test", "harness run x.yaml", "1 / 2"):
         assert text in page
-    assert "curves_scene__A_.png" in page  # drawn for the page when the folder has no plots
+    assert "curves_scene__A_.png" in page
 
 
 def test_report_command_writes_the_page(tmp_path, capsys):

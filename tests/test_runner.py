@@ -241,7 +241,7 @@ def test_progress_lines_count_what_was_done(scenes, tmp_path, workers):
 def test_shifted_view_protocol(scenes, tmp_path):
     """protocols: [rig, shifted] — the same scores and masks measured on the rig's held-out views and
     on views from another camera distribution; rows name their protocol; tables come per protocol."""
-    from harness.report.outputs import write_outputs
+    from harness.report.outputs import publish
     from harness.report.tracking import summarize_groups
 
     cfg = _config({"s0": scenes["s0"]}, ["opacity", "random"], protocols=["rig", "shifted"])
@@ -252,7 +252,7 @@ def test_shifted_view_protocol(scenes, tmp_path):
     assert len(rig) == len(shifted) == 2 * 2 * 2  # methods x ratios x 2 held-out views
     assert all(v.startswith("shifted/") for v in shifted["view"]) and not any("/" in v for v in rig["view"])
     assert res.counts["score"]["misses"] == 2  # scored once for both protocols
-    written = write_outputs(tmp_path / "out", df, ["comparison", "versus"], [])
+    written = publish(tmp_path / "out", df, {}, tables=["comparison", "versus"], plots=[]).written
     names = {p.name for p in written.paths}
     assert {"comparison.md", "comparison-shifted.md", "versus-shifted.csv"} <= names
     assert "held-out views: shifted" in (tmp_path / "out" / "tables" / "comparison-shifted.md").read_text()

@@ -43,8 +43,7 @@ def run(args) -> int:
 
     from harness.core.errors import InputError
     from harness.core.paths import cache_dir
-    from harness.report.outputs import write_outputs
-    from harness.report.page import write_report
+    from harness.report.outputs import publish
     from harness.report.record import (
         contact_sheets,
         copy_images,
@@ -92,9 +91,9 @@ def run(args) -> int:
     pq, csv = write_results(df, out_dir)
     images = copy_images(result.images, out_dir)
     sheets = contact_sheets(runner.items, runner.cache, runner._ref_key, out_dir, config.protocol.background)
-    written = write_outputs(out_dir, df, config.tables, config.plots, anchor=config.anchor)
     run_json = write_run_json(out_dir, config, result, workers=workers, cache_root=cache_root, argv=sys.argv[1:])
-    report = write_report(out_dir, df, json.loads(run_json.read_text()), built=written.built, missing=written.missing)
+    published = publish(out_dir, df, json.loads(run_json.read_text()))
+    written, report = published.written, published.page
     paths = {"results": pq, "results (csv)": csv, "tables": out_dir / "tables", "plots": out_dir / "plots",
              "images": images,
              "contact sheets": f"{out_dir / 'contact_sheets'} (coverage per view: "

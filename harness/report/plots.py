@@ -15,8 +15,10 @@
 * ``figure3`` (paper Fig. 3): per scene, input, the method without Beta ("No Beta") and with it
   ("Beta") at 20 %; ``plots/figure3.png``.
 
-Image grids read the renders the run stored under ``<run>/images/`` (no rendering here). A plot
-that cannot be drawn is named in the returned :class:`~harness.report.tabledata.Written` with why.
+Image grids read the renders the run stored under ``<run>/images/`` (no rendering here); a column
+that no scene has (e.g. 50 / 70 % in a run of 10–30 %) is left out, and a cell one scene lacks is
+blank. A plot that cannot be drawn is named in the returned
+:class:`~harness.report.tabledata.Written` with why.
 """
 
 from __future__ import annotations
@@ -32,6 +34,8 @@ from harness.report.cells import prepare
 from harness.report.record import _slug, image_name
 from harness.report.tabledata import Written
 
+#: the plots a config or ``harness tables --plots`` can name
+PLOTS = ("curves", "figure1", "figure3")
 FIG1_RATIOS = (0.1, 0.3, 0.5, 0.7)
 FIG3_RATIO = 0.2
 
@@ -164,6 +168,9 @@ def _grid(df: pd.DataFrame, images: Path, columns, title: str, path: Path, capti
         files = [d / image_name(m, v, r) for _, m, v, r in columns]
         if sum(f.exists() for f in files) > 1:
             rows.append((label, name, files))
+    present = [j for j in range(len(columns)) if any(files[j].exists() for _, _, files in rows)]
+    columns = [columns[j] for j in present]
+    rows = [(label, name, [files[j] for j in present]) for label, name, files in rows]
     if not rows:
         return []
     fig, axes = plt.subplots(len(rows), len(columns), figsize=(2.6 * len(columns), 2.35 * len(rows)), squeeze=False)
@@ -174,8 +181,8 @@ def _grid(df: pd.DataFrame, images: Path, columns, title: str, path: Path, capti
             ax.set_yticks([])
             if f.exists():
                 ax.imshow(np.asarray(Image.open(f).convert("RGB")))
-            else:
-                ax.text(0.5, 0.5, "not run", ha="center", va="center", transform=ax.transAxes)
+            else:  # this scene lacks the cell: a blank panel, no frame
+                ax.set_frame_on(False)
             if i == 0:
                 ax.set_title(columns[j][0], fontsize=9)
             if j == 0:

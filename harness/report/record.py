@@ -8,7 +8,9 @@ Run folder layout::
     <out>/images/<scene>/...png          reference and figure renders (inputs of the image grids)
     <out>/contact_sheets/<scene>.png     held-out views of each scene
     <out>/run.json                       config, commit, machine, stage times, cache hits/misses,
-                                         skips and errors
+                                         skips and errors of the latest run
+    <out>/records/<when>-<pid>.json      the same record of every run into this folder (a cached
+                                         rerun adds one and never replaces the cold run's)
 
 Everything is derived from the content-addressed stage cache (default ``<harness cache>/stages``),
 so ``harness tables RUN_DIR`` can rebuild tables and plots from ``results.parquet`` and ``images/``.
@@ -17,6 +19,7 @@ so ``harness tables RUN_DIR`` can rebuild tables and plots from ``results.parque
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import time
 from pathlib import Path
@@ -71,9 +74,15 @@ def contact_sheets(items, cache, ref_key, out_dir: Path, background=(0.0, 0.0, 0
     return out
 
 
+#: the page lists at most this many run records (the newest)
+MAX_RECORDS = 200
+
+
 def write_run_json(out_dir: Path, config, result, *, workers: int, cache_root: Path, argv=None) -> Path:
     """run.json, with the calibration workload timed right after the run (``harness track`` divides
-    stage times by it, so machine speed cancels out of the regression check)."""
+    stage times by it, so machine speed cancels out of the regression check); the same record is
+    kept as ``records/<when>-<pid>.json``, so every run into the folder stays visible."""
+    status = [r.get("status") for r in result.rows]
     payload = {
         "name": config.name,
         "config_path": config.source_path,
@@ -92,11 +101,37 @@ def write_run_json(out_dir: Path, config, result, *, workers: int, cache_root: P
         "errors": result.errors,
         "tables": list(config.tables),
         "plots": list(config.plots),
+        "anchor": config.anchor,
+        "rows": {k: status.count(k) for k in ("ok", "skipped", "error")},
         "argv": argv or [],
     }
+    text = json.dumps(payload, indent=2, default=str) + "\n"
+    records = Path(out_dir) / "records"
+    records.mkdir(exist_ok=True)
+    atomic_write_text(records / f"{time.strftime('%Y%m%dT%H%M%S')}-{os.getpid()}.json", text)
     path = Path(out_dir) / "run.json"
-    atomic_write_text(path, json.dumps(payload, indent=2, default=str) + "\n")
+    atomic_write_text(path, text)
     return path
+
+
+def read_records(run_dir: Path) -> tuple[list[dict], list[str]]:
+    """(every run record of ``<run>/records/`` — oldest first, the newest :data:`MAX_RECORDS` —, one
+    line per record file that could not be read). A folder from before records existed gives its
+    ``run.json`` alone. An unreadable record is named, not fatal: the page shows the others."""
+    from harness.core.errors import InputError
+    from harness.report.tracking import read_run_json
+
+    run_dir = Path(run_dir)
+    files = sorted(run_dir.glob("records/*.json"))[-MAX_RECORDS:]
+    if not files and (run_dir / "run.json").is_file():
+        files = [run_dir / "run.json"]
+    out, bad = [], []
+    for f in files:
+        try:
+            out.append(read_run_json(f))
+        except InputError as err:
+            bad.append(str(err))
+    return out, bad
 
 
 def summary_lines(result, df, paths: dict) -> list[str]:

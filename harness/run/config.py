@@ -66,6 +66,8 @@ from harness.core import ratios
 from harness.core.errors import InputError
 from harness.core.params import Params
 from harness.metrics.registry import METRICS, expand
+from harness.report.plots import PLOTS
+from harness.report.tables import TABLES
 from harness.run.config_checks import choice as _choice
 from harness.run.config_checks import expand_env
 from harness.run.config_checks import fractions as _fractions
@@ -79,8 +81,6 @@ from harness.views import rigs
 from renderers import RENDERERS
 
 KINDS = ("forward-facing", "object-centric")
-TABLES = ("comparison", "ablation", "keep", "sensitivity", "runtime", "per_scene", "versus", "bd", "ctc")
-PLOTS = ("curves", "figure1", "figure3")
 
 @dataclass(frozen=True)
 class Protocol:
