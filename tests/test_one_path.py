@@ -21,8 +21,6 @@ import yaml
 from harness.cli import main
 from tests import runner_fakes as fakes
 
-pytestmark = pytest.mark.gl
-
 _NUM = re.compile(r"[+-]?\d+\.\d+")
 
 
@@ -46,6 +44,7 @@ def _numbers(text: str) -> Counter:
     return Counter(_NUM.findall(html.unescape(re.sub(r"<[^>]+>", " ", text))))
 
 
+@pytest.mark.gl
 def test_run_tables_and_report_write_the_same_outputs_per_protocol(tmp_path, capsys):
     scenes = fakes.write_two_scenes(tmp_path)
     run = tmp_path / "run"
@@ -86,3 +85,38 @@ def test_run_tables_and_report_write_the_same_outputs_per_protocol(tmp_path, cap
         md = (run / "tables" / f"{key}.md").read_text()
         assert _numbers(block) == _numbers(md), key
     assert "held-out views: rig" in page and "held-out views: shifted" in page
+
+
+def test_a_misspelt_scene_stops_the_run_before_it_touches_the_folder(tmp_path, capsys):
+    """Issue 23, item 2: `name: luigii` printed a skip, exited 0 and left tables/ holding only
+    summary.csv. Now: one line with the known names and "did you mean", exit 2, nothing written."""
+    out = tmp_path / "run"
+    (out / "tables").mkdir(parents=True)
+    (out / "tables" / "comparison.md").write_text("an earlier run's table")
+    (out / "results.parquet").write_bytes(b"earlier results")
+    before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    cfg = tmp_path / "typo.yaml"
+    cfg.write_text(yaml.safe_dump({"scenes": [{"name": "luigii"}], "methods": ["opacity"], "ratios": [0.1]}))
+    assert main(["run", str(cfg), "--out", str(out), "--cache", str(tmp_path / "cache")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "scenes[0] 'luigii': unknown scene name 'luigii' (did you mean 'luigi'?); " \
+        "known: " in err, err
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
+    assert not (tmp_path / "cache").exists()
+
+
+def test_a_run_that_measures_nothing_replaces_nothing(tmp_path, capsys):
+    """Every scene optional and absent: the skip is said, the earlier outputs stay, the record is kept."""
+    out = tmp_path / "run"
+    (out / "tables").mkdir(parents=True)
+    (out / "tables" / "comparison.md").write_text("an earlier run's table")
+    (out / "results.parquet").write_bytes(b"earlier results")
+    cfg = tmp_path / "absent.yaml"
+    cfg.write_text(yaml.safe_dump({"scenes": [{"name": "mpeg", "sequence": str(tmp_path / "nope"), "optional": True}],
+                                   "methods": ["opacity"], "ratios": [0.1]}))
+    assert main(["run", str(cfg), "--out", str(out), "--cache", str(tmp_path / "cache")]) == 0
+    text = capsys.readouterr().out
+    assert "skipped mpeg: sequence folder not found" in text and "nothing measured" in text
+    assert (out / "tables" / "comparison.md").read_text() == "an earlier run's table"
+    assert (out / "results.parquet").read_bytes() == b"earlier results"
+    assert len(list((out / "records").glob("*.json"))) == 1 and not (out / "run.json").exists()

@@ -78,10 +78,13 @@ def contact_sheets(items, cache, ref_key, out_dir: Path, background=(0.0, 0.0, 0
 MAX_RECORDS = 200
 
 
-def write_run_json(out_dir: Path, config, result, *, workers: int, cache_root: Path, argv=None) -> Path:
+def write_run_json(out_dir: Path, config, result, *, workers: int, cache_root: Path, argv=None,
+                   latest: bool = True) -> Path:
     """run.json, with the calibration workload timed right after the run (``harness track`` divides
     stage times by it, so machine speed cancels out of the regression check); the same record is
-    kept as ``records/<when>-<pid>.json``, so every run into the folder stays visible."""
+    kept as ``records/<when>-<pid>.json``, so every run into the folder stays visible. ``latest``
+    False: the record only (a run that replaced no results leaves run.json to the run that did);
+    returns the path written last."""
     status = [r.get("status") for r in result.rows]
     payload = {
         "name": config.name,
@@ -108,9 +111,11 @@ def write_run_json(out_dir: Path, config, result, *, workers: int, cache_root: P
     text = json.dumps(payload, indent=2, default=str) + "\n"
     records = Path(out_dir) / "records"
     records.mkdir(exist_ok=True)
-    atomic_write_text(records / f"{time.strftime('%Y%m%dT%H%M%S')}-{os.getpid()}.json", text)
-    path = Path(out_dir) / "run.json"
+    path = records / f"{time.strftime('%Y%m%dT%H%M%S')}-{os.getpid()}.json"
     atomic_write_text(path, text)
+    if latest:
+        path = Path(out_dir) / "run.json"
+        atomic_write_text(path, text)
     return path
 
 
