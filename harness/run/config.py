@@ -196,7 +196,7 @@ def _protocol(d, src) -> Protocol:
         kw["seed"] = _num(d["seed"], "protocol.seed", src, lo=0, integer=True)
     for k in ("n_train", "n_test"):
         if k in d:
-            kw[k] = _num(d[k], f"protocol.{k}", src, lo=0 if k == "n_train" else 1, hi=10000, integer=True)
+            kw[k] = _num(d[k], f"protocol.{k}", src, lo=0 if k == "n_train" else 1, hi=rigs.MAX_VIEWS, integer=True)
     return Protocol(**{**p.__dict__, **kw})
 
 
@@ -257,8 +257,8 @@ def _scene(d, i, protocol: Protocol, src) -> SceneSpec:
         rig=_choice(d.get("rig", "default"), rigs.RIG_CHOICES, f"{where}.rig", src),
         cameras=_cameras(d["cameras"], f"{where}.cameras", src) if "cameras" in d else None,
         lod=None if lod is None else _num(lod, f"{where}.lod", src, lo=0, integer=True),
-        n_train=_num(d.get("n_train", protocol.n_train), f"{where}.n_train", src, lo=0, integer=True),
-        n_test=_num(d.get("n_test", protocol.n_test), f"{where}.n_test", src, lo=1, integer=True),
+        n_train=_num(d.get("n_train", protocol.n_train), f"{where}.n_train", src, lo=0, hi=rigs.MAX_VIEWS, integer=True),
+        n_test=_num(d.get("n_test", protocol.n_test), f"{where}.n_test", src, lo=1, hi=rigs.MAX_VIEWS, integer=True),
         suites=tuple(suites),
         optional=_optional(d, where, src),
     )
