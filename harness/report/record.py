@@ -56,21 +56,24 @@ def copy_images(images: dict, out_dir: Path) -> Path:
 
 def contact_sheets(items, cache, ref_key, out_dir: Path, background=(0.0, 0.0, 0.0)) -> dict[str, list[float]]:
     """One labelled grid of the held-out reference renders per scene (first frame), via
-    :func:`harness.views.contact_sheet.write_contact_sheet`; returns each scene's per-view coverage."""
-    from harness.views.contact_sheet import write_contact_sheet
+    :class:`harness.views.contact_sheet.ContactSheet`, reading one render at a time; returns each
+    scene's per-view coverage."""
+    from harness.views.contact_sheet import ContactSheet
 
     out: dict[str, list[float]] = {}
     for item in items:
-        if item.spec.name in out:
+        if item.spec.name in out or not item.test:
             continue
-        pairs = [(cam.name, cache.load_array("render_ref", ref_key(item, cam))) for cam in item.test]
-        pairs = [(n, im) for n, im in pairs if im is not None]
-        if not pairs:
+        sheet = ContactSheet(len(item.test), background=background)
+        for cam in item.test:
+            image = cache.load_array("render_ref", ref_key(item, cam))
+            if image is not None:
+                sheet.add(image, cam.name)
+        if not sheet.covs:
             continue
         path = Path(out_dir) / "contact_sheets" / f"{_slug(item.spec.name)}.png"
         path.parent.mkdir(parents=True, exist_ok=True)
-        out[item.spec.name] = write_contact_sheet([im for _, im in pairs], [n for n, _ in pairs], path,
-                                                  background=background)
+        out[item.spec.name] = sheet.write(path)
     return out
 
 
