@@ -44,13 +44,14 @@ h2{border-bottom:2px solid #ccd5dd;padding-top:12px}h3{margin:14px 0 4px}h3 smal
 table{border-collapse:collapse;margin:6px 0 14px;font-size:12.5px;background:#fff}
 caption{caption-side:top;text-align:left;font-size:12px;color:#444;padding:2px 0 4px;white-space:normal}
 th,td{border:1px solid #d5dde3;padding:3px 7px;text-align:right;white-space:nowrap}
-th{background:#eef2f5}td.k{text-align:left;font-weight:600}td small{color:#444}td.better{background:#dff3e1}td.worse{background:#f8dede}
+th{background:#eef2f5;white-space:normal;min-width:3em;max-width:16em}td.k{text-align:left;font-weight:600}td small{color:#444}td.better{background:#dff3e1}td.worse{background:#f8dede}
 table.kv td{text-align:left;white-space:normal}
 .notes{color:#555;font-size:12px;margin:0 0 10px}.warn{background:#fff4d6;border:1px solid #e8c96b;padding:8px 12px}
 ul.warn{margin:8px 0;padding-left:28px}
 .scroll{overflow-x:auto;max-width:100%}.plots img{max-width:100%;border:1px solid #ddd;margin:4px 0;background:#fff}
 details{background:#fff;border:1px solid #d5dde3;margin:8px 0;padding:4px 10px;min-width:0}
 summary{font-weight:600;cursor:pointer}summary small{font-weight:400;color:#555}
+details,h2,h3{scroll-margin-top:44px}table.records td{white-space:normal;text-align:left}
 .index a{margin-right:14px}
 table.imgs td,table.imgs th{vertical-align:top;text-align:left;white-space:normal;background:#fff}table.imgs th{width:150px;max-width:150px;vertical-align:middle}table.imgs tr:first-child th{vertical-align:bottom}table.imgs td figure{vertical-align:top}.cmp{margin:0;width:var(--w)}
 .slider{position:relative;width:var(--w);background-size:100% 100%;border:1px solid #999;overflow:hidden}
@@ -239,7 +240,7 @@ def records_html(records: list[dict], unreadable: list[str]) -> str:
         pd.Index([r.get("when", "") for r in newest], name="when"),
         ["commit", "command", "total s", "cache hits / misses", "rows ok / skipped / error", "errors"])
     out = [html_table(rows, caption=f"{len(records)} run(s) into this folder, newest first; a cached rerun "
-                                    "times only what it recomputed")]
+                                    "times only what it recomputed", cls="records")]
     out += [f"<p class='warn'>{esc(u)}</p>" for u in unreadable]
     out += [f"<details><summary>{esc(r.get('when', ''))} <small>{esc(' '.join(['harness', *r.get('argv', [])]))}"
             f"</small></summary>{_record_detail(r)}</details>" for r in newest]

@@ -51,11 +51,12 @@ def cell_html(text: str) -> str:
     return text_html(text)
 
 
-def html_table(disp: pd.DataFrame, heading: str = "", caption: str = "") -> str:
+def html_table(disp: pd.DataFrame, heading: str = "", caption: str = "", cls: str = "") -> str:
     """A display frame as one scrolling HTML table (repeated row keys blanked, as in the .md)."""
     names = [n or "" for n in disp.index.names]
     cols = [" · ".join(str(x) for x in c if str(x)) if isinstance(c, tuple) else str(c) for c in disp.columns]
-    out = ["<div class='scroll'><table>"]
+    attr = f" class='{cls}'" if cls else ""
+    out = [f"<div class='scroll'><table{attr}>"]
     if caption:
         out.append(f"<caption>{esc(caption)}</caption>")
     out.append("<thead><tr>" + "".join(f"<th>{esc(h)}</th>" for h in names + cols) + "</tr></thead><tbody>")
