@@ -40,6 +40,8 @@ A config is a YAML mapping::
         n_test: 3                 # per-scene override of protocol.n_test / n_train
         label: "plant"            # display name in tables (default: name)
         suites: [paper-table1]    # free tags
+        optional: true            # skip the scene when its files are absent (default false: a scene
+                                  # that cannot be found stops the run before any work)
     methods:
       - name: betadesc            # a registered pruner
         variant: default          # row label of this entry (default: "default" or the sweep values)
