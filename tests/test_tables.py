@@ -240,3 +240,19 @@ def test_confsplat_below_its_own_iterations_is_labelled_a_lower_bound(tmp_path):
     text = (tmp_path / "tables" / "comparison.md").read_text()
     assert "ConfSplatPrune" in text and "lower bound" not in text
     assert catalog.method_label("confsplat") == "ConfSplatPrune"  # no note outside a report build
+
+
+def test_every_written_table_has_a_caption_with_n_and_the_interval(tmp_path):
+    """A table whose builder gives no caption (e.g. a plugin's) gets one from its tidy rows."""
+    from harness.report.tabledata import Table
+    from harness.report.tables import with_caption
+
+    w = write_tables(_rows(), tmp_path, ["comparison", "keep", "sensitivity", "runtime", "per_scene", "versus"])
+    made = {k: b for k, b in w.built.items() if not isinstance(b.table, Missing)}
+    assert len(made) == 6
+    for key, b in made.items():
+        assert b.table.caption.startswith("n = "), key
+    tidy = pd.DataFrame({"n": [2, 4], "ci_low": [0.1, 0.2], "ci_high": [0.3, 0.4]})
+    t = with_caption(Table(pd.DataFrame(), [], tidy))
+    assert t.caption.startswith("n = 2–4 per cell; intervals: ") and "bootstrap" in t.caption
+    assert with_caption(Table(pd.DataFrame(), [], pd.DataFrame({"x": [1]}))).caption == "no interval"

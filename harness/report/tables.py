@@ -26,6 +26,7 @@ registry (every registered metric the results carry).
 
 from __future__ import annotations
 
+import dataclasses
 import inspect
 from pathlib import Path
 
@@ -257,6 +258,22 @@ def title(name: str, protocol: str) -> str:
                    if protocol else "")
 
 
+def with_caption(t: Table | Missing) -> Table | Missing:
+    """``t`` with a caption: its own, else one read from its tidy rows — ``n`` per cell where they
+    carry it, and the interval method where they carry intervals (every table's caption says both)."""
+    if isinstance(t, Missing) or t.caption:
+        return t
+    from harness.report import stats
+
+    parts = []
+    if "n" in t.tidy and t.tidy["n"].notna().any():
+        lo, hi = int(t.tidy["n"].min()), int(t.tidy["n"].max())
+        parts.append(f"n = {lo if lo == hi else f'{lo}–{hi}'} per cell")
+    parts.append(f"intervals: {stats.INTERVAL_DESCRIPTION}" if {"ci_low", "ci_high"} <= set(t.tidy)
+                 else "no interval")
+    return dataclasses.replace(t, caption="; ".join(parts))
+
+
 def write_tables(df: pd.DataFrame, out_dir: str | Path, names, **opts) -> Written:
     """Write ``tables/<name>.md|csv|tex`` for each table that can be made, plus ``tables/summary.csv``,
     per held-out view protocol (:func:`harness.report.summary.protocol_subsets`): the primary
@@ -274,6 +291,7 @@ def write_tables(df: pd.DataFrame, out_dir: str | Path, names, **opts) -> Writte
     atomic_write_text(out.paths[0], pd.concat(summaries, ignore_index=True).to_csv(index=False))
     for proto, suffix, sub in subsets:
         for name, t in build_tables(sub, names, **opts).items():
+            t = with_caption(t)
             key = name + suffix
             out.built[key] = Built(key, name, proto, title(name, proto), t)
             if isinstance(t, Missing):

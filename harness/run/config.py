@@ -71,6 +71,7 @@ from harness.core.params import Params
 from harness.metrics.registry import METRICS, expand
 from harness.report.plots import PLOTS
 from harness.report.tables import TABLES
+from harness.run.config_checks import boolean as _bool
 from harness.run.config_checks import choice as _choice
 from harness.run.config_checks import expand_env
 from harness.run.config_checks import fractions as _fractions
@@ -219,12 +220,6 @@ def _cameras(d, where, src) -> CameraSpec:
 _SCENE_KEYS = {"name", "label", "source", "frames", "kind", "rig", "cameras", "lod", "n_train", "n_test", "suites",
                "sequence", "test", "test_every", "width", "height", "optional"}
 
-
-def _optional(d, where, src) -> bool:
-    v = d.get("optional", False)
-    if not isinstance(v, bool):
-        raise InputError(src, f"{where}.optional: expected true or false, got {v!r}")
-    return v
 _SEQUENCE_ONLY = ("test", "test_every", "width", "height")
 
 
@@ -245,7 +240,7 @@ def _scene(d, i, protocol: Protocol, src) -> SceneSpec:
     if not isinstance(suites, list) or not all(isinstance(s, str) for s in suites):
         raise InputError(src, f"{where}.suites: expected a list of tags")
     if "sequence" in d:
-        return _sequence_scene(d, where, name, suites, src, _optional(d, where, src))
+        return _sequence_scene(d, where, name, suites, src, _bool(d.get("optional", False), f"{where}.optional", src))
     stray = [k for k in _SEQUENCE_ONLY if k in d]
     if stray:
         raise InputError(src, f"{where}: {', '.join(stray)} go with `sequence` (for `cameras`, inside it)")
@@ -262,7 +257,7 @@ def _scene(d, i, protocol: Protocol, src) -> SceneSpec:
         n_train=_num(d.get("n_train", protocol.n_train), f"{where}.n_train", src, lo=0, hi=rigs.MAX_VIEWS, integer=True),
         n_test=_num(d.get("n_test", protocol.n_test), f"{where}.n_test", src, lo=1, hi=rigs.MAX_VIEWS, integer=True),
         suites=tuple(suites),
-        optional=_optional(d, where, src),
+        optional=_bool(d.get("optional", False), f"{where}.optional", src),
     )
 
 

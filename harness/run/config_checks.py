@@ -43,6 +43,12 @@ def num(v, where: str, src: str, *, lo=None, hi=None, integer=False):
     return v
 
 
+def boolean(v, where: str, src: str) -> bool:
+    if not isinstance(v, bool):
+        raise InputError(src, f"{where}: expected true or false, got {v!r}")
+    return v
+
+
 def string(v, where: str, src: str) -> str:
     if not isinstance(v, str) or not v.strip():
         raise InputError(src, f"{where}: expected a non-empty string, got {v!r}")
