@@ -125,3 +125,10 @@ def test_om_and_bytes_panels_when_the_results_carry_them(figures, tmp_path, monk
     axes = figures["curves_grape-small.png"].axes
     assert [ax.get_ylabel() for ax in axes] == ["PSNR (↑)", "OM-PSNR (↑)", "LPIPS (↓)", "PSNR (↑)"]
     assert axes[-1].get_xlabel() == "pruned .ply size (MiB)"
+
+
+def test_plots_name_the_protocol_they_show(figures, tmp_path):
+    """Curves and figures are of the primary held-out view protocol, and say so."""
+    df = to_frame([{**r, "protocol": p} for p in ("rig", "shifted") for r in _rows().to_dict("records")])
+    plots.write_plots(df, tmp_path, ["curves"])
+    assert "held-out views: rig" in figures["curves_grape-small.png"]._suptitle.get_text()

@@ -139,11 +139,14 @@ def tables_html(built: dict[str, Built]) -> str:
 
 
 # --------------------------------------------------------------------------- plots, images
-def plots_html(plots_dir: Path) -> str:
+def plots_html(plots_dir: Path, protocol: str = "") -> str:
     files = sorted(plots_dir.glob("curves_*.png")) + [plots_dir / f for f in ("figure1.png", "figure3.png")]
     out = [f"<details><summary>{esc(f.name)}</summary><figure><img alt='{esc(f.stem)}' src='{file_uri(f)}'>"
            f"</figure></details>" for f in files if f.is_file()]
-    return "<div class='plots'>" + ("\n".join(out) or "<p class='warn'>no plots in this run folder</p>") + "</div>"
+    if not out:
+        return "<p class='warn'>no plots in this run folder</p>"
+    note = f"<p class='notes'>Held-out views: {esc(protocol)} (the primary protocol).</p>" if protocol else ""
+    return note + "<div class='plots'>" + "\n".join(out) + "</div>"
 
 
 def _fmt_db(v: float) -> str:
@@ -183,12 +186,12 @@ def _scene_html(s, cls: str) -> str:
     return "\n".join(out)
 
 
-def images_html(scenes) -> str:
+def images_html(scenes, protocol: str = "") -> str:
     if not scenes:
         return "<p class='warn'>no stored renders under images/</p>"
     index = " ".join(f"<a href='#img-{esc(_slug(s.scene))}'>{esc(s.label)}</a>" for s in scenes)
     out = [f"<p class='index'>Scenes: {index}</p>",
-           f"<p class='notes'>First held-out view of each scene. Slider: reference render (left) | pruned render "
+           f"<p class='notes'>First held-out view{f' ({esc(protocol)})' if protocol else ''} of each scene. Slider: reference render (left) | pruned render "
            f"(right), JPEG q{JPEG_QUALITY} viewing copies. Below: the largest |pruned − reference| of the R, G, B "
            f"channels × {AMPLIFY}, from the lossless renders (black = identical; a difference of "
            f"≥ {255 // AMPLIFY + 1} levels is white). "
@@ -282,16 +285,17 @@ def write_report(run_dir: str | Path, df: pd.DataFrame, meta: dict, built: dict[
     warnings += [m for m in missing if not m.startswith("table ")]  # tables: said above, from ``built``
     scenes = list(dict.fromkeys(zip(df["scene"], df["label"])))
     known = {_slug(m): m for m in df["method"].unique()}
-    images = images_html(scene_images(run_dir / "images", scenes, known))
+    protocols = list(dict.fromkeys(b.protocol for b in built.values() if b.protocol))  # the primary first
+    images = images_html(scene_images(run_dir / "images", scenes, known), protocols[0] if protocols else "")
     records, unreadable = read_records(run_dir)
     ok = df[df["status"] == "ok"]
-    protocols = sorted({b.protocol for b in built.values() if b.protocol})
     subtitle = (f"{len(scenes)} scene(s), {ok['method'].nunique()} method(s), {len(ok)} measured image pairs"
                 + (f" under {len(protocols)} held-out view protocol(s) ({', '.join(protocols)})" if protocols else "")
                 + f"; commit {meta.get('commit', 'unknown')}; {meta.get('when', '')}")
     page = render_page(title=f"harness run {meta.get('name') or run_dir.name}", subtitle=subtitle,
                        warnings=warnings, summary=summary_html(built), tables=tables_html(built),
-                       plots=plots_html(run_dir / "plots"), images=images, records=records_html(records, unreadable))
+                       plots=plots_html(run_dir / "plots", protocols[0] if protocols else ""), images=images,
+                       records=records_html(records, unreadable))
     path = run_dir / "report.html"
     atomic_write_text(path, page)
     return path
