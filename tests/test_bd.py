@@ -88,7 +88,8 @@ def _summary():
                 q = 40 + gain - 60 * r
                 rows.append({"scene": scene, "label": scene, "method": method, "variant": "default", "ratio": r,
                              "splats_out": n, "bytes": 300 + 248 * n, "rgb_psnr": q, "yuv_psnr": q + 3,
-                             "yuv_ssim": 0.99 - r / 10 + gain / 1000, "score_s": 1.0, "psnr": q, "n": 2})
+                             "yuv_ssim": 0.99 - r / 10 + gain / 1000, "score_s": 1.0, "psnr": q, "n": 2,
+                             "rgb_psnr_std": 0.5})
     return pd.DataFrame(rows)
 
 
@@ -101,14 +102,20 @@ def test_rate_points_and_tables():
     long = bd_rows(s)
     assert set(long["method"]) == {"betadesc", "opacity"} and (long["interp"] == "pchip").all()
     assert (long[long["metric"] == "RGB-PSNR"]["bd_quality"] < 0).all()
-    num, disp, notes = table_bd(s)
-    assert ("average", "BetaDescPrune") in num.index
-    assert num.loc[("average", "BetaDescPrune"), ("RGB-PSNR", "BD-PSNR")] == pytest.approx(-2.0, abs=0.05)
-    assert any("anchor: LightGSPrune" in n for n in notes)
-    assert table_bd(s, anchor="opacity")[0].loc[("A", "BetaDescPrune"), ("RGB-PSNR", "BD-rate (%)")] < 0
-    ctc, _, _ = table_ctc(s)
-    assert list(ctc.index.names) == ["Sequence", "Method", "RP"]
-    assert {"splats", "bytes", "RGB-PSNR", "YUV-PSNR", "YUV-SSIM", "seconds"} <= set(ctc.columns)
+    t = table_bd(s)
+    num = t.tidy.set_index(["Sequence", "Method", "column_1", "column_2"])
+    assert ("average", "BetaDescPrune", "RGB-PSNR", "BD-PSNR") in num.index
+    avg = num.loc[("average", "BetaDescPrune", "RGB-PSNR", "BD-PSNR")]
+    assert avg["value"] == pytest.approx(-2.0, abs=0.05) and np.isfinite(avg["std"])  # std over scenes beside it
+    assert t.disp.loc[("average", "BetaDescPrune"), ("RGB-PSNR", "BD-PSNR")].startswith("-2.0")
+    assert any("anchor: LightGSPrune" in n for n in t.notes) and t.caption.startswith("n = rate points")
+    rate = table_bd(s, anchor="opacity").tidy.set_index(["Sequence", "Method", "column_1", "column_2"])["value"]
+    assert rate[("A", "BetaDescPrune", "RGB-PSNR", "BD-rate (%)")] < 0
+    ctc = table_ctc(s)
+    assert list(ctc.disp.index.names) == ["Sequence", "Method", "RP"]
+    assert {"splats", "bytes", "RGB-PSNR", "YUV-PSNR", "YUV-SSIM", "seconds"} <= set(ctc.disp.columns)
+    psnr = ctc.tidy[ctc.tidy["column"] == "RGB-PSNR"]
+    assert (psnr["std"] == 0.5).all() and ctc.tidy.loc[ctc.tidy["column"] == "splats", "std"].isna().all()
 
 
 def test_ply_size_model_equals_real_writes(tmp_path):

@@ -71,8 +71,10 @@ def test_env_expansion_in_paths(monkeypatch):
 
 
 @pytest.mark.parametrize("over, expected", [
-    ({"bogus": 1}, "top level: unknown key(s) bogus"),
-    ({"methods": ["no-such-pruner"]}, "methods[0].name: unknown pruner 'no-such-pruner'"),
+    ({"bogus": 1}, "top level: unknown key 'bogus'; known: anchor,"),
+    ({"ratio": [0.1]}, "top level: unknown key 'ratio' (did you mean 'ratios'?)"),
+    ({"methods": ["no-such-pruner"]}, "methods[0].name: unknown method 'no-such-pruner'; known: "),
+    ({"methods": ["opacty"]}, "methods[0].name: unknown method 'opacty' (did you mean 'opacity'?); known: "),
     ({"methods": [{"name": "fake-config", "params": {"c": 1}}]},
      "methods[0].params.c: method 'fake-config': no such parameter; known: a, b, voxel"),
     ({"methods": [{"name": "fake-config", "params": {"voxel": -1}}]},
@@ -92,20 +94,21 @@ def test_env_expansion_in_paths(monkeypatch):
     ({"methods": [{"name": "fake-config", "params": {"a": 1}, "sweep": {"a": [2]}}]},
      "methods[0].sweep.a: also set in params"),
     ({"methods": ["fake-config", "fake-config"]}, "variant fake-config[default] already defined by methods[0]"),
-    ({"methods": [{"name": "fake-config", "scenes": ["nope"]}]}, "methods[0].scenes[0]: 'nope' is not a scene"),
+    ({"methods": [{"name": "fake-config", "scenes": ["nope"]}]}, "methods[0].scenes[0]: unknown scene of this config 'nope'"),
     ({"ratios": [0.1, 1.5]}, "ratios[1]: 1.5 is outside [0.0, 1.0]"),
     ({"ratios": "0.1"}, "ratios: expected a non-empty list"),
     ({"ratios": None}, "ratios: expected a non-empty list"),
     ({"scenes": []}, "scenes: expected a non-empty list"),
     ({"scenes": ["a", "a"]}, "scenes[1].name: duplicate scene name 'a'"),
     ({"scenes": [{"name": "a", "source": "x", "frames": "y"}]}, "scenes[0]: give either `source` or `frames`"),
-    ({"scenes": [{"name": "a", "kind": "360"}]}, "scenes[0].kind: '360' is not one of forward-facing, object-centric"),
+    ({"scenes": [{"name": "a", "kind": "360"}]}, "scenes[0].kind: unknown value '360'; known: forward-facing, object-centric"),
     ({"scenes": [{"name": "a", "cameras": {"path": "c.json"}}]}, "scenes[0].cameras: give the held-out views"),
     ({"protocol": {"longest_side": 12.5}}, "protocol.longest_side: expected an integer"),
-    ({"protocol": {"renderer": "vulkan"}}, "protocol.renderer: 'vulkan' is not one of gl, reference"),
-    ({"protocol": {"metrics": ["psnr", "flip"]}}, "protocol.metrics[1]: 'flip' is not one of"),
+    ({"protocol": {"renderer": "vulkan"}}, "protocol.renderer: unknown value 'vulkan'; known: gl, reference"),
+    ({"protocol": {"metrics": ["psnr", "flip"]}}, "protocol.metrics[1]: unknown metric or metric set 'flip'"),
+    ({"protocol": {"metrics": ["ssimm"]}}, "protocol.metrics[0]: unknown metric or metric set 'ssimm' (did you mean 'ssim'"),
     ({"protocol": {"background": [0, 0]}}, "protocol.background: expected three numbers"),
-    ({"tables": ["comparison", "table9"]}, "tables[1]: 'table9' is not one of"),
+    ({"tables": ["comparison", "table9"]}, "tables[1]: unknown table 'table9'"),
     ({"workers": 0}, "workers: 0 is outside [1, 256]"),
 ])
 def test_errors_name_the_key_and_the_problem(over, expected):
@@ -154,7 +157,7 @@ def test_executor_section():
 
 
 @pytest.mark.parametrize("value, message", [
-    ("dask", "is not one of local, ray"),
+    ("dask", "unknown value 'dask'; known: local, ray"),
     ({"name": "local", "address": "auto"}, "go with `name: ray`"),
     ({"name": "ray", "cpus": 2}, "unknown key"),
     ({"name": "ray", "cpus_per_task": 0}, "outside"),

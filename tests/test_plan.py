@@ -166,15 +166,18 @@ def test_counts_only_without_estimate(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("args, phrase", [
-    (["{cfg}"], "unknown key(s) bogus"),
+    (["{cfg}"], "unknown key 'bogus'"),
     (["{missing}"], "no such file"),
     (["{good}", "--efficiency", "2"], "--efficiency: must be in (0, 1]"),
     (["{good}", "--assume-frames", "0"], "--assume-frames: must be at least 1"),
+    (["{typo}"], "scenes[0] 'luigii': unknown scene name 'luigii' (did you mean 'luigi'?)"),
 ])
 def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, args, phrase):
     (tmp_path / "bad.yaml").write_text("bogus: 1\nscenes: [luigi]\nmethods: [opacity]\nratios: [0.1]\n")
+    (tmp_path / "typo.yaml").write_text("scenes: [luigii]\nmethods: [opacity]\nratios: [0.1]\n")
     (tmp_path / "good.yaml").write_text("scenes: [luigi]\nmethods: [opacity]\nratios: [0.1]\n")
-    paths = {"cfg": tmp_path / "bad.yaml", "missing": tmp_path / "nope.yaml", "good": tmp_path / "good.yaml"}
+    paths = {"cfg": tmp_path / "bad.yaml", "missing": tmp_path / "nope.yaml", "good": tmp_path / "good.yaml",
+             "typo": tmp_path / "typo.yaml"}
     rc = main(["plan", *(a.format(**paths) for a in args)])
     out, err = capsys.readouterr()
     assert rc == 2 and out == ""

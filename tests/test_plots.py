@@ -89,6 +89,25 @@ def test_figure1_titles_give_the_actual_tau(figures, tmp_path):
     assert "≈" not in "".join(titles)
 
 
+def test_figure1_shows_no_empty_not_run_panels(figures, tmp_path):
+    """Issue 23: a run of 10-30 % drew two 'not run' columns (50 %, 70 %) in figure 1 for every scene."""
+    df = _rows()
+    for scene, n in (("grape", 2), ("other", 1)):
+        d = tmp_path / "images" / scene
+        d.mkdir(parents=True)
+        img = Image.fromarray(np.full((8, 8, 3), 128, np.uint8))
+        img.save(d / "input.png")
+        for r in (0.1, 0.3)[:n]:
+            img.save(d / image_name("betadesc", "default", r))
+    df = to_frame(df.to_dict("records") + [{**r, "scene": "other", "label": "other"} for r in df.to_dict("records")])
+    assert plots.write_plots(df, tmp_path, ["figure1"]).missing == []
+    fig = figures["figure1.png"]
+    assert [ax.get_title() for ax in fig.axes[:3]] == ["unpruned", "10% pruned\nτ = 0.420", "30% pruned\nτ = 0.460"]
+    assert len(fig.axes) == 2 * 3  # two scenes x (unpruned, 10 %, 30 %): no 50 / 70 % columns
+    assert not any(t.get_text() == "not run" for ax in fig.axes for t in ax.texts)
+    assert not fig.axes[5].get_frame_on()  # the cell one scene lacks is blank, without a frame
+
+
 def test_a_plot_that_cannot_be_drawn_says_why(tmp_path):
     w = plots.write_plots(_rows(), tmp_path, ["figure1", "figure3"])
     assert w.paths == [] and len(w.missing) == 2
@@ -106,3 +125,10 @@ def test_om_and_bytes_panels_when_the_results_carry_them(figures, tmp_path, monk
     axes = figures["curves_grape-small.png"].axes
     assert [ax.get_ylabel() for ax in axes] == ["PSNR (↑)", "OM-PSNR (↑)", "LPIPS (↓)", "PSNR (↑)"]
     assert axes[-1].get_xlabel() == "pruned .ply size (MiB)"
+
+
+def test_plots_name_the_protocol_they_show(figures, tmp_path):
+    """Curves and figures are of the primary held-out view protocol, and say so."""
+    df = to_frame([{**r, "protocol": p} for p in ("rig", "shifted") for r in _rows().to_dict("records")])
+    plots.write_plots(df, tmp_path, ["curves"])
+    assert "held-out views: rig" in figures["curves_grape-small.png"]._suptitle.get_text()

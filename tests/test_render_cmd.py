@@ -63,16 +63,18 @@ def test_camera_file_png_split(scene_file, tmp_path):
     out = tmp_path / "png"
     assert run(scene_file, "--cameras", tmp_path / "cams.json", "--out", out, "--backend", "reference",
                "--longest-side", 32) == 0
-    pngs = sorted(out.glob("*.png"))
-    assert [p.name for p in pngs] == ["000_v0.png", "001_v8.png", "contact_sheet.png"]  # every 8th view
+    # a camera file is used as given: every camera (issue 23: "wrote 1 views" of an 8-camera file)
+    assert len(list(out.glob("0*.png"))) == 10
+    assert [c.name for c in load_cameras(out / "cameras.json")] == [c.name for c in cams]
+    assert run(scene_file, "--cameras", tmp_path / "cams.json", "--out", tmp_path / "test", "--backend", "reference",
+               "--longest-side", 32, "--split", "test") == 0
+    pngs = sorted((tmp_path / "test").glob("*.png"))
+    assert [p.name for p in pngs] == ["000_v0.png", "001_v8.png", "contact_sheet.png"]  # --split: every 8th view
     im = np.asarray(Image.open(pngs[1]))
     assert im.shape == (16, 32, 3) and im.dtype == np.uint8
     assert run(scene_file, "--cameras", tmp_path / "cams.json", "--out", tmp_path / "npy", "--backend",
-               "reference", "--longest-side", 32, "--format", "npy") == 0
+               "reference", "--longest-side", 32, "--format", "npy", "--split", "test") == 0
     np.testing.assert_array_equal(im, to_uint8(np.load(tmp_path / "npy" / "001_v8.npy")))
-    assert run(scene_file, "--cameras", tmp_path / "cams.json", "--out", tmp_path / "all", "--backend",
-               "reference", "--longest-side", 16, "--split", "all") == 0
-    assert len(list((tmp_path / "all").glob("0*.png"))) == 10
 
 
 @pytest.mark.parametrize("extra, message", [
@@ -80,6 +82,8 @@ def test_camera_file_png_split(scene_file, tmp_path):
     (["--cameras", "/nonexistent/cams.json"], "no such file"),
     (["--rig", "orbit", "--longest-side", "0"], "--longest-side"),
     (["--rig", "orbit", "--n-test", "0"], "--n-test"),
+    (["--rig", "orbit", "--n-test", "10000"], "need 1..1000 test views"),
+    (["--rig", "orbit", "--aspect", "0"], "--aspect"),
 ])
 def test_bad_input_is_one_line_exit_2(scene_file, tmp_path, capsys, extra, message):
     out = tmp_path / "out"
@@ -121,9 +125,9 @@ def test_pruned_scene_renders_at_the_same_size(scene_file, tmp_path):
     assert run(tmp_path / "p.ply", "--out", tmp_path / "b", *common) == 0
     sizes = [{(c["width"], c["height"]) for c in _rendered_cameras(tmp_path / d)} for d in "ab"]
     assert sizes[0] == sizes[1]
-    # identical views: render the second scene with the first render's cameras
+    # identical views: render the second scene with the first render's cameras (all of them, as given)
     assert run(tmp_path / "p.ply", "--out", tmp_path / "c", "--cameras", tmp_path / "a" / "cameras.json",
-               "--split", "all", "--backend", "reference") == 0
+               "--backend", "reference") == 0
     for c, a in zip(_rendered_cameras(tmp_path / "c"), _rendered_cameras(tmp_path / "a"), strict=True):
         assert (c["name"], c["width"], c["height"]) == (a["name"], a["width"], a["height"])
         np.testing.assert_allclose(c["world_to_cam"], a["world_to_cam"], atol=1e-12)
@@ -145,3 +149,60 @@ def test_embedded_cameras_are_the_default_views(scene_file, tmp_path, capsys):
     assert main(["prune", str(with_cams), str(tmp_path / "p.ply"), "--ratio", "0.5", "--method", "opacity"]) == 0
     assert run(tmp_path / "p.ply", "--out", tmp_path / "q", "--backend", "reference", "--split", "all") == 0
     assert _rendered_cameras(tmp_path / "q") == _rendered_cameras(tmp_path / "o")
+
+
+def test_a_scene_pruned_from_a_dataset_renders_the_datasets_own_cameras(scene_file, tmp_path, monkeypatch, capsys):
+    """Issue 23: `render luigi30.ply --rig default` (luigi pruned by 30 %) picked 1024x768 where `render
+    luigi` picked 1024x1024 under the same view names. Sizes come from the flags only, and a scene
+    pruned from a dataset is rendered from that dataset's rig, fitted to the dataset: the same cameras."""
+    from types import SimpleNamespace
+
+    from harness.io import datasets
+
+    monkeypatch.setattr(datasets, "SCENES", {"tiny-set": SimpleNamespace(sha256=None)})
+    monkeypatch.setattr(datasets, "scene_path", lambda name: scene_file)
+    assert main(["prune", str(scene_file), str(tmp_path / "p30.ply"), "--ratio", "0.3", "--method", "opacity"]) == 0
+    common = ("--backend", "reference", "--longest-side", 24, "--n-train", 2, "--n-test", 3)
+    assert run("tiny-set", "--out", tmp_path / "a", *common) == 0
+    assert run(tmp_path / "p30.ply", "--out", tmp_path / "b", *common) == 0
+    assert "fitted to tiny-set: this scene's splats are a subset of it" in capsys.readouterr().out
+    assert _rendered_cameras(tmp_path / "a") == _rendered_cameras(tmp_path / "b")
+    assert {(c["width"], c["height"]) for c in _rendered_cameras(tmp_path / "a")} == {(24, 18)}  # 4/3 from the flags
+    # an unrelated scene: its own auto rig, but the same sizes, so `compare` lines up
+    other = tmp_path / "other.ply"
+    from harness.io.ply import write_ply
+
+    write_ply(random_scene(120, sh_degree=1, seed=9), other)
+    assert run(other, "--out", tmp_path / "c", *common) == 0
+    assert "subset" not in capsys.readouterr().out
+    assert {(c["width"], c["height"]) for c in _rendered_cameras(tmp_path / "c")} == {(24, 18)}
+    first = sorted((tmp_path / "a").glob("000_*.png"))[0].name
+    assert main(["compare", str(tmp_path / "a" / first), str(sorted((tmp_path / "c").glob("000_*.png"))[0]),
+                 "--metrics", "psnr"]) == 0
+
+
+def test_render_holds_one_image_at_a_time(scene_file, tmp_path, monkeypatch):
+    """Renders are streamed to disk: when view k is rendered, no earlier full image is alive
+    (issue 24: +590 MB per view at 8192 px)."""
+    import weakref
+
+    import renderers
+
+    alive = []
+
+    class Fake:
+        def render(self, scene, cam, background=(0, 0, 0)):
+            alive.append(sum(r() is not None for r in refs))
+            img = np.full((cam.height, cam.width, 3), 0.5, np.float32)
+            refs.append(weakref.ref(img))
+            return img
+
+        def close(self):
+            pass
+
+    refs = []
+    monkeypatch.setattr(renderers, "get_renderer", lambda backend, device=None: Fake())
+    assert run(scene_file, "--rig", "orbit", "--out", tmp_path / "o", "--longest-side", 64, "--n-train", 0,
+               "--n-test", 6) == 0
+    assert len(alive) == 6 and max(alive) == 0, alive
+    assert len(list((tmp_path / "o").glob("0*.png"))) == 6

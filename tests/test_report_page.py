@@ -10,11 +10,12 @@ import math
 import re
 
 import numpy as np
+import pandas as pd
 import pytest
 from PIL import Image
 
 from harness.cli import main
-from harness.report.page import write_report
+from harness.report.outputs import publish
 from harness.report.pageimages import AMPLIFY
 from harness.report.record import image_name
 from harness.report.results import to_frame, write_results
@@ -57,6 +58,11 @@ def _run_folder(tmp_path):
     return df, meta, ref, pruned
 
 
+def write_report(run_dir, df, meta):
+    """The page as every command writes it (with its tables and plots)."""
+    return publish(run_dir, df, meta).page
+
+
 def _decode(uri: str) -> np.ndarray:
     return np.asarray(Image.open(io.BytesIO(base64.b64decode(uri.split(",", 1)[1]))).convert("RGB"))
 
@@ -86,7 +92,7 @@ def test_page_shows_tables_with_cis_missing_tables_and_the_run_record(tmp_path):
     assert "scene &lt;A&gt;" in page and "scene <A>" not in page  # labels escaped
     for text in ("abc123", "page-test", "harness run x.yaml", "1 / 2"):
         assert text in page
-    assert "curves_scene__A_.png" in page  # drawn for the page when the folder has no plots
+    assert "curves_scene__A_.png" in page
 
 
 def test_report_command_writes_the_page(tmp_path, capsys):
@@ -115,3 +121,78 @@ def test_page_in_headless_chromium(tmp_path):
     assert clip == "inset(0px 0px 0px 20%)"
     px = np.asarray(Image.open(shot).convert("RGB"))
     assert px.shape[0] > 500 and px.std() > 20 and len(np.unique(px.reshape(-1, 3), axis=0)) > 50  # not blank
+
+
+def _two_scene_two_protocol_folder(tmp_path):
+    """The fixture's results for two scenes and both protocols, with two run records (cold, cached)."""
+    df, meta, ref, _ = _run_folder(tmp_path)
+    rows = df.to_dict("records")
+    more = [{**r, "scene": "sc.b", "label": "scene B", "psnr": r["psnr"] - 1.0} for r in rows]
+    both = [{**r, "protocol": p, "view": (f"shifted/{r['view']}" if p == "shifted" else r["view"])}
+            for p in ("rig", "shifted") for r in rows + more]
+    df = to_frame(both)
+    write_results(df, tmp_path)
+    d = tmp_path / "images" / "sc.b"
+    d.mkdir(parents=True)
+    for f in (tmp_path / "images" / "sc.a").iterdir():
+        (d / f.name).write_bytes(f.read_bytes())
+    (tmp_path / "records").mkdir()
+    for when, hits, total in (("2026-01-01T00:00:00", 0, 300.0), ("2026-01-01T00:10:00", 3, 2.0)):
+        rec = {**meta, "when": when, "stage_seconds": {"total": total},
+               "cache_counts": {"score": {"hits": hits, "misses": 3 - hits}}}
+        (tmp_path / "records" / f"{when.replace(':', '')}-1.json").write_text(json.dumps(rec))
+    return df, meta
+
+
+def test_page_summary_first_the_rest_folded_captions_and_every_record(tmp_path):
+    """Issue 23, item 6: 31,700 px of tables before the first figure, literal **63.87**, no n, only
+    the first scene's images open, the cold run's record overwritten by a cached rerun."""
+    df, meta = _two_scene_two_protocol_folder(tmp_path)
+    page = write_report(tmp_path, df, meta).read_text()
+    body = page[page.index("<main>"):]
+    assert body.index("id=\"summary\"") < body.index("id=\"tables\"") < body.index("id=\"images\"")
+    summary = body[body.index("id=\"summary\""):body.index("id=\"tables\"")]
+    assert "held-out views: rig" in summary and "held-out views: shifted" in summary  # one headline per protocol
+    rest = body[body.index("id=\"tables\""):]
+    assert "<details open" not in rest  # everything after the summary is folded
+    for key in ("comparison", "comparison-shifted", "ablation", "ablation-shifted", "versus", "versus-shifted"):
+        assert f"<details id='t-{key}'>" in rest
+    tables = re.findall(r"<table>(.*?)</table>", page, re.S)
+    assert tables and all("<caption>n = " in t for t in tables)  # n (and the interval) on every data table
+    assert all("bootstrap" in t for t in tables if "Δ" in t)
+    assert "**" not in re.sub(r"<[^>]+>", "", page)  # no markdown syntax shown
+    for scene in ("sc.a", "sc.b"):  # every scene's images reachable from the index
+        assert f"<a href='#img-{scene}'>" in page and f"<details id='img-{scene}'>" in page
+    records = re.search(r"<h2 id=\"record\">.*", page, re.S).group(0)
+    assert "2 run(s) into this folder" in records and "300.0" in records and "0 / 3" in records and "3 / 0" in records
+    assert "not run" not in page
+
+
+def test_summary_shows_a_claims_table_first():
+    from harness.report.page import summary_html
+    from harness.report.tabledata import Built, Table
+
+    disp = pd.DataFrame({"verdict": ["supported"]}, index=pd.Index(["claim 1"], name="claim"))
+    claims = Built("claims", "claims", "", "Claims of the paper", Table(disp, [], disp.reset_index(), caption="n = 4"))
+    comp = Built("comparison", "comparison", "rig", "Comparison — held-out views: rig",
+                 Table(disp, [], disp.reset_index(), caption="n = 2"))
+    html_text = summary_html({"comparison": comp, "claims": claims})
+    assert html_text.index("Claims of the paper") < html_text.index("Comparison — held-out views: rig")
+
+
+@pytest.mark.skipif(chromium() is None, reason="Debian's chromium is not installed (setup.sh installs it)")
+@pytest.mark.parametrize("width", [1280, 1920])
+def test_no_table_is_wider_than_the_page_and_links_open_their_section(tmp_path, width):
+    df, meta = _two_scene_two_protocol_folder(tmp_path)
+    page = write_report(tmp_path, df, meta)
+    with Browser(width=width, height=900) as b:
+        b.open(page.as_uri())
+        b.evaluate("location.hash = 'img-sc.b'")
+        opened = b.evaluate("new Promise(r => setTimeout(() => r(document.getElementById('img-sc.b').open), 200))")
+        b.evaluate("document.querySelectorAll('details').forEach(d => d.open = true)")
+        over = b.evaluate("Array.from(document.querySelectorAll('.scroll, table')).filter(e => "
+                          "e.closest('.scroll') === e || !e.closest('.scroll')).map(e => e.getBoundingClientRect().right)"
+                          ".filter(r => r > window.innerWidth + 1).length")
+        doc = b.evaluate("document.documentElement.scrollWidth")
+        errors = list(b.errors)
+    assert opened is True and over == 0 and doc == width and errors == []

@@ -100,7 +100,8 @@ def test_camera_aware_gets_train_views(scenes, tmp_path):
 
 
 def test_missing_scene_and_broken_pruner_do_not_stop_the_run(scenes, tmp_path):
-    cfg = _config({"s0": scenes["s0"], "gone": str(tmp_path / "nope.ply")}, ["fake-broken", "opacity"])
+    cfg = _config([{"name": "s0", "source": scenes["s0"]},
+                   {"name": "gone", "source": str(tmp_path / "nope.ply"), "optional": True}], ["fake-broken", "opacity"])
     res, df = _run(cfg, tmp_path)
     gone = df[df["scene"] == "gone"]
     assert len(gone) == 1 and gone.iloc[0]["status"] == "skipped" and "not found" in gone.iloc[0]["reason"]
@@ -154,10 +155,31 @@ def test_cameras_file_split_by_name(tmp_path, scenes):
     _, df = _run(cfg, tmp_path)
     assert sorted(set(df["view"])) == sorted(names) and (df["status"] == "ok").all()
     assert set(df["width"]) == {32}  # resized to the protocol's longest side
-    missing = _config([{"name": "s0", "source": scenes["s0"],
+    missing = _config([{"name": "s0", "source": scenes["s0"], "optional": True,
                         "cameras": {"path": str(tmp_path / "gone.json"), "test_every": 8}}], ["opacity"])
     _, df2 = _run(missing, tmp_path)
     assert df2.iloc[0]["status"] == "skipped" and "cameras not found" in df2.iloc[0]["reason"]
+
+
+def test_an_absent_required_scene_is_an_error_before_any_work(scenes, tmp_path):
+    """Issue 23: `name: luigii` was skipped (exit 0) and the run replaced the previous tables. A scene
+    not marked optional must resolve before any work; the Runner records one that vanished as an error."""
+    from harness.core.errors import InputError
+    from harness.run.plan import check_sources
+
+    cfg = _config([{"name": "s0", "source": scenes["s0"]}, {"name": "luigii"},
+                   {"name": "cams", "source": scenes["s1"], "cameras": {"path": "gone.json", "test_every": 8}},
+                   {"name": "mpeg", "sequence": str(tmp_path / "absent"), "optional": True}], ["opacity"])
+    with pytest.raises(InputError) as err:
+        check_sources(cfg, fakes.toolkit(), tmp_path)
+    msg = str(err.value)
+    assert msg.startswith("test.yaml: scenes[1] 'luigii': unknown scene name 'luigii' (did you mean 'luigi'?)")
+    assert "scenes[2] 'cams': cameras not found: gone.json" in msg and "'mpeg'" not in msg and "\n" not in msg
+    assert "optional: true" in msg
+    _, df = _run(cfg, tmp_path)  # the Runner alone (no check): required ones error, the optional one skips
+    status = df.drop_duplicates("scene").set_index("scene")["status"]
+    assert status["luigii"] == "error" and status["cams"] == "error" and status["mpeg"] == "skipped"
+    assert status["s0"] == "ok"
 
 
 def test_missing_lpips_weights_fail_before_any_work(scenes, tmp_path, monkeypatch):
@@ -241,7 +263,7 @@ def test_progress_lines_count_what_was_done(scenes, tmp_path, workers):
 def test_shifted_view_protocol(scenes, tmp_path):
     """protocols: [rig, shifted] — the same scores and masks measured on the rig's held-out views and
     on views from another camera distribution; rows name their protocol; tables come per protocol."""
-    from harness.report.outputs import write_outputs
+    from harness.report.outputs import publish
     from harness.report.tracking import summarize_groups
 
     cfg = _config({"s0": scenes["s0"]}, ["opacity", "random"], protocols=["rig", "shifted"])
@@ -252,7 +274,7 @@ def test_shifted_view_protocol(scenes, tmp_path):
     assert len(rig) == len(shifted) == 2 * 2 * 2  # methods x ratios x 2 held-out views
     assert all(v.startswith("shifted/") for v in shifted["view"]) and not any("/" in v for v in rig["view"])
     assert res.counts["score"]["misses"] == 2  # scored once for both protocols
-    written = write_outputs(tmp_path / "out", df, ["comparison", "versus"], [])
+    written = publish(tmp_path / "out", df, {}, tables=["comparison", "versus"], plots=[]).written
     names = {p.name for p in written.paths}
     assert {"comparison.md", "comparison-shifted.md", "versus-shifted.csv"} <= names
     assert "held-out views: shifted" in (tmp_path / "out" / "tables" / "comparison-shifted.md").read_text()

@@ -72,7 +72,7 @@ def test_run_on_the_synthetic_sequence(content, tmp_path):
            "ratios": [0.2, 0.4, 0.6], "anchor": "opacity",
            "scenes": [{"name": "toy", "sequence": str(content / "m71763_toy_stable")},
                       {"name": "toy_plys", "sequence": str(content / "toy_plys"), "test": ["v01.png"]},
-                      {"name": "absent", "sequence": str(content / "m71763_absent_stable")}],
+                      {"name": "absent", "sequence": str(content / "m71763_absent_stable"), "optional": True}],
            "methods": ["opacity", "random"], "tables": ["bd", "ctc"], "plots": []}
     config = parse_config(doc, "seq.yaml")
     from harness.run import tasks

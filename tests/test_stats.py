@@ -61,8 +61,10 @@ def test_summary_and_paired_leave_near_identical_views_out_of_db_means():
                         "ssim": [0.9, 1.0, 1.0]})
     cur["near"] = stats.near_identical(cur, ["psnr"])
     s = stats.summary(cur["psnr"], cur["near"], "psnr")
+    assert math.isnan(s.pop("std"))  # one informative view: no spread
     assert s == {"mean": 30.0, "median": 197.0, "n": 3, "n_near_identical": 2}
-    assert stats.summary(cur["ssim"], cur["near"], "ssim")["mean"] == pytest.approx(2.9 / 3)
+    ssim = stats.summary(cur["ssim"], cur["near"], "ssim")
+    assert ssim["mean"] == pytest.approx(2.9 / 3) and ssim["std"] == pytest.approx(np.std([0.9, 1.0, 1.0], ddof=1))
     ref = cur.assign(psnr=[28.0, 35.0, 36.0], near=False)
     p = stats.paired(cur, ref, "psnr")
     assert p["delta"] == 2.0 and p["n_pairs"] == 1 and p["n_pairs_excluded"] == 2

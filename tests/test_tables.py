@@ -80,8 +80,10 @@ def test_comparison_markdown_is_one_table_per_metric_and_csv_is_tidy(tmp_path):
     """Issue 16: comparison.md had 17 flattened columns, comparison.csv three header rows."""
     write_tables(_rows(), tmp_path, ["comparison"], reference="lightgs")
     md = (tmp_path / "tables" / "comparison.md").read_text()
-    assert [ln for ln in md.splitlines() if ln.startswith("#### ")] == ["#### PSNR (↑)", "#### SSIM (↑)",
-                                                                       "#### LPIPS (↓)"]
+    assert [ln for ln in md.splitlines() if ln.startswith("#### ")] == [
+        "#### PSNR (↑)", "#### SSIM (↑)", "#### LPIPS (↓)", "#### Kept splats · pruned .ply size"]
+    # the size of each cell beside its quality (no bytes in these rows: "–")
+    assert "| scene A | LightGSPrune | 900 splats · – | 800 splats · – | 700 splats · – |" in md
     headers = [ln for ln in md.splitlines() if ln.startswith("| Dataset")]
     assert headers and all(h == "| Dataset | Method | Low (10%) | Mid (20%) | High (30%) |" for h in headers)
     assert "|  | BetaDescPrune | 31.00 (Δ -10.00) |" in md  # one pair (the inf one left out): no interval
@@ -129,10 +131,14 @@ def test_ablation_that_cannot_be_made_says_which_variants_are_missing():
 
 def test_keep_table_delta_uses_the_papers_sign():
     t = _t("keep")
-    num = t.tidy.set_index(["Prune %", "side", "quantity"])["value"]
     # prune 30%: no-desc 24, with desc (25+27)/2 = 26 -> ΔPSNR = 24 - 26 = -2
-    assert num[("30%", "ΔPSNR", "(dB)")] == pytest.approx(-2.0)
-    assert num[("70%", "ΔPSNR", "(dB)")] == pytest.approx(0.0)
+    assert t.disp.loc["30%", ("ΔPSNR", "(dB)")] == "-2.00"
+    assert t.disp.loc["70%", ("ΔPSNR", "(dB)")] == "0.00"
+    # the .csv: each pooled mean with its sample std beside it (ddof = 1, by hand)
+    row = _cell(t.tidy, prune="30%", method="betadesc", metric="psnr")
+    assert row["mean"] == pytest.approx(26.0) and row["std"] == pytest.approx(math.sqrt(2.0)) and row["n"] == 2
+    assert _cell(t.tidy, prune="30%", method="betadesc-nodesc", metric="psnr")["std"] == 0.0  # 24, 24
+    assert "n = " in t.caption and "no interval" in t.caption
 
 
 def test_per_scene_gain_sensitivity_and_runtime():
@@ -142,12 +148,14 @@ def test_per_scene_gain_sensitivity_and_runtime():
     assert _cell(g, scene="a", ratio=0.7, metric="psnr")["delta"] == pytest.approx(0.0)
     sens = t["sensitivity"]
     assert "(a)" in sens.notes[0]
-    sv = sens.tidy.set_index(["knob", "variant", "column"])["value"]
+    sv = sens.tidy.set_index(["knob", "variant", "metric"])
     assert list(dict.fromkeys(sens.tidy["variant"])) == ["default", "preset=flat", "voxel=0.02"]
-    assert sv[("baseline", "default", "PSNR (↑)")] == pytest.approx(26.0)
+    assert sv.loc[("baseline", "default", "psnr"), "mean"] == pytest.approx(26.0)
+    assert sv.loc[("baseline", "default", "psnr"), "std"] == pytest.approx(math.sqrt(2.0))
     rt = t["runtime"]
     assert rt.disp.loc["scene A", "desc. overhead (s)"] == "0.50"
-    assert set(rt.tidy.columns) >= {"scene", "method", "score_s"}
+    assert set(rt.tidy.columns) >= {"scene", "method", "score_s", "score_s_std", "frames"}
+    assert rt.caption.startswith("n = 1 frame(s) per scene")
 
 
 def test_runtime_overhead_percentage_needs_a_denominator_of_a_second():
@@ -178,7 +186,7 @@ def test_files_and_tables_command_regenerates_without_cache(tmp_path, monkeypatc
     assert main(["tables", str(tmp_path), "--plots", "curves", "--tables", "comparison", "ablation"]) == 0
     tex = (tmp_path / "tables" / "comparison.tex").read_text()
     assert r"\multicolumn{3}{c|}{Low}" not in tex and r"\multicolumn{3}{c|}{LightGSPrune}" in tex
-    assert r"\multirow{3}{*}{scene A}" in tex and "PSNR ($\\uparrow$)" in tex
+    assert r"\multirow{5}{*}{scene A}" in tex and "PSNR ($\\uparrow$)" in tex  # 3 metrics, splats, bytes
     md = (tmp_path / "tables" / "ablation.md").read_text()
     assert "| scene A | 20.00 (Δ -8.00 [-8.00, -8.00]) |" in md
     assert (tmp_path / "plots" / "curves_scene_A.png").stat().st_size > 1000
@@ -219,15 +227,32 @@ def test_confsplat_below_its_own_iterations_is_labelled_a_lower_bound(tmp_path):
     import json as _json
 
     from harness.report import catalog
-    from harness.report.outputs import write_outputs
+    from harness.report.outputs import publish
 
     df = _rows()
     df.loc[df["method"] == "lightgs", "method"] = "confsplat"
     df.loc[df["method"] == "confsplat", "params"] = _json.dumps({"iterations": 100})
-    write_outputs(tmp_path, df, ["comparison"], [])
+    publish(tmp_path, df, {}, tables=["comparison"], plots=[])
     assert "ConfSplatPrune — lower bound (100 iterations)" in (tmp_path / "tables" / "comparison.md").read_text()
+    assert "ConfSplatPrune — lower bound (100 iterations)" in (tmp_path / "report.html").read_text()
     df.loc[df["method"] == "confsplat", "params"] = _json.dumps({"iterations": 600})
-    write_outputs(tmp_path, df, ["comparison"], [])
+    publish(tmp_path, df, {}, tables=["comparison"], plots=[])
     text = (tmp_path / "tables" / "comparison.md").read_text()
     assert "ConfSplatPrune" in text and "lower bound" not in text
     assert catalog.method_label("confsplat") == "ConfSplatPrune"  # no note outside a report build
+
+
+def test_every_written_table_has_a_caption_with_n_and_the_interval(tmp_path):
+    """A table whose builder gives no caption (e.g. a plugin's) gets one from its tidy rows."""
+    from harness.report.tabledata import Table
+    from harness.report.tables import with_caption
+
+    w = write_tables(_rows(), tmp_path, ["comparison", "keep", "sensitivity", "runtime", "per_scene", "versus"])
+    made = {k: b for k, b in w.built.items() if not isinstance(b.table, Missing)}
+    assert len(made) == 5  # versus: no `random` in these rows
+    for key, b in made.items():
+        assert b.table.caption.startswith("n = "), key
+    tidy = pd.DataFrame({"n": [2, 4], "ci_low": [0.1, 0.2], "ci_high": [0.3, 0.4]})
+    t = with_caption(Table(pd.DataFrame(), [], tidy))
+    assert t.caption.startswith("n = 2–4 per cell; intervals: ") and "bootstrap" in t.caption
+    assert with_caption(Table(pd.DataFrame(), [], pd.DataFrame({"x": [1]}))).caption == "no interval"

@@ -179,3 +179,70 @@ def test_cli_keeps_tolerances_on_update_and_rejects_bad_baseline(tmp_path, capsy
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "not valid JSON" in err
     assert main(["track", str(tmp_path / "nowhere"), "--baseline", str(base)]) == 2
+
+
+def test_summary_has_std_beside_every_mean_and_names_config_and_protocols():
+    g = _summary()["groups"]["grape|betadesc[default]|0.3"]
+    assert g["psnr"] == 31.0 and g["psnr_std"] == pytest.approx(math.sqrt(2.0))  # 30, 32: ddof = 1
+    assert g["ssim_std"] == pytest.approx(np.std([0.95, 0.97], ddof=1))
+    assert g["lpips_std"] == pytest.approx(np.std([0.05, 0.07], ddof=1))
+    s = _summary()
+    assert s["run"] == "t" and s["protocols"] == []  # these rows carry no protocol
+    rows = [{**r, "protocol": "rig"} for r in _rows()] + [{**r, "protocol": "shifted"} for r in _rows()]
+    assert _summary(rows)["protocols"] == ["rig", "shifted"]
+    assert tracking.protocols_of({"groups": {"a@shifted|m[d]|0.1": {}, "a|m[d]|0.1": {}}}) == ["rig", "shifted"]
+
+
+def _protocol_rows(*protocols):
+    return [{**r, "protocol": p} for p in protocols for r in _rows()]
+
+
+@pytest.mark.parametrize("name, protocols, phrase", [
+    ("other", ("rig",), "config 'other'"),
+    ("t", ("rig", "shifted"), "protocols rig, shifted"),
+])
+def test_cli_compares_only_like_with_like_and_writes_nothing_first(tmp_path, capsys, name, protocols, phrase):
+    """Issue 23: a ci run tracked against the nightly baseline gave 74 false regressions, exit 1, and
+    appended to the tracked history; with a bad baseline it appended, then exited 2."""
+    base, hist = tmp_path / "baseline.json", tmp_path / "hist"
+    tracking.write_baseline(base, _summary(_protocol_rows("rig")))
+    before = base.read_bytes()
+    run = _run_dir(tmp_path, "run", _protocol_rows(*protocols), {**_meta(), "name": name})
+    assert main(["track", str(run), "--baseline", str(base), "--history", str(hist), "--update-baseline"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and phrase in err and "same config and protocols" in err
+    assert base.read_bytes() == before and not hist.exists()
+    (tmp_path / "bad.json").write_text("{not json")
+    assert main(["track", str(run), "--baseline", str(tmp_path / "bad.json"), "--history", str(hist)]) == 2
+    assert not hist.exists()  # decided before writing
+
+
+def test_cli_appends_to_a_history_only_when_asked(tmp_path, capsys):
+    good = _run_dir(tmp_path, "good", _rows(), _meta())
+    base = tmp_path / "baseline.json"
+    tracking.write_baseline(base, _summary())
+    assert main(["track", str(good), "--baseline", str(base)]) == 0
+    assert "history: not written" in capsys.readouterr().out
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["baseline.json", "good"]
+    assert main(["track", str(good), "--baseline", str(base), "--history", str(tmp_path / "h")]) == 0
+    assert len((tmp_path / "h" / "history.jsonl").read_text().splitlines()) == 1
+
+
+@pytest.mark.parametrize("kind", ["fifo", "symlink"])
+def test_history_must_be_a_regular_file(tmp_path, capsys, kind):
+    import os
+
+    good = _run_dir(tmp_path, "good", _rows(), _meta())
+    base = tmp_path / "baseline.json"
+    tracking.write_baseline(base, _summary())
+    hist = tmp_path / "h"
+    hist.mkdir()
+    other = tmp_path / "other.txt"
+    other.write_text("someone else's file\n")
+    if kind == "fifo":
+        os.mkfifo(hist / "history.jsonl")
+    else:
+        (hist / "history.jsonl").symlink_to(other)
+    assert main(["track", str(good), "--baseline", str(base), "--history", str(hist)]) == 2
+    assert "regular file" in capsys.readouterr().err
+    assert other.read_text() == "someone else's file\n"

@@ -51,13 +51,39 @@ def median_time(fn, repeats: int = 3) -> tuple[float, list[float]]:
     return statistics.median(samples), samples
 
 
-def write_result(name: str, payload: dict, markdown: str | None = None) -> Path:
-    """Write ``results/bench/<name>.json`` (with the machine description) and optional ``.md``."""
-    out = results_dir() / "bench"
+#: where ``harness bench`` writes unless ``--out`` says otherwise: git-ignored (``runs/``), so trying a
+#: benchmark never rewrites the committed results; ``--out results/bench`` updates those
+DEFAULT_OUT = Path("runs") / "bench"
+
+
+def out_dir(args, sub: str = "") -> Path:
+    """The benchmark's output folder: ``--out``, else :data:`DEFAULT_OUT` (``/ sub``); created and
+    probed before any work (a file there, a read-only folder: one line, exit 2)."""
+    from harness.io.files import make_output_folder
+
+    given = getattr(args, "out", None)
+    folder = Path(given) if given else DEFAULT_OUT / sub
+    return make_output_folder(folder, f"--out {folder}" if given else folder)
+
+
+def tracked_note(folder: Path) -> str:
+    """`` (the committed results: review the diff)`` when ``folder`` is under the repository's
+    ``results/``, else ``""``: a run that rewrites tracked files says so."""
+    try:
+        Path(folder).resolve().relative_to(results_dir().resolve())
+    except ValueError:
+        return ""
+    return " (rewrote the committed results under results/: review the diff before committing)"
+
+
+def write_result(name: str, payload: dict, markdown: str | None, out: Path) -> Path:
+    """Write ``<out>/<name>.json`` (with the machine description) and optional ``.md``; prints where."""
+    out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     payload = {"benchmark": name, "when": time.strftime("%Y-%m-%dT%H:%M:%S"), "machine": describe_machine(), **payload}
     path = out / f"{name}.json"
     atomic_write_text(path, json.dumps(payload, indent=2, default=float) + "\n")
     if markdown is not None:
         atomic_write_text(out / f"{name}.md", markdown.rstrip() + "\n")
+    print(f"bench: wrote {path}" + (" and .md" if markdown is not None else "") + tracked_note(out))
     return path

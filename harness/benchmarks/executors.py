@@ -128,7 +128,7 @@ def _markdown(config: str, threads: int, runs: list[dict], walls, stages, summar
 
 
 def run(args) -> int:
-    from harness.benchmarks._common import write_result
+    from harness.benchmarks._common import out_dir, write_result
     from harness.core.errors import InputError
 
     if args.threads < 1:
@@ -137,6 +137,7 @@ def run(args) -> int:
         raise InputError("--repeats", f"must be >= 1, got {args.repeats}")
     if not Path(args.config).is_file():
         raise InputError(args.config, "no such config file")
+    folder = out_dir(args)  # created and probed before any work
     walls: dict = {}
     stages: dict = {}
     runs: list[dict] = []
@@ -159,7 +160,7 @@ def run(args) -> int:
     md = _markdown(args.config, args.threads, runs, walls, stages, summary, identical)
     name = "executors" if Path(args.config).stem == "ci" else f"executors-{Path(args.config).stem}"
     path = write_result(name, {"config": args.config, "threads": args.threads, "runs": runs, "summary": summary,
-                                      "results_identical": identical}, md)
+                                      "results_identical": identical}, md, out=folder)
     print(md)
     print(f"wrote {path}")
     return 0 if identical else 1

@@ -87,8 +87,9 @@ def run(args) -> int:
     import numba
     import numpy as np
 
-    from harness.benchmarks._common import require
+    from harness.benchmarks._common import out_dir, require
 
+    folder = out_dir(args)  # created and probed before any work
     o3d = require("open3d", "the open3d comparison")
 
     from harness.benchmarks._common import write_result
@@ -159,7 +160,7 @@ def run(args) -> int:
         "speedup_cpu_median_1thread": med["o3d_cpu"] / med["ours1_cpu"],
         "first_call": first, "samples": t,
     }
-    path = write_result(NAME, payload, _markdown(payload))
+    path = write_result(NAME, payload, _markdown(payload), out=folder)
     print(_markdown(payload))
     print(f"results: {path}")
     return 0

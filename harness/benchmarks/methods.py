@@ -105,13 +105,14 @@ def _markdown(scene_name: str, n: int, n_train: int, timings: dict, quality: dic
 
 
 def run(args) -> int:
-    from harness.benchmarks._common import write_result
+    from harness.benchmarks._common import out_dir, write_result
     from harness.core.errors import InputError
     from harness.io.datasets import identify
     from harness.io.scenes import load_scene
     from harness.views.rigs import scene_rig
     from methods import list_pruners
 
+    folder = out_dir(args)  # created and probed before any work
     logging.getLogger("methods").setLevel(logging.INFO)  # confsplat reports its iterations
     logging.basicConfig(format="%(name)s: %(message)s")
     scene = load_scene(args.scene)
@@ -128,7 +129,7 @@ def run(args) -> int:
     payload = {"scene": args.scene, "splats": len(scene), "rig": rig.rig, "train_views": len(rig.train),
                "train_resolution": [rig.train[0].width, rig.train[0].height], "scoring": timings,
                "quality": quality, "load_average_after": os.getloadavg()}
-    path = write_result(NAME, payload, _markdown(args.scene, len(scene), len(rig.train), timings, quality))
+    path = write_result(NAME, payload, _markdown(args.scene, len(scene), len(rig.train), timings, quality), out=folder)
     print(_markdown(args.scene, len(scene), len(rig.train), timings, quality))
     print(f"\nwritten {path}")
     return 0

@@ -56,12 +56,13 @@ def _timed(fn):
 def run(args) -> int:
     import torch
 
-    from harness.benchmarks._common import peak_rss_mb, write_result
+    from harness.benchmarks._common import out_dir, peak_rss_mb, write_result
     from harness.metrics.lpips_vgg import LpipsVGG
     from harness.metrics.lpips_weights import load_backbone, new_lpips_module
     from harness.metrics.psnr import psnr
     from harness.metrics.ssim import ssim
 
+    folder = out_dir(args)  # created and probed before any work
     ref, pruned = _images(args.width, args.height, args.pruned)
     cached = LpipsVGG(device=args.device)
     device = cached.device
@@ -123,7 +124,7 @@ def run(args) -> int:
                        "lpips_bf16_max_abs_err": max(bf_err),
                        "lpips_bf16_max_rel_err": max(e / v for e, v in zip(bf_err, values))})
     result["peak_rss_mb"] = peak_rss_mb()
-    write_result(NAME, result, _markdown(result))
+    write_result(NAME, result, _markdown(result), out=folder)
     print(_markdown(result))
     return 0
 

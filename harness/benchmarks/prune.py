@@ -190,9 +190,10 @@ def _markdown(e2e: dict, fp: dict, sanity: dict, scene: str) -> str:
 
 
 def run(args) -> int:
-    from harness.benchmarks._common import write_result
+    from harness.benchmarks._common import out_dir, write_result
     from harness.io.scenes import load_scene
 
+    folder = out_dir(args)  # created and probed before any work
     load_scene(args.scene)  # a clear InputError (run `harness fetch`) before any timing
     e2e = _end_to_end(args.scene, args.ratio, args.repeats)
     e2e["stages_cpu_s"] = _cpu_stages(args.scene, args.ratio, args.repeats)
@@ -202,6 +203,6 @@ def run(args) -> int:
                "targets": {"seconds": TARGET_SECONDS, "peak_rss_mb": TARGET_MB},
                "load_average": os.getloadavg()}
     md = _markdown(e2e, fp, sanity, args.scene)
-    write_result("prune", payload, md)
+    write_result("prune", payload, md, out=folder)
     print(md)
     return 0

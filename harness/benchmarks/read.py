@@ -34,11 +34,12 @@ def _peak_alloc_mb(fn) -> float:
 
 
 def run(args) -> int:
-    from harness.benchmarks._common import median_time, peak_rss_mb, write_result
+    from harness.benchmarks._common import median_time, out_dir, peak_rss_mb, write_result
     from harness.core.errors import InputError
     from harness.io.datasets import resolve_scene
     from harness.io.scenes import load_scene, write_scene
 
+    folder = out_dir(args)  # created and probed before any work
     path = resolve_scene(args.scene)
     scene = load_scene(path)
     rows: dict[str, dict] = {}
@@ -77,7 +78,6 @@ def run(args) -> int:
         md.append(f"| {step} | {r['seconds']:.3f} | {', '.join(f'{s:.3f}' for s in r['samples'])} | "
                   f"{r['peak_alloc_mb']:.0f} |")
     md += ["", f"process peak RSS: {payload['process_peak_rss_mb']:.0f} MiB"]
-    out = write_result(NAME, payload, "\n".join(md))
+    write_result(NAME, payload, "\n".join(md), out=folder)
     print("\n".join(md))
-    print(f"\nwrote {out}")
     return 0

@@ -8,8 +8,9 @@ reading (rule: ``ctc_configs/reading.yaml``, verbatim) and its confirmation on t
 then walks the axes in order (:mod:`harness.report.reading_search`). When an axis needs readings the
 results do not hold (after an adoption), it writes a stage config next to the run
 (``<output>/stage-<k>-<axis>.yaml``: the same protocol and scenes, ``random`` and the needed readings)
-and runs it. It writes ``results/reading/selection.md`` and ``selection.json`` and prints the
-selected reading. ``confirm`` runs the confirmation config and writes ``results/reading/confirmation.md``.
+and runs it. It writes ``selection.md`` and ``selection.json`` into ``--out`` (default
+``runs/bench/reading``; the committed record is ``--out results/reading``) and prints the selected
+reading. ``confirm`` runs the confirmation config and writes ``confirmation.md`` there.
 """
 
 from __future__ import annotations
@@ -24,13 +25,11 @@ import pandas as pd
 import yaml
 
 from harness.core.paths import REPO_ROOT as REPO
-from harness.core.paths import results_dir
 from harness.report import reading_search as rs
 from harness.report.results import read_results
 
 NAME = "reading"
-HELP = "pre-registered selection (and confirmation) of BetaDescPrune's default reading; results/reading/"
-OUT = results_dir() / "reading"
+HELP = "pre-registered selection (and confirmation) of BetaDescPrune's default reading (--out results/reading: the record)"
 
 
 def harness_run(config: Path, workers: int) -> float:
@@ -48,6 +47,9 @@ def load_all(output: Path) -> pd.DataFrame:
 
 
 def select(args) -> int:
+    from harness.benchmarks._common import out_dir, tracked_note
+
+    out = out_dir(args, "reading")  # created and probed before any work
     config = Path(args.config)
     raw = yaml.safe_load(config.read_text())
     output = REPO / raw["output"]
@@ -80,10 +82,9 @@ def select(args) -> int:
               + (" -> ADOPTED" if step.adopted else " -> kept " + str(incumbent[axis.name])), flush=True)
         if step.adopted:
             incumbent = rs.with_value(incumbent, axis.name, step.candidate)
-    OUT.mkdir(parents=True, exist_ok=True)
     md = rs.selection_markdown(space, steps, incumbent)
-    (OUT / "selection.md").write_text(md)
-    (OUT / "selection.json").write_text(json.dumps({
+    (out / "selection.md").write_text(md)
+    (out / "selection.json").write_text(json.dumps({
         "config": str(config), "selected": {a.name: incumbent[a.name] for a in space.axes},
         "steps": [{"axis": s.axis, "incumbent": s.incumbent[s.axis], "candidate": s.candidate,
                    "adopted": s.adopted,
@@ -92,10 +93,14 @@ def select(args) -> int:
         "run_seconds": times}, indent=2, default=str) + "\n")
     print(md)
     print("selected:", json.dumps({a.name: incumbent[a.name] for a in space.axes}))
+    print(f"wrote {out / 'selection.md'} and selection.json{tracked_note(out)}")
     return 0
 
 
 def confirm(args) -> int:
+    from harness.benchmarks._common import out_dir, tracked_note
+
+    out = out_dir(args, "reading")  # created and probed before any work
     config = Path(args.config)
     raw = yaml.safe_load(config.read_text())
     output = REPO / raw["output"]
@@ -111,9 +116,9 @@ def confirm(args) -> int:
              ("opacity", {"method": "opacity", "variant": "default"})]
     md = ("D = mean paired per-view PSNR difference vs random (dB) [95 % bootstrap CI] (views used/excluded)\n\n"
           + rs.confirmation_markdown(df, scenes, list(raw["ratios"]), sides, {"method": "random"}))
-    OUT.mkdir(parents=True, exist_ok=True)
-    (OUT / "confirmation.md").write_text(md)
+    (out / "confirmation.md").write_text(md)
     print(md)
+    print(f"wrote {out / 'confirmation.md'}{tracked_note(out)}")
     if seconds is not None:
         print(f"run time {seconds:.0f} s")
     return 0

@@ -80,7 +80,7 @@ def _measure(backend: str, scene_name: str, views: int, device) -> dict:
 
 
 def run(args) -> int:
-    from harness.benchmarks._common import write_result
+    from harness.benchmarks._common import out_dir, write_result
     from harness.core.errors import InputError
     from harness.io.datasets import resolve_scene
 
@@ -92,6 +92,7 @@ def run(args) -> int:
     if args.views < 1:
         raise InputError("--views", "must be at least 1")
     resolve_scene(args.scene)  # a missing scene is reported here, before any child starts
+    folder = out_dir(args)  # created and probed before any work
     results = {}
     ctx = mp.get_context("spawn")
     for backend in backends:
@@ -114,5 +115,5 @@ def run(args) -> int:
         else:
             lines.append(f"| {backend} | – | not available: {r['reason']} | – | – | – |")
     write_result(f"render-{args.scene}", {"scene": args.scene, "views": args.views, "backends": results},
-                 "\n".join(lines))
+                 "\n".join(lines), out=folder)
     return 0

@@ -3,7 +3,7 @@
 Knobs and error measures: :mod:`harness.benchmarks._tradeoff_knobs`. Output: ``tradeoff.json`` / ``tradeoff.md``
 (a table per family, the reference setting marked, Pareto-optimal settings marked) and
 ``tradeoff_pareto.png`` (CPU seconds vs the family's main error, Pareto front drawn) under
-``results/bench/`` (``--out`` elsewhere).
+``--out`` (default ``runs/bench``; ``--out results/bench`` updates the committed results).
 
 "Cheapest within tolerance" per family is the fastest (CPU) setting whose error stays inside the
 tolerances of nightly tracking (:data:`harness.report.tracking.DEFAULT_TOLERANCES`: |ΔPSNR| ≤ 0.5 dB,
@@ -31,7 +31,6 @@ def add_arguments(parser) -> None:
     parser.add_argument("--views", type=int, default=2, help="held-out views for the evaluation knobs")
     parser.add_argument("--repeats", type=int, default=1, help="scoring repeats per pruning setting (median)")
     parser.add_argument("--quick", action="store_true", help="few settings at tiny resolutions (for tests)")
-    parser.add_argument("--out", default=None, help="output folder (default results/bench)")
 
 
 def within(errors: dict) -> bool:
@@ -117,7 +116,6 @@ def run(args) -> int:
         prune_knobs,
     )
     from harness.core.errors import InputError
-    from harness.core.paths import results_dir
     from harness.io.datasets import identify
     from harness.io.scenes import load_scene
     from harness.metrics.lpips_vgg import LpipsVGG
@@ -128,8 +126,9 @@ def run(args) -> int:
 
     if args.views < 1 or args.repeats < 1:
         raise InputError("--views/--repeats", "must be at least 1")
-    out = Path(args.out) if args.out else results_dir() / "bench"
-    out.mkdir(parents=True, exist_ok=True)
+    from harness.benchmarks._common import out_dir, tracked_note
+
+    out = out_dir(args)  # created and probed before any work
     t_all = time.perf_counter()
     scene = load_scene(args.scene)
     if args.quick:
@@ -166,5 +165,5 @@ def run(args) -> int:
     plot(out / "tradeoff_pareto.png", rows, flags)
     print(md)
     print(f"wrote {out / 'tradeoff.json'}, {out / 'tradeoff.md'}, {out / 'tradeoff_pareto.png'} "
-          f"({payload['wall_s']:.0f} s)")
+          f"({payload['wall_s']:.0f} s){tracked_note(out)}")
     return 0

@@ -5,7 +5,8 @@ renders, measured images, metric passes) and per scene — nothing is rendered, 
 read only as far as their headers. With ``--estimate``: × unit costs measured on this machine
 (``results/bench/*.json``, or ``--calibrate``) → CPU-hours per stage, projected wall time on N
 workers and the nodes an overnight run needs (:mod:`harness.run.estimate`). Scenes whose data is
-absent are estimated from the ``--assume-*`` values and marked as assumed. Markdown on stdout;
+absent are estimated from the ``--assume-*`` values and marked as assumed; a scene name that is
+neither a named dataset nor a file (a typo) is an error with "did you mean". Markdown on stdout;
 ``--out FILE`` also writes JSON.
 """
 
@@ -75,6 +76,10 @@ def run(args) -> int:
 
     _check(args)
     config = load_config(args.config)
+    from harness.run.plan import check_sources
+    from harness.run.toolkit import Toolkit
+
+    check_sources(config, Toolkit(), Path.cwd(), names_only=True)  # a misspelt scene name: one line, exit 2
     assume = Assumptions(args.assume_frames, args.assume_views, args.assume_splats, tuple(args.assume_size))
     infos = [scene_info(s, config, assume) for s in config.scenes]
     units = None

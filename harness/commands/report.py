@@ -1,16 +1,17 @@
-"""`harness report RUN_DIR`: write ``RUN_DIR/report.html``, one self-contained page of a run.
+"""`harness report RUN_DIR`: rebuild a run folder's tables, plots and ``RUN_DIR/report.html``.
 
 The page (:mod:`harness.report.page`) holds the run's tables with their confidence intervals, the
-curves and figures of ``RUN_DIR/plots``, an image comparison (slider + amplified difference) per
-scene × method × ratio from ``RUN_DIR/images``, and the run record. It needs no network and no file
-beside it. `harness run` writes it at the end of every run; this command rebuilds it from the stored
-results (no recomputation).
+curves and figures, an image comparison (slider + amplified difference) per scene × method × ratio
+from ``RUN_DIR/images``, and the records of every run into the folder. It needs no network and no
+file beside it. `harness run` writes it at the end of every run, `harness tables` and this command
+rebuild it from the stored results (no recomputation) through the same function
+(:func:`harness.report.outputs.publish`), so all three write the same tables and the same page.
 """
 
 from __future__ import annotations
 
 NAME = "report"
-HELP = "write RUN_DIR/report.html: tables with CIs, curves, image comparisons and the run record in one page"
+HELP = "rebuild RUN_DIR's tables and report.html: tables with CIs, curves, image comparisons, run records"
 
 
 def add_arguments(parser) -> None:
@@ -20,9 +21,16 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from harness.report.page import write_report
+    import sys
+
+    from harness.io.files import sweep_stale_temps
+    from harness.report.outputs import publish
     from harness.report.tracking import read_run
 
     df, meta = read_run(args.run_dir)
-    print(write_report(args.run_dir, df, meta, reference=args.reference))
+    sweep_stale_temps(args.run_dir, recursive=True)
+    published = publish(args.run_dir, df, meta, reference=args.reference)
+    for line in published.written.warnings + published.written.missing:
+        print(f"harness: warning: {line}", file=sys.stderr)
+    print(published.page)
     return 0

@@ -1,13 +1,21 @@
 """`harness run CONFIG [--workers N] [--threads T] [--executor local|ray] [--address A] [--out DIR] [--force] [--cache DIR|URL]`:
 the CTC-style evaluation.
 
-Reads and validates the YAML config (:mod:`harness.run.config`), runs the staged, cached plan
-(:mod:`harness.run.runner`), writes tidy results, the paper's tables and plots, contact sheets,
-``run.json`` and ``report.html`` (:mod:`harness.report.page`) into the output folder, and prints a
-summary saying where everything is. Scenes whose files are absent are skipped with a message (exit status 0); a stage that fails on some scene is
-recorded in the results and run.json and makes the exit status 1. A table or plot of the config
+Reads and validates the YAML config (:mod:`harness.run.config`) and resolves every scene before any
+work (:func:`harness.run.plan.check_sources`): a misspelt scene, method or metric, or a required
+scene whose files are absent, is one line (with "did you mean") and exit status 2, and nothing is
+written; scenes marked ``optional: true`` whose files are absent are skipped with a message. Then
+it runs the staged, cached plan (:mod:`harness.run.runner`), writes tidy results, contact sheets and
+the run record (``run.json``, kept per run under ``records/``), and publishes the tables, plots and
+``report.html`` (:func:`harness.report.outputs.publish`, the same function as `harness tables` and
+`harness report`), printing a summary saying where everything is. A stage that fails on some scene
+is recorded in the results and run.json and makes the exit status 1. A table or plot of the config
 that these results cannot make is a ``warning:`` line of the summary naming what is missing (the
 exit status stays 0: the measurements are complete).
+
+A run that measured nothing (every scene optional and absent, or every stage failed) replaces
+nothing: the earlier results, tables and page of the folder stay as they were, and only its record
+is added under ``records/``.
 """
 
 from __future__ import annotations
@@ -43,8 +51,7 @@ def run(args) -> int:
 
     from harness.core.errors import InputError
     from harness.core.paths import cache_dir
-    from harness.report.outputs import write_outputs
-    from harness.report.page import write_report
+    from harness.report.outputs import publish
     from harness.report.record import (
         contact_sheets,
         copy_images,
@@ -70,6 +77,10 @@ def run(args) -> int:
 
     if spec.address is None:  # on a cluster the nodes' devices count (checked when it is joined)
         check_device(config.protocol.device, f"{args.config}: protocol.device")
+    from harness.run.plan import check_sources
+    from harness.run.toolkit import Toolkit
+
+    check_sources(config, Toolkit(), Path.cwd())  # a misspelt or absent required scene: before any work
     out_dir = make_output_folder(Path(args.out or config.output), "--out" if args.out else f"{args.config}: output")
     if args.cache and is_url(args.cache) and not args.cache.startswith("file://"):
         cache_root = args.cache  # an fsspec URL: its entries are PUT one by one (harness.run.cache)
@@ -89,12 +100,14 @@ def run(args) -> int:
                         base_dir=Path.cwd(), executor=executor)
         result = runner.run()
     df = to_frame(result.rows)
+    if not (df["status"] == "ok").any():
+        return _nothing_measured(out_dir, config, result, df, workers, cache_root)
     pq, csv = write_results(df, out_dir)
     images = copy_images(result.images, out_dir)
     sheets = contact_sheets(runner.items, runner.cache, runner._ref_key, out_dir, config.protocol.background)
-    written = write_outputs(out_dir, df, config.tables, config.plots, anchor=config.anchor)
     run_json = write_run_json(out_dir, config, result, workers=workers, cache_root=cache_root, argv=sys.argv[1:])
-    report = write_report(out_dir, df, json.loads(run_json.read_text()), built=written.built, missing=written.missing)
+    published = publish(out_dir, df, json.loads(run_json.read_text()))
+    written, report = published.written, published.page
     paths = {"results": pq, "results (csv)": csv, "tables": out_dir / "tables", "plots": out_dir / "plots",
              "images": images,
              "contact sheets": f"{out_dir / 'contact_sheets'} (coverage per view: "
@@ -108,6 +121,18 @@ def run(args) -> int:
     for line in written.warnings + written.missing:  # what the config asked for and these results cannot show
         print(f"warning: {line}")
     print(f"wrote {len(written.paths)} table/plot files")
+    return 1 if result.errors else 0
+
+
+def _nothing_measured(out_dir: Path, config, result, df, workers: int, cache_root) -> int:
+    """No measured row: keep the folder's earlier results and outputs; add this run's record only."""
+    from harness.report.record import summary_lines, write_run_json
+
+    record = write_run_json(out_dir, config, result, workers=workers, cache_root=cache_root, argv=sys.argv[1:],
+                            latest=False)
+    for line in summary_lines(result, df, {"run record": record}):
+        print(line)
+    print(f"nothing measured: the earlier results, tables and page in {out_dir} are left as they were")
     return 1 if result.errors else 0
 
 

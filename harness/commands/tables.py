@@ -1,4 +1,6 @@
-"""`harness tables RUN_DIR`: rebuild a run's tables and plots from its stored results (no recomputation).
+"""`harness tables RUN_DIR`: rebuild a run's tables, plots and report page from its stored results
+(no recomputation), through the same function as `harness run` and `harness report`
+(:func:`harness.report.outputs.publish`).
 
 Prints the files written. A requested table or plot that these results cannot make (e.g. the
 ablation when the ablation variants were not run at 20 %) is one line on stderr saying what is
@@ -12,7 +14,7 @@ import sys
 from pathlib import Path
 
 NAME = "tables"
-HELP = "regenerate the tables and plots of a `harness run` output folder from its stored results"
+HELP = "regenerate the tables, plots and report page of a `harness run` output folder from its stored results"
 
 
 def add_arguments(parser) -> None:
@@ -26,32 +28,30 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     from harness.core.errors import InputError
+    from harness.core.suggest import unknown
     from harness.io.files import sweep_stale_temps
-    from harness.report.outputs import write_outputs
-    from harness.report.results import read_results
-    from harness.run.config import PLOTS, TABLES
+    from harness.report.outputs import chosen, publish
+    from harness.report.plots import PLOTS
+    from harness.report.tables import TABLES
+    from harness.report.tracking import read_run
 
     run_dir = Path(args.run_dir)
-    df = read_results(run_dir)
+    df, meta = read_run(run_dir)
     sweep_stale_temps(run_dir, recursive=True)
-    from harness.report.tracking import read_run_json
-
-    meta = read_run_json(run_dir / "run.json") if (run_dir / "run.json").exists() else {}
-    tables = args.tables if args.tables is not None else meta.get("tables", list(TABLES))
-    plots = args.plots if args.plots is not None else meta.get("plots", list(PLOTS))
+    tables, plots, _ = chosen(meta)
+    tables = args.tables if args.tables is not None else tables
+    plots = args.plots if args.plots is not None else plots
     for key, names in (("tables", tables), ("plots", plots)):
         if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
             raise InputError(run_dir / "run.json", f"'{key}' must be a list of names, got {str(names)[:60]}")
-    for name in tables:
-        if name not in TABLES:
-            raise InputError("--tables", f"unknown table {name!r}; known: {', '.join(TABLES)}")
-    for name in plots:
-        if name not in PLOTS:
-            raise InputError("--plots", f"unknown plot {name!r}; known: {', '.join(PLOTS)}")
-    anchor = (meta.get("config") or {}).get("anchor") if isinstance(meta.get("config"), dict) else None
-    written = write_outputs(run_dir, df, tables, plots, reference=args.reference, anchor=anchor)
+    for flag, names, known in (("--tables", tables, TABLES), ("--plots", plots, PLOTS)):
+        for name in names:
+            if name not in known:
+                raise InputError(flag, unknown(flag.removeprefix("--")[:-1], name, known))
+    written = publish(run_dir, df, meta, tables=tables, plots=plots, reference=args.reference).written
     for p in written.paths:
         print(p)
+    print(run_dir / "report.html")
     for line in written.warnings:
         print(f"harness: warning: {line}", file=sys.stderr)
     for line in written.missing:

@@ -35,6 +35,7 @@ import numpy as np
 import pandas as pd
 
 from harness.core import ratios
+from harness.report.tabledata import Table, tidy_with_std
 
 DEFAULT_ANCHOR = "lightgs"
 #: (column, CTC name) of the qualities BD is reported for
@@ -145,14 +146,17 @@ def table_bd(s: pd.DataFrame, anchor: str | None = None):
                 vals += [r["bd_rate"].iloc[0], r["bd_quality"].iloc[0]] if len(r) else [np.nan, np.nan]
             idx.append((scene, catalog.method_label(method)))
             num.append(vals + [cell["points"].iloc[0], cell["interp"].iloc[0]])
-    for method in methods:  # mean over the scenes that have a value
-        vals = []
+    std = [[np.nan] * len(cols) for _ in num]
+    for method in methods:  # mean over the scenes that have a value (std over them beside it in the .csv)
+        vals, sds = [], []
         for m in metrics:
             r = long[(long["method"] == method) & (long["metric"] == m)]
             vals += [r["bd_rate"].mean(), r["bd_quality"].mean()]
+            sds += [r["bd_rate"].std(ddof=1), r["bd_quality"].std(ddof=1)]
         n = int(long[(long["method"] == method)]["scene"].nunique())
         idx.append(("average", catalog.method_label(method)))
         num.append(vals + [f"{n} scenes", ""])
+        std.append(sds + [np.nan, np.nan])
     numdf = pd.DataFrame(num, pd.MultiIndex.from_tuples(idx, names=["Sequence", "Method"]), cols)
     disp = numdf.copy().astype(object)
     for j, (m, k) in enumerate(cols[:-2]):
@@ -162,7 +166,10 @@ def table_bd(s: pd.DataFrame, anchor: str | None = None):
              "quality = mean over views and frames; BD-rate < 0: fewer bytes than the anchor at equal quality",
              "interpolation: cubic (≥ 4 rate points on both curves), else pchip; points = test/anchor rate points",
              "– : curve not strictly monotone, fewer than 2 points, or no overlap with the anchor"]
-    return numdf, disp, notes
+    n_scenes = long["scene"].nunique()
+    return Table(disp, notes, tidy_with_std(numdf, pd.DataFrame(std, numdf.index, cols)),
+                 caption=f"n = rate points per curve (points column); average over {n_scenes} scene(s); no "
+                         "interval (the .csv has the std over scenes beside each average)")
 
 
 def table_ctc(s: pd.DataFrame):
@@ -181,5 +188,10 @@ def table_ctc(s: pd.DataFrame):
             continue
         digits = 0 if c in ("splats", "bytes") else (4 if "SSIM" in c or c == "LPIPS" else 2 if c != "ratio" else 2)
         disp[c] = ["–" if pd.isna(v) else (f"{int(v)}" if digits == 0 else f"{float(v):.{digits}f}") for v in out[c]]
-    return out, disp, ["splats and bytes: mean per frame of the pruned .ply; metrics: mean over views and frames; "
-                       "seconds: scoring + selection time of the method"]
+    std = pd.DataFrame({h: d[f"{c}_std"].to_numpy() if f"{c}_std" in d else np.nan for c, h in cols},
+                       index=out.index)
+    n = d["n"].astype(int)
+    return Table(disp, ["splats and bytes: mean per frame of the pruned .ply; metrics: mean over views and frames; "
+                        "seconds: scoring + selection time of the method"], tidy_with_std(out, std),
+                 caption=f"n = {n.min() if n.min() == n.max() else f'{n.min()}–{n.max()}'} view(s) per row (all "
+                         "frames); no interval (the .csv has each mean's std)")

@@ -19,9 +19,15 @@ the results carry (:func:`harness.report.catalog.display_metrics`: OM variants b
   (positive = descriptors help; the paper's "+4.04 dB" sense), paired per view.
 
 Tidy columns (one row per scene × method × variant × ratio × metric): ``table, scene, label, method,
-method_label, variant, ratio, level, metric, mean, median, n, n_near_identical, reference, delta,
-ci_low, ci_high, delta_median, n_pairs, n_pairs_excluded, verdict`` — ``ci_low/ci_high`` bound Δ.
-Pooled rows have ``scene = "*"``.
+method_label, variant, ratio, level, metric, mean, std, median, n, n_near_identical, splats, bytes,
+reference, delta, ci_low, ci_high, delta_median, n_pairs, n_pairs_excluded, verdict`` —
+``std`` is the sample standard deviation (ddof = 1) of the values the mean is taken over,
+``splats``/``bytes`` the kept splats and the pruned ``.ply`` size (means over frames),
+``ci_low/ci_high`` bound Δ (:data:`harness.report.stats.INTERVAL_DESCRIPTION`). Pooled rows have
+``scene = "*"`` (and no splats or bytes: those are per scene).
+
+Every table's ``caption`` (:func:`caption`) gives ``n`` — views per cell, and for pooled rows pairs
+over how many scenes — and the interval method.
 """
 
 from __future__ import annotations
@@ -71,11 +77,12 @@ def cell_rows(ok, mets, cells, reference_of, table: str, pooled: bool = False, l
             if g is None:
                 continue
             gr = groups.get((scene, *rk)) if rk and rk != (m, v, r) else None
+            size = _size(g)
             for mk, _, _ in mets:
                 row = {"table": table, "scene": scene, "label": labels[scene], "method": m,
                        "method_label": catalog.method_label(m), "variant": v, "ratio": r,
                        "level": levels.get(r, ""), "metric": mk,
-                       **stats.summary(g[mk], g["near"], mk),
+                       **stats.summary(g[mk], g["near"], mk), **size,
                        "reference": "" if rk is None else f"{rk[0]}[{rk[1]}]"}
                 pooled_vals[mk].append(g[[mk, "near"]])
                 if gr is not None:
@@ -99,9 +106,39 @@ def cell_rows(ok, mets, cells, reference_of, table: str, pooled: bool = False, l
     return tidy.iloc[np.argsort(tidy["scene"].map(rank).to_numpy(), kind="stable")].reset_index(drop=True)
 
 
-TIDY = ["table", "scene", "label", "method", "method_label", "variant", "ratio", "level", "metric", "mean",
-        "median", "n", "n_near_identical", "reference", "delta", "ci_low", "ci_high", "delta_median",
-        "n_pairs", "n_pairs_excluded", "verdict"]
+TIDY = ["table", "scene", "label", "method", "method_label", "variant", "ratio", "level", "metric", "mean", "std",
+        "median", "n", "n_near_identical", "splats", "bytes", "reference", "delta", "ci_low", "ci_high",
+        "delta_median", "n_pairs", "n_pairs_excluded", "verdict"]
+
+
+def _size(g: pd.DataFrame) -> dict:
+    """Kept splats and pruned .ply bytes of one cell: the mean over its frames (one value per frame,
+    repeated on each of its view rows)."""
+    out = {}
+    for col, key in (("splats_out", "splats"), ("bytes", "bytes")):
+        per_frame = pd.to_numeric(g[col], errors="coerce").groupby(g["frame"]).first() if col in g else None
+        out[key] = float(per_frame.mean()) if per_frame is not None and per_frame.notna().any() else np.nan
+    return out
+
+
+def caption(tidy: pd.DataFrame, interval: bool = True) -> str:
+    """``n`` of a cell table — held-out views per cell, pairs and scenes of the pooled rows — and how
+    its intervals are computed (:data:`harness.report.stats.INTERVAL_DESCRIPTION`)."""
+    per = tidy[tidy["scene"] != POOLED].drop_duplicates(["scene", "method", "variant", "ratio"])
+    parts = []
+    if len(per):
+        lo, hi = int(per["n"].min()), int(per["n"].max())
+        parts.append(f"n = {lo if lo == hi else f'{lo}–{hi}'} held-out view(s) per cell "
+                     f"({per['scene'].nunique()} scene(s))")
+    pooled = tidy[tidy["scene"] == POOLED]
+    if len(pooled):
+        k = per["scene"].nunique()
+        lo, hi = int(pooled["n_pairs"].min()), int(pooled["n_pairs"].max())
+        parts.append(f"all scenes: n = {lo if lo == hi else f'{lo}–{hi}'} pairs pooled over {k} scene(s) — the "
+                     "interval resamples views, so it does not generalise to scenes outside this run")
+    if interval:
+        parts.append(f"Δ: {stats.INTERVAL_DESCRIPTION}")
+    return "; ".join(parts)
 
 
 def _delta(d: np.ndarray, excluded: int, metric: str) -> dict:
@@ -146,7 +183,7 @@ def cell_text(r, digits: int, ref_cell: bool) -> str:
 def notes_for(tidy: pd.DataFrame, reference: str) -> list[str]:
     n_near = int(tidy.drop_duplicates(["scene", "method", "variant", "ratio"])["n_near_identical"].sum())
     out = [f"cells: mean over held-out views (Δ = mean paired per-view difference against {reference} at the "
-           f"same ratio [95 % percentile bootstrap CI, {stats.N_RESAMPLES:,} resamples, seed {stats.SEED}])"]
+           "same ratio [CI]; n and the interval: the caption)"]
     if n_near:
         out.append(f"{NEAR}: cell with near-identical views (PSNR ≥ {stats.NEAR_IDENTICAL_DB:g} dB or inf; "
                    f"{n_near} view(s) in all) — left out of dB means and Δ; medians over all views in the .csv")
@@ -167,6 +204,26 @@ def _sections(tidy, mets, row_keys, col_key, col_order, text) -> list[tuple[str,
     return out
 
 
+SIZE_HEADING = "Kept splats · pruned .ply size"
+
+
+def size_text(r) -> str:
+    """``12,345 splats · 2.93 MiB`` of one cell (– where the results carry no count or size)."""
+    parts = [f"{int(round(r['splats'])):,} splats" if pd.notna(r["splats"]) else "–",
+             f"{r['bytes'] / 2**20:.2f} MiB" if pd.notna(r["bytes"]) else "–"]
+    return " · ".join(parts)
+
+
+def _size_section(tidy, row_keys, col_key, col_order) -> list[tuple[str, pd.DataFrame]]:
+    """One section of each cell's kept splats and bytes (the rate of a rate point), laid out as the
+    metric sections are."""
+    first = tidy[(tidy["metric"] == tidy["metric"].iloc[0]) & (tidy["scene"] != POOLED)] if len(tidy) else tidy
+    if first.empty or (first["splats"].isna().all() and first["bytes"].isna().all()):
+        return []
+    return _sections(first.assign(metric="size"), [("size", SIZE_HEADING, 0)], row_keys, col_key, col_order,
+                     lambda r, _: size_text(r))
+
+
 # --------------------------------------------------------------------------- tables
 def table_comparison(df: pd.DataFrame, reference: str | None = None):
     reference = reference or catalog.DEFAULT_REFERENCE
@@ -178,21 +235,25 @@ def table_comparison(df: pd.DataFrame, reference: str | None = None):
     levels = {round(r, 6): f"{lvl} ({ratios.percent(r)})" for lvl, r in LEVELS}
     tidy = cell_rows(ok, mets, [(m, "default", r) for *_, m, _, r in cols], lambda c: (reference, "default", c[2]),
                      "comparison", levels=levels)
-    tidy["method_label"] = tidy["method_label"]
-    secs = _sections(tidy, mets, (["Dataset", "Method"], ["label", "method_label"]), lambda r: r["level"],
-                     [levels[round(r, 6)] for _, r in LEVELS if round(r, 6) in set(tidy["ratio"])],
-                     lambda r, dg: cell_text(r, dg, r["method"] == reference))
+    layout = ((["Dataset", "Method"], ["label", "method_label"]), lambda r: r["level"],
+              [levels[round(r, 6)] for _, r in LEVELS if round(r, 6) in set(tidy["ratio"])])
+    secs = _sections(tidy, mets, *layout, lambda r, dg: cell_text(r, dg, r["method"] == reference))
+    secs += _size_section(tidy, *layout)
     wide_cols = pd.MultiIndex.from_tuples([(g, catalog.method_label(m), lvl) for g, m, lvl, _ in cols],
                                           names=["group", "method", "level"])
-    rows = [(lab, h) for lab in dict.fromkeys(tidy["label"]) for _, h, _ in mets]
+    sizes = [("splats", "splats", 0), ("bytes", "bytes", 0)] if secs[-1][0] == SIZE_HEADING else []
+    rows = [(lab, h) for lab in dict.fromkeys(tidy["label"]) for _, h, _ in [*mets, *sizes]]
     disp = pd.DataFrame("–", pd.MultiIndex.from_tuples(rows, names=["Dataset", "Metric"]), wide_cols)
     for (mk, h, dg) in mets:
         for _, r in tidy[tidy["metric"] == mk].iterrows():
             col = next(c for c, (_, m, _, rr) in zip(wide_cols, cols) if m == r["method"] and round(rr, 6) == r["ratio"])
             disp.loc[(r["label"], h), col] = mean_text(r, dg)
+            if mk == mets[0][0]:
+                for key, h2, _ in sizes:
+                    disp.loc[(r["label"], h2), col] = fmt(r[key], 0) if pd.notna(r[key]) else "–"
     warn = [] if reference in set(ok["method"]) else \
         [f"comparison: reference method {reference} not measured; cells show means without Δ"]
-    return Table(disp, notes_for(tidy, catalog.method_label(reference)), tidy, secs, warn)
+    return Table(disp, notes_for(tidy, catalog.method_label(reference)), tidy, secs, warn, caption(tidy))
 
 
 def table_ablation(df: pd.DataFrame, ratio: float = ABLATION_RATIO):
@@ -234,7 +295,8 @@ def table_ablation(df: pd.DataFrame, ratio: float = ABLATION_RATIO):
             disp.loc[(r["label"], h), a[:2]] = text(r, dg, wide=True)
     notes = notes_for(tidy, catalog.method_label(ref) if ref else "–")
     warn = [f"ablation: missing {', '.join(missing)} at {ratios.percent(ratio)}"] if missing else []
-    return Table(disp, notes + [f"not measured: {', '.join(missing)}"] * bool(missing), tidy, secs, warn)
+    return Table(disp, notes + [f"not measured: {', '.join(missing)}"] * bool(missing), tidy, secs, warn,
+                 caption(tidy, interval=ref is not None))
 
 
 def table_versus(df: pd.DataFrame, reference: str | None = None):
@@ -262,10 +324,10 @@ def table_versus(df: pd.DataFrame, reference: str | None = None):
         t["better / worse / unclear"] = [verdicts.get((*k, mk), "") for k in t.index]
     disp = pd.concat({h: t for h, t in secs}, names=["Metric"])
     notes = [f"Δ = mean paired per-view difference against {catalog.method_label(reference)} at the same ratio "
-             f"[95 % bootstrap CI]; all scenes = every pair of every scene; better/worse = scenes whose CI "
+             f"[CI]; all scenes = every pair of every scene; better/worse = scenes whose CI "
              f"excludes 0 in the metric's good/bad direction",
              f"{NEAR}: some pairs left out as near-identical (PSNR ≥ {stats.NEAR_IDENTICAL_DB:g} dB or inf)"]
-    return Table(disp, notes, tidy.drop(columns=["row", "prune"]), secs)
+    return Table(disp, notes, tidy.drop(columns=["row", "prune"]), secs, caption=caption(tidy))
 
 
 def table_per_scene(df: pd.DataFrame):
@@ -285,5 +347,5 @@ def table_per_scene(df: pd.DataFrame):
     secs = _sections(tidy, mets, (["scene"], ["label"]), lambda r: r["prune"], cols,
                      lambda r, dg: delta_text(r, dg).removeprefix("Δ ") + (NEAR if r["n_pairs_excluded"] else ""))
     disp = pd.concat({h: t for h, t in secs}, names=["Metric"])
-    return Table(disp, [f"descriptor gain {full} − {without}, paired per view [95 % bootstrap CI]; positive "
-                        "= descriptors raise the metric"], tidy.drop(columns=["prune"]), secs)
+    return Table(disp, [f"descriptor gain {full} − {without}, paired per view [CI]; positive "
+                        "= descriptors raise the metric"], tidy.drop(columns=["prune"]), secs, caption=caption(tidy))

@@ -54,12 +54,13 @@ def _md_table(disp: pd.DataFrame) -> list[str]:
 
 def to_markdown(table, title: str, notes=()) -> str:
     """A :class:`~harness.report.tabledata.Table` (one table per section) or a display DataFrame."""
+    caption = ""
     if hasattr(table, "sections"):
-        notes = table.notes
+        notes, caption = table.notes, table.caption
         parts = [(s, d) for s, d in table.sections] or [("", table.disp)]
     else:
         parts = [("", table)]
-    lines = [f"### {title}", ""]
+    lines = [f"### {title}", ""] + ([f"_{caption}_", ""] if caption else [])
     for sub, disp in parts:
         if sub:
             lines += [f"#### {sub}", ""]

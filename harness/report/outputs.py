@@ -1,19 +1,56 @@
-"""Everything a run folder shows, rebuilt from its stored results: tables, then plots."""
+"""One path from a run's stored results to everything it shows: tables, plots, then the report page.
+
+``harness run`` (once its results and run record are written), ``harness tables`` and ``harness
+report`` all end in :func:`publish`, so the three write the same ``tables/``, ``plots/`` and
+``report.html`` from the same results: the page is drawn from the tables just written (per
+held-out view protocol, each labelled with it), never rebuilt another way.
+
+Which tables and plots: the run record's (``run.json``: the config's ``tables``/``plots``), else
+all; ``harness tables --tables/--plots`` narrows them. The BD anchor is the record's (``anchor``,
+else the config's, else :data:`harness.report.bd.DEFAULT_ANCHOR`); ``reference`` is the method
+every cell table compares with (default ``random``).
+"""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
 
 from harness.report import catalog
-from harness.report.plots import write_plots
+from harness.report.plots import PLOTS, write_plots
 from harness.report.tabledata import Written
-from harness.report.tables import write_tables
+from harness.report.tables import TABLES, write_tables
 
 
-def write_outputs(run_dir: str | Path, df: pd.DataFrame, tables, plots, **opts) -> Written:
-    """Tables and plots of a run folder from its results (no recomputation); ``opts`` reach the
-    table builders that take them (``reference=``). ``missing`` names what could not be made, and why."""
+@dataclass
+class Published:
+    """What :func:`publish` wrote: the tables and plots (``written``) and the page."""
+
+    written: Written
+    page: Path
+
+
+def chosen(meta: dict) -> tuple[list[str], list[str], str | None]:
+    """(tables, plots, BD anchor) a run record asks for; defaults: every table and plot."""
+    config = meta.get("config") if isinstance(meta.get("config"), dict) else {}
+    anchor = meta.get("anchor") or config.get("anchor")
+    return (list(meta.get("tables") or TABLES), list(meta.get("plots") or PLOTS),
+            anchor if isinstance(anchor, str) else None)
+
+
+def publish(run_dir: str | Path, df: pd.DataFrame, meta: dict, *, tables=None, plots=None,
+            reference: str | None = None) -> Published:
+    """Write a run folder's tables, plots and ``report.html`` from its results and run record."""
+    from harness.report.page import write_report
+
+    run_dir = Path(run_dir)
+    names, plot_names, anchor = chosen(meta)
+    tables = names if tables is None else list(tables)
+    plots = plot_names if plots is None else list(plots)
     with catalog.budget_notes(df):  # e.g. "ConfSplatPrune — lower bound (100 iterations)"
-        return write_tables(df, run_dir, tables, **opts) + write_plots(df, run_dir, plots)
+        written = (write_tables(df, run_dir, tables, reference=reference, anchor=anchor)
+                   + write_plots(df, run_dir, plots))
+        page = write_report(run_dir, df, meta, written.built, written.missing)
+    return Published(written, page)

@@ -15,8 +15,10 @@
 * ``figure3`` (paper Fig. 3): per scene, input, the method without Beta ("No Beta") and with it
   ("Beta") at 20 %; ``plots/figure3.png``.
 
-Image grids read the renders the run stored under ``<run>/images/`` (no rendering here). A plot
-that cannot be drawn is named in the returned :class:`~harness.report.tabledata.Written` with why.
+Image grids read the renders the run stored under ``<run>/images/`` (no rendering here); a column
+that no scene has (e.g. 50 / 70 % in a run of 10–30 %) is left out, and a cell one scene lacks is
+blank. A plot that cannot be drawn is named in the returned
+:class:`~harness.report.tabledata.Written` with why.
 """
 
 from __future__ import annotations
@@ -32,6 +34,8 @@ from harness.report.cells import prepare
 from harness.report.record import _slug, image_name
 from harness.report.tabledata import Written
 
+#: the plots a config or ``harness tables --plots`` can name
+PLOTS = ("curves", "figure1", "figure3")
 FIG1_RATIOS = (0.1, 0.3, 0.5, 0.7)
 FIG3_RATIO = 0.2
 
@@ -103,7 +107,7 @@ def _panel(ax, pts: pd.DataFrame, metric: str, heading: str, x: str, colors: dic
     ax.grid(alpha=0.3)
 
 
-def plot_curves(df: pd.DataFrame, out: Path) -> list[Path]:
+def plot_curves(df: pd.DataFrame, out: Path, protocol: str = "") -> list[Path]:
     plt = _plt()
     ok, mets = prepare(df)
     panels = curve_metrics(mets)
@@ -134,7 +138,8 @@ def plot_curves(df: pd.DataFrame, out: Path) -> list[Path]:
             handles.append(Line2D([], [], marker="^", ms=8, color="0.35", ls="none"))
             labels.append(f"every view ≥ {stats.NEAR_IDENTICAL_DB:g} dB\n(near-identical; off the\nscale, at the top edge)")
         fig.legend(handles, labels, loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize=8, frameon=False)
-        fig.suptitle(f"{scene}: pruned vs unpruned render, held-out views (cell means)")
+        views = f"held-out views: {protocol}" if protocol else "held-out views"
+        fig.suptitle(f"{scene}: pruned vs unpruned render, {views} (cell means)")
         fig.tight_layout()
         paths.append(_save(fig, out / f"curves_{_slug(scene)}.png"))
         plt.close(fig)
@@ -164,6 +169,9 @@ def _grid(df: pd.DataFrame, images: Path, columns, title: str, path: Path, capti
         files = [d / image_name(m, v, r) for _, m, v, r in columns]
         if sum(f.exists() for f in files) > 1:
             rows.append((label, name, files))
+    present = [j for j in range(len(columns)) if any(files[j].exists() for _, _, files in rows)]
+    columns = [columns[j] for j in present]
+    rows = [(label, name, [files[j] for j in present]) for label, name, files in rows]
     if not rows:
         return []
     fig, axes = plt.subplots(len(rows), len(columns), figsize=(2.6 * len(columns), 2.35 * len(rows)), squeeze=False)
@@ -174,8 +182,8 @@ def _grid(df: pd.DataFrame, images: Path, columns, title: str, path: Path, capti
             ax.set_yticks([])
             if f.exists():
                 ax.imshow(np.asarray(Image.open(f).convert("RGB")))
-            else:
-                ax.text(0.5, 0.5, "not run", ha="center", va="center", transform=ax.transAxes)
+            else:  # this scene lacks the cell: a blank panel, no frame
+                ax.set_frame_on(False)
             if i == 0:
                 ax.set_title(columns[j][0], fontsize=9)
             if j == 0:
@@ -197,16 +205,18 @@ def _taus(df: pd.DataFrame, method: str) -> dict:
 
 
 def write_plots(df: pd.DataFrame, run_dir: str | Path, names) -> Written:
-    """The plots of the primary held-out view protocol (the training rig's views)."""
+    """The plots of the primary held-out view protocol (the training rig's views), which their
+    titles name."""
     from harness.report.summary import protocol_subsets
 
-    df = protocol_subsets(df)[0][2]
+    protocol, _, df = protocol_subsets(df)[0]
+    first_view = f" — first held-out view ({protocol})" if protocol else ""
     run_dir = Path(run_dir)
     out = run_dir / "plots"
     images = run_dir / "images"
     w = Written()
     if "curves" in names:
-        got = plot_curves(df, out)
+        got = plot_curves(df, out, protocol)
         w.paths += got
         if not got:
             w.missing.append("plot curves not drawn: no measured default variant")
@@ -225,7 +235,8 @@ def write_plots(df: pd.DataFrame, run_dir: str | Path, names) -> Written:
                 t = taus.get((scene, round(col[3], 6)))
                 return "" if col[1] == "input" or t is None else f"τ = {t:.3f}"
 
-            title = f"{catalog.method_label(proposed)} at increasing pruning, τ = score at the cut (paper Fig. 1)"
+            title = (f"{catalog.method_label(proposed)} at increasing pruning, τ = score at the cut (paper Fig. 1)"
+                     + first_view)
             got = _grid(df, images, cols, title, out / "figure1.png", cap)
         w.paths += got
         if not got:
@@ -237,7 +248,8 @@ def write_plots(df: pd.DataFrame, run_dir: str | Path, names) -> Written:
         if pair:
             cols = [("input", "input", "", 0.0), ("No Beta", pair[0], "default", FIG3_RATIO),
                     ("Beta", pair[1], "default", FIG3_RATIO)]
-            got = _grid(df, images, cols, "No Beta vs Beta at 20 % pruning (paper Fig. 3)", out / "figure3.png")
+            got = _grid(df, images, cols, "No Beta vs Beta at 20 % pruning (paper Fig. 3)" + first_view,
+                        out / "figure3.png")
         w.paths += got
         if not got:
             w.missing.append(f"plot figure3 not drawn: no stored renders of {' and '.join(pair or ('the Beta pair',))} "

@@ -8,7 +8,9 @@ Run folder layout::
     <out>/images/<scene>/...png          reference and figure renders (inputs of the image grids)
     <out>/contact_sheets/<scene>.png     held-out views of each scene
     <out>/run.json                       config, commit, machine, stage times, cache hits/misses,
-                                         skips and errors
+                                         skips and errors of the latest run
+    <out>/records/<when>-<pid>.json      the same record of every run into this folder (a cached
+                                         rerun adds one and never replaces the cold run's)
 
 Everything is derived from the content-addressed stage cache (default ``<harness cache>/stages``),
 so ``harness tables RUN_DIR`` can rebuild tables and plots from ``results.parquet`` and ``images/``.
@@ -17,6 +19,7 @@ so ``harness tables RUN_DIR`` can rebuild tables and plots from ``results.parque
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import time
 from pathlib import Path
@@ -53,27 +56,39 @@ def copy_images(images: dict, out_dir: Path) -> Path:
 
 def contact_sheets(items, cache, ref_key, out_dir: Path, background=(0.0, 0.0, 0.0)) -> dict[str, list[float]]:
     """One labelled grid of the held-out reference renders per scene (first frame), via
-    :func:`harness.views.contact_sheet.write_contact_sheet`; returns each scene's per-view coverage."""
-    from harness.views.contact_sheet import write_contact_sheet
+    :class:`harness.views.contact_sheet.ContactSheet`, reading one render at a time; returns each
+    scene's per-view coverage."""
+    from harness.views.contact_sheet import ContactSheet
 
     out: dict[str, list[float]] = {}
     for item in items:
-        if item.spec.name in out:
+        if item.spec.name in out or not item.test:
             continue
-        pairs = [(cam.name, cache.load_array("render_ref", ref_key(item, cam))) for cam in item.test]
-        pairs = [(n, im) for n, im in pairs if im is not None]
-        if not pairs:
+        sheet = ContactSheet(len(item.test), background=background)
+        for cam in item.test:
+            image = cache.load_array("render_ref", ref_key(item, cam))
+            if image is not None:
+                sheet.add(image, cam.name)
+        if not sheet.covs:
             continue
         path = Path(out_dir) / "contact_sheets" / f"{_slug(item.spec.name)}.png"
         path.parent.mkdir(parents=True, exist_ok=True)
-        out[item.spec.name] = write_contact_sheet([im for _, im in pairs], [n for n, _ in pairs], path,
-                                                  background=background)
+        out[item.spec.name] = sheet.write(path)
     return out
 
 
-def write_run_json(out_dir: Path, config, result, *, workers: int, cache_root: Path, argv=None) -> Path:
+#: the page lists at most this many run records (the newest)
+MAX_RECORDS = 200
+
+
+def write_run_json(out_dir: Path, config, result, *, workers: int, cache_root: Path, argv=None,
+                   latest: bool = True) -> Path:
     """run.json, with the calibration workload timed right after the run (``harness track`` divides
-    stage times by it, so machine speed cancels out of the regression check)."""
+    stage times by it, so machine speed cancels out of the regression check); the same record is
+    kept as ``records/<when>-<pid>.json``, so every run into the folder stays visible. ``latest``
+    False: the record only (a run that replaced no results leaves run.json to the run that did);
+    returns the path written last."""
+    status = [r.get("status") for r in result.rows]
     payload = {
         "name": config.name,
         "config_path": config.source_path,
@@ -92,11 +107,39 @@ def write_run_json(out_dir: Path, config, result, *, workers: int, cache_root: P
         "errors": result.errors,
         "tables": list(config.tables),
         "plots": list(config.plots),
+        "anchor": config.anchor,
+        "rows": {k: status.count(k) for k in ("ok", "skipped", "error")},
         "argv": argv or [],
     }
-    path = Path(out_dir) / "run.json"
-    atomic_write_text(path, json.dumps(payload, indent=2, default=str) + "\n")
+    text = json.dumps(payload, indent=2, default=str) + "\n"
+    records = Path(out_dir) / "records"
+    records.mkdir(exist_ok=True)
+    path = records / f"{time.strftime('%Y%m%dT%H%M%S')}-{os.getpid()}.json"
+    atomic_write_text(path, text)
+    if latest:
+        path = Path(out_dir) / "run.json"
+        atomic_write_text(path, text)
     return path
+
+
+def read_records(run_dir: Path) -> tuple[list[dict], list[str]]:
+    """(every run record of ``<run>/records/`` — oldest first, the newest :data:`MAX_RECORDS` —, one
+    line per record file that could not be read). A folder from before records existed gives its
+    ``run.json`` alone. An unreadable record is named, not fatal: the page shows the others."""
+    from harness.core.errors import InputError
+    from harness.report.tracking import read_run_json
+
+    run_dir = Path(run_dir)
+    files = sorted(run_dir.glob("records/*.json"))[-MAX_RECORDS:]
+    if not files and (run_dir / "run.json").is_file():
+        files = [run_dir / "run.json"]
+    out, bad = [], []
+    for f in files:
+        try:
+            out.append(read_run_json(f))
+        except InputError as err:
+            bad.append(str(err))
+    return out, bad
 
 
 def summary_lines(result, df, paths: dict) -> list[str]:

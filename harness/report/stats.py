@@ -31,6 +31,10 @@ NEAR_IDENTICAL_DB = 100.0
 N_RESAMPLES = 10_000
 CONFIDENCE = 0.95
 SEED = 0
+#: how every table's interval is computed, in one line: the captions of the tables and the report
+#: page read it from here (whoever changes :func:`bootstrap_ci` updates it)
+INTERVAL_DESCRIPTION = (f"{100 * CONFIDENCE:g} % percentile bootstrap CI of the mean paired per-view difference "
+                        f"({N_RESAMPLES:,} resamples of the views, seed {SEED})")
 
 
 def is_db(metric: str) -> bool:
@@ -71,7 +75,8 @@ def bootstrap_ci(x, *, n_resamples: int = N_RESAMPLES, confidence: float = CONFI
 
 
 def summary(values, near, metric: str) -> dict:
-    """Mean (dB metrics: over views that are not near-identical), median (all views), counts."""
+    """Mean and sample standard deviation (ddof = 1, as ns-eval's ``psnr_std``; NaN below 2 values)
+    over the same views (dB metrics: those that are not near-identical), median (all views), counts."""
     v = np.asarray(values, dtype=np.float64)
     near = np.asarray(near, dtype=bool)
     ok = ~np.isnan(v)
@@ -79,6 +84,7 @@ def summary(values, near, metric: str) -> dict:
     used = v[~near] if is_db(metric) else v
     used = used[np.isfinite(used)]
     return {"mean": float(used.mean()) if used.size else np.nan,
+            "std": float(used.std(ddof=1)) if used.size > 1 else np.nan,
             "median": float(np.median(v)) if v.size else np.nan,
             "n": int(v.size), "n_near_identical": int(near.sum())}
 

@@ -8,7 +8,8 @@ A :class:`Table` carries the three views of one table:
 * ``disp``: the wide paper layout (MultiIndex rows/columns of display strings: the ``.tex``).
 
 ``notes`` are printed under the table; ``warnings`` name what a partly built table lacks (a run
-prints them in its summary). Builders from before this module returned ``(num, disp, notes)``;
+prints them in its summary); ``caption`` says what ``n`` is and how the intervals are computed (or
+that there are none) — every output of the table shows it. Builders from before this module returned ``(num, disp, notes)``;
 :func:`as_table` still accepts that, tidying ``num`` by :func:`tidy_from_wide`.
 """
 
@@ -27,6 +28,7 @@ class Table:
     tidy: pd.DataFrame
     sections: list[tuple[str, pd.DataFrame]] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    caption: str = ""
 
 
 @dataclass(frozen=True)
@@ -62,6 +64,14 @@ def tidy_from_wide(num: pd.DataFrame, value: str = "value") -> pd.DataFrame:
     return out
 
 
+def tidy_with_std(num: pd.DataFrame, std: pd.DataFrame) -> pd.DataFrame:
+    """:func:`tidy_from_wide` of ``num`` with a ``std`` column: the same cell of ``std`` (a frame of
+    ``num``'s shape holding each mean's standard deviation, NaN where a cell is not a mean)."""
+    out = tidy_from_wide(num)
+    out["std"] = pd.to_numeric(tidy_from_wide(std.reindex_like(num))["value"], errors="coerce").to_numpy()
+    return out
+
+
 def as_table(result) -> Table | Missing:
     """A builder's result as a :class:`Table` (None: :class:`Missing` without a specific reason)."""
     if isinstance(result, (Table, Missing)):
@@ -72,11 +82,23 @@ def as_table(result) -> Table | Missing:
     return Table(disp=disp, notes=list(notes), tidy=tidy_from_wide(num))
 
 
+@dataclass(frozen=True)
+class Built:
+    """One table as a run folder shows it: its file stem (``comparison``, ``comparison-shifted``),
+    builder name, held-out view protocol ("" for results without one), title, and the table."""
+
+    key: str
+    name: str
+    protocol: str
+    title: str
+    table: Table | Missing
+
+
 @dataclass
 class Written:
     """What writing a run's outputs produced: files, and one line per table or plot that could not
     be made (``missing``) or was made without some of its parts (``warnings``); ``built``: the
-    tables as built (``{name: Table | Missing}``), for the report page."""
+    tables as built (``{file stem: Built}``), for the report page."""
 
     paths: list = field(default_factory=list)
     missing: list[str] = field(default_factory=list)

@@ -4,7 +4,11 @@
 
 * ``groups``: per (scene, method, variant, ratio), over the rows with ``status == "ok"``: mean PSNR
   over the *finite* values with the count of +inf views apart (identical renders), mean SSIM, mean
-  LPIPS, the number of measured views. Key ``"scene|method[variant]|ratio"``.
+  LPIPS, each with its sample standard deviation beside it (``psnr_std``, ``ssim_std``, ``lpips_std``;
+  ddof = 1, null below two views), the number of measured views. Key ``"scene|method[variant]|ratio"``
+  (``scene@protocol`` for a held-out view protocol other than the primary one).
+* ``run`` (the config's name) and ``protocols`` (the held-out view protocols, primary first): what
+  the run is, so it is compared only with a baseline of the same config and protocols.
 * ``stages``: seconds per stage — the run's wall time per stage from ``run.json`` (``run:load``,
   ``run:score``, ...; only when the run computed everything, i.e. no stage-cache hits, since a cached
   stage measures nothing), the scoring time of each (scene, method variant) (``score:<scene>|<m>[<v>]``,
@@ -15,7 +19,9 @@
   timed by ``harness track`` itself right after the run (``calibration_source`` says which).
 * ``commit`` (run.json, else ``git rev-parse HEAD``, else ``"unknown"``), ``machine``, ``when``, ``run``.
 
-**Comparison** with a baseline file ``{"tolerances": {...}, "summary": {...}}``. A regression is
+**Comparison** with a baseline file ``{"tolerances": {...}, "summary": {...}}`` of the same config
+and protocols (:func:`check_like`; anything else is an error, not a list of false regressions). A
+regression is
 
 * a baseline group missing from the run or without a measured view (a pruner that errors or is skipped);
 * ``psnr`` falling by more than ``tolerances.psnr`` dB (finite means); a group whose every view was
@@ -80,9 +86,9 @@ def summarize_groups(df: pd.DataFrame) -> dict[str, dict]:
             "scene": scene, "method": method, "variant": variant, "ratio": float(ratio),
             "n_views": len(g),
             "psnr": float(finite.mean()) if finite.size else None,
+            "psnr_std": float(finite.std(ddof=1)) if finite.size > 1 else None,
             "psnr_n_inf": int(psnr.size - finite.size),
-            "ssim": _finite_or_none(g["ssim"].astype(float).mean()) if "ssim" in g else None,
-            "lpips": _finite_or_none(g["lpips"].astype(float).mean()) if "lpips" in g else None,
+            **{k: v for m in ("ssim", "lpips") for k, v in _mean_std(g, m).items()},
         }
     # groups the run attempted but never measured (errors, skips) are listed with n_views = 0
     for (scene, method, variant, ratio), _ in df[df["status"] != "ok"].groupby(
@@ -92,6 +98,14 @@ def summarize_groups(df: pd.DataFrame) -> dict[str, dict]:
                              "ratio": None if pd.isna(ratio) else float(ratio), "n_views": 0,
                              "psnr": None, "psnr_n_inf": 0, "ssim": None, "lpips": None})
     return out
+
+
+def _mean_std(g: pd.DataFrame, metric: str) -> dict:
+    """``{metric: mean, metric_std: sample std}`` of a group (None where absent or undefined)."""
+    if metric not in g:
+        return {metric: None, f"{metric}_std": None}
+    v = g[metric].astype(float)
+    return {metric: _finite_or_none(v.mean()), f"{metric}_std": _finite_or_none(v.std(ddof=1)) if len(v) > 1 else None}
 
 
 def summarize_stages(df: pd.DataFrame, run_json: dict) -> dict[str, float]:
@@ -176,9 +190,12 @@ def build_summary(df: pd.DataFrame, run_json: dict, calibration_s: float | None 
     machine = run_json.get("machine")
     if not machine:
         machine = describe_machine()
+    from harness.report.summary import protocol_subsets
+
     return {
         "schema": SCHEMA,
         "run": run_json.get("name") or (str(df["run"].iloc[0]) if len(df) else ""),
+        "protocols": [p for p, _, _ in protocol_subsets(df) if p],
         "when": run_json.get("when") or time.strftime("%Y-%m-%dT%H:%M:%S"),
         "commit": _commit(run_json),
         "machine": machine,
@@ -190,6 +207,27 @@ def build_summary(df: pd.DataFrame, run_json: dict, calibration_s: float | None 
 
 
 # --------------------------------------------------------------------------- comparison
+def protocols_of(summary: dict) -> list[str]:
+    """A summary's held-out view protocols; a summary from before they were recorded: ``rig`` and
+    those its group keys name (``scene@protocol``)."""
+    if summary.get("protocols"):
+        return list(summary["protocols"])
+    named = sorted({k.split("|", 1)[0].partition("@")[2] for k in summary.get("groups", {})} - {""})
+    return ["rig", *named]
+
+
+def check_like(baseline: dict, summary: dict, baseline_path, run_dir) -> None:
+    """InputError unless the run and the baseline are of the same config and protocols: comparing
+    a ci run with the nightly baseline reported 74 false regressions."""
+    base = baseline["summary"]
+    mine, theirs = (summary.get("run"), protocols_of(summary)), (base.get("run"), protocols_of(base))
+    if mine != theirs:
+        raise InputError(baseline_path, f"is a baseline of config {theirs[0]!r} (protocols {', '.join(theirs[1])}), "
+                                        f"but {run_dir} is a run of config {mine[0]!r} (protocols {', '.join(mine[1])}); "
+                                        "track compares a run only with a baseline of the same config and protocols "
+                                        "(give that one with --baseline)")
+
+
 @dataclass(frozen=True)
 class Finding:
     kind: str      # "regression" | "ok" | "new" | "note"
@@ -306,14 +344,27 @@ def write_baseline(path: str | Path, summary: dict, tolerances: dict | None = No
 
 
 def append_history(history_dir: str | Path, summary: dict) -> Path:
-    """Append ``summary`` as one JSON line to ``<history_dir>/history.jsonl``."""
+    """Append ``summary`` as one JSON line to ``<history_dir>/history.jsonl``: a regular file only
+    (a FIFO would hang, a symbolic link would append to another file: both refused)."""
+    import os
+    import stat
+
     d = Path(history_dir)
     path = d / "history.jsonl"
-    line = json.dumps(summary, sort_keys=True, allow_nan=False) + "\n"
+    line = (json.dumps(summary, sort_keys=True, allow_nan=False) + "\n").encode("utf-8")
     try:
         d.mkdir(parents=True, exist_ok=True)
-        with open(path, "a", encoding="utf-8") as fh:  # one write of one line: readers see whole lines
-            fh.write(line)
+        if path.is_symlink():
+            raise InputError(path, "is a symbolic link; the history is appended to a regular file only")
+        if path.exists() and not stat.S_ISREG(path.stat().st_mode):
+            raise InputError(path, "is not a regular file; the history is appended to a regular file only")
+        fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK, 0o666)
+        try:
+            if not stat.S_ISREG(os.fstat(fd).st_mode):  # swapped in after the check
+                raise InputError(path, "is not a regular file; the history is appended to a regular file only")
+            os.write(fd, line)  # one write of one line: readers see whole lines
+        finally:
+            os.close(fd)
     except OSError as err:
         raise InputError(path, f"cannot append to the history: {err.strerror or err}") from None
     return path

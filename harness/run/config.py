@@ -40,6 +40,8 @@ A config is a YAML mapping::
         n_test: 3                 # per-scene override of protocol.n_test / n_train
         label: "plant"            # display name in tables (default: name)
         suites: [paper-table1]    # free tags
+        optional: true            # skip the scene when its files are absent (default false: a scene
+                                  # that cannot be found stops the run before any work)
     methods:
       - name: betadesc            # a registered pruner
         variant: default          # row label of this entry (default: "default" or the sweep values)
@@ -64,8 +66,12 @@ from typing import Any
 
 from harness.core import ratios
 from harness.core.errors import InputError
+from harness.core.suggest import unknown
 from harness.core.params import Params
 from harness.metrics.registry import METRICS, expand
+from harness.report.plots import PLOTS
+from harness.report.tables import TABLES
+from harness.run.config_checks import boolean as _bool
 from harness.run.config_checks import choice as _choice
 from harness.run.config_checks import expand_env
 from harness.run.config_checks import fractions as _fractions
@@ -79,8 +85,6 @@ from harness.views import rigs
 from renderers import RENDERERS
 
 KINDS = ("forward-facing", "object-centric")
-TABLES = ("comparison", "ablation", "keep", "sensitivity", "runtime", "per_scene", "versus", "bd", "ctc")
-PLOTS = ("curves", "figure1", "figure3")
 
 @dataclass(frozen=True)
 class Protocol:
@@ -124,6 +128,9 @@ class SceneSpec:
     test_every: int = 0
     width: int | None = None    # image size for header camera lines without one (default 1920x1080)
     height: int | None = None
+    #: absent files are skipped with a message (MPEG content not everyone has); otherwise a scene
+    #: that cannot be found is an error before any work (:func:`harness.run.plan.check_sources`)
+    optional: bool = False
 
 
 @dataclass(frozen=True)
@@ -187,12 +194,12 @@ def _protocol(d, src) -> Protocol:
         if not isinstance(d["metrics"], list) or not d["metrics"]:
             raise InputError(src, "protocol.metrics: expected a non-empty list of metric or metric-set names")
         known = METRICS.names() + sorted({m.family for m in METRICS})
-        kw["metrics"] = expand(_names(d["metrics"], known, "protocol.metrics", src))
+        kw["metrics"] = expand(_names(d["metrics"], known, "protocol.metrics", src, "metric or metric set"))
     if "seed" in d:
         kw["seed"] = _num(d["seed"], "protocol.seed", src, lo=0, integer=True)
     for k in ("n_train", "n_test"):
         if k in d:
-            kw[k] = _num(d[k], f"protocol.{k}", src, lo=0 if k == "n_train" else 1, hi=10000, integer=True)
+            kw[k] = _num(d[k], f"protocol.{k}", src, lo=0 if k == "n_train" else 1, hi=rigs.MAX_VIEWS, integer=True)
     return Protocol(**{**p.__dict__, **kw})
 
 
@@ -211,7 +218,8 @@ def _cameras(d, where, src) -> CameraSpec:
 
 
 _SCENE_KEYS = {"name", "label", "source", "frames", "kind", "rig", "cameras", "lod", "n_train", "n_test", "suites",
-               "sequence", "test", "test_every", "width", "height"}
+               "sequence", "test", "test_every", "width", "height", "optional"}
+
 _SEQUENCE_ONLY = ("test", "test_every", "width", "height")
 
 
@@ -232,7 +240,7 @@ def _scene(d, i, protocol: Protocol, src) -> SceneSpec:
     if not isinstance(suites, list) or not all(isinstance(s, str) for s in suites):
         raise InputError(src, f"{where}.suites: expected a list of tags")
     if "sequence" in d:
-        return _sequence_scene(d, where, name, suites, src)
+        return _sequence_scene(d, where, name, suites, src, _bool(d.get("optional", False), f"{where}.optional", src))
     stray = [k for k in _SEQUENCE_ONLY if k in d]
     if stray:
         raise InputError(src, f"{where}: {', '.join(stray)} go with `sequence` (for `cameras`, inside it)")
@@ -246,13 +254,14 @@ def _scene(d, i, protocol: Protocol, src) -> SceneSpec:
         rig=_choice(d.get("rig", "default"), rigs.RIG_CHOICES, f"{where}.rig", src),
         cameras=_cameras(d["cameras"], f"{where}.cameras", src) if "cameras" in d else None,
         lod=None if lod is None else _num(lod, f"{where}.lod", src, lo=0, integer=True),
-        n_train=_num(d.get("n_train", protocol.n_train), f"{where}.n_train", src, lo=0, integer=True),
-        n_test=_num(d.get("n_test", protocol.n_test), f"{where}.n_test", src, lo=1, integer=True),
+        n_train=_num(d.get("n_train", protocol.n_train), f"{where}.n_train", src, lo=0, hi=rigs.MAX_VIEWS, integer=True),
+        n_test=_num(d.get("n_test", protocol.n_test), f"{where}.n_test", src, lo=1, hi=rigs.MAX_VIEWS, integer=True),
         suites=tuple(suites),
+        optional=_bool(d.get("optional", False), f"{where}.optional", src),
     )
 
 
-def _sequence_scene(d, where, name, suites, src) -> SceneSpec:
+def _sequence_scene(d, where, name, suites, src, optional: bool) -> SceneSpec:
     """A scene given as an MPEG content folder (``sequence: DIR``)."""
     clash = [k for k in ("source", "frames", "cameras", "rig", "lod") if k in d]
     if clash:
@@ -269,7 +278,7 @@ def _sequence_scene(d, where, name, suites, src) -> SceneSpec:
         kind=_choice(d.get("kind", "object-centric"), KINDS, f"{where}.kind", src),
         sequence=expand_env(_str(d["sequence"], f"{where}.sequence", src)), test=tuple(test),
         test_every=_num(d.get("test_every", 0), f"{where}.test_every", src, lo=0, integer=True),
-        width=size[0], height=size[1], suites=tuple(suites),
+        width=size[0], height=size[1], suites=tuple(suites), optional=optional,
     )
 
 
@@ -281,7 +290,6 @@ def _method(d, i, default_ratios, scene_names, src) -> list[MethodVariant]:
     """Expand one methods[] entry into its variants, each with its parameters resolved and checked
     (through the pruner's :class:`Params`) here, once."""
     from harness.core.params import ParamError
-    from methods.registry import get_pruner
 
     where = f"methods[{i}]"
     if isinstance(d, str):
@@ -289,10 +297,7 @@ def _method(d, i, default_ratios, scene_names, src) -> list[MethodVariant]:
     d = _mapping(d, where, src)
     _only(d, {"name", "variant", "params", "sweep", "ratios", "keep", "scenes"}, where, src)
     name = _str(d.get("name"), f"{where}.name", src)
-    try:
-        spec = get_pruner(name)
-    except KeyError as err:
-        raise InputError(src, f"{where}.name: {err.args[0]}") from None
+    spec = _pruner(name, f"{where}.name", src)
     params = _mapping(d.get("params"), f"{where}.params", src)
     sweep = _mapping(d.get("sweep"), f"{where}.sweep", src)
     for k, vals in sweep.items():
@@ -314,7 +319,7 @@ def _method(d, i, default_ratios, scene_names, src) -> list[MethodVariant]:
             raise InputError(src, f"{where}.scenes: expected a non-empty list of scene names")
         for j, s in enumerate(scenes):
             if s not in scene_names:
-                raise InputError(src, f"{where}.scenes[{j}]: {s!r} is not a scene of this config")
+                raise InputError(src, f"{where}.scenes[{j}]: {unknown('scene of this config', s, sorted(scene_names))}")
         scenes = tuple(scenes)
     base = d.get("variant")
     if base is not None:
@@ -336,14 +341,19 @@ def _method(d, i, default_ratios, scene_names, src) -> list[MethodVariant]:
 
 def _anchor(v, src) -> str:
     """The BD anchor: a registered pruner name."""
-    from methods.registry import get_pruner
-
     name = _str(v, "anchor", src)
-    try:
-        get_pruner(name)
-    except KeyError as err:
-        raise InputError(src, f"anchor: {err.args[0]}") from None
+    _pruner(name, "anchor", src)
     return name
+
+
+def _pruner(name: str, where: str, src):
+    """The registered pruner ``name``, or an InputError with the known names and the close ones."""
+    from methods.registry import get_pruner, list_pruners
+
+    try:
+        return get_pruner(name)
+    except KeyError:
+        raise InputError(src, f"{where}: {unknown('method', name, [p.name for p in list_pruners()])}") from None
 
 
 def _protocols(v, src) -> tuple:
@@ -417,8 +427,8 @@ def parse_config(data: Any, source: str = "<config>") -> RunConfig:
         protocol=protocol,
         scenes=scenes,
         methods=methods,
-        tables=_names(d.get("tables", list(TABLES)), TABLES, "tables", src),
-        plots=_names(d.get("plots", list(PLOTS)), PLOTS, "plots", src),
+        tables=_names(d.get("tables", list(TABLES)), TABLES, "tables", src, "table"),
+        plots=_names(d.get("plots", list(PLOTS)), PLOTS, "plots", src, "plot"),
         source_path=str(source),
         raw=d,
         anchor=_anchor(d.get("anchor", "lightgs"), src),

@@ -8,6 +8,7 @@ import os
 import re
 
 from harness.core.errors import InputError
+from harness.core.suggest import unknown
 
 _ENV = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)(?::-([^}]*))?\}")
 
@@ -27,9 +28,9 @@ def mapping(value, where: str, src: str) -> dict:
 
 
 def only(d: dict, allowed: set[str], where: str, src: str) -> None:
-    unknown = sorted(set(d) - allowed)
-    if unknown:
-        raise InputError(src, f"{where}: unknown key(s) {', '.join(unknown)}; allowed: {', '.join(sorted(allowed))}")
+    extra = sorted(set(d) - allowed, key=str)
+    if extra:
+        raise InputError(src, f"{where}: " + "; ".join(unknown("key", k, sorted(allowed)) for k in extra))
 
 
 def num(v, where: str, src: str, *, lo=None, hi=None, integer=False):
@@ -42,15 +43,22 @@ def num(v, where: str, src: str, *, lo=None, hi=None, integer=False):
     return v
 
 
+def boolean(v, where: str, src: str) -> bool:
+    if not isinstance(v, bool):
+        raise InputError(src, f"{where}: expected true or false, got {v!r}")
+    return v
+
+
 def string(v, where: str, src: str) -> str:
     if not isinstance(v, str) or not v.strip():
         raise InputError(src, f"{where}: expected a non-empty string, got {v!r}")
     return v
 
 
-def choice(v, choices, where: str, src: str) -> str:
+def choice(v, choices, where: str, src: str, what: str = "value") -> str:
+    """``v`` if it is one of ``choices``, else an InputError with the close ones ("did you mean")."""
     if v not in choices:
-        raise InputError(src, f"{where}: {v!r} is not one of {', '.join(choices)}")
+        raise InputError(src, f"{where}: {unknown(what, v, choices)}")
     return v
 
 
@@ -60,7 +68,7 @@ def fractions(v, where: str, src: str) -> tuple[float, ...]:
     return tuple(float(num(x, f"{where}[{i}]", src, lo=0.0, hi=1.0)) for i, x in enumerate(v))
 
 
-def names(v, choices, where: str, src: str) -> tuple[str, ...]:
+def names(v, choices, where: str, src: str, what: str = "name") -> tuple[str, ...]:
     if not isinstance(v, list):
         raise InputError(src, f"{where}: expected a list of names from {', '.join(choices)}")
-    return tuple(choice(x, choices, f"{where}[{i}]", src) for i, x in enumerate(v))
+    return tuple(choice(x, choices, f"{where}[{i}]", src, what) for i, x in enumerate(v))

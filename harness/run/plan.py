@@ -13,7 +13,9 @@ Stages and their cache keys (every key also holds the code digest of what comput
 * **metrics** — per (reference render, keep-mask digest): PSNR/SSIM/LPIPS of the pruned render.
   Two methods that keep the same splats share the entry, so the set is rendered once.
 
-Scenes whose files are absent are recorded as skipped with the reason, never an error.
+Scenes are resolved before any work (:func:`check_sources`): a scene the config does not mark
+``optional: true`` whose files are absent is an error naming it (a misspelt name gets "did you
+mean"); an optional one is recorded as skipped with the reason.
 """
 
 from __future__ import annotations
@@ -102,6 +104,45 @@ def resolve_paths(spec: SceneSpec, toolkit: Toolkit, base: Path) -> tuple[list[t
     if not path.exists():
         return [], f"file not found: {src}"
     return [("", path)], None
+
+
+def _looks_like_name(text: str) -> bool:
+    """A bare word (``luigii``), not a path (``scenes/x.ply``, ``x.ply``): a misspelt dataset name."""
+    return "/" not in text and "\\" not in text and not Path(text).suffix
+
+
+def _explain(spec: SceneSpec, reason: str, toolkit: Toolkit) -> str:
+    """Why a scene cannot be found, with the dataset names close to a misspelt one."""
+    if spec.source is not None and toolkit.resolve_dataset(spec.source) is None and _looks_like_name(spec.source):
+        from harness.core.suggest import unknown
+        from harness.io.datasets import SCENES
+
+        return f"{unknown('scene name', spec.source, list(SCENES))}, and no file of that name in the working folder"
+    return reason
+
+
+def check_sources(config: RunConfig, toolkit: Toolkit, base: Path, *, names_only: bool = False) -> list[Skip]:
+    """Resolve every scene of ``config`` before any work: the optional ones whose files are absent
+    as skips; any other that cannot be found is an InputError naming each such scene (one line).
+    ``names_only`` (``harness plan``, which estimates absent data): only misspelt names fail."""
+    from harness.core.errors import InputError
+
+    skips, problems = [], []
+    for i, spec in enumerate(config.scenes):
+        _, reason = resolve_paths(spec, toolkit, base)
+        reason = reason or _cameras_missing(spec, base)
+        if reason is None:
+            continue
+        if spec.optional:
+            skips.append(Skip(spec.name, "", "*", "*", reason))
+            continue
+        explained = _explain(spec, reason, toolkit)
+        if not names_only or explained != reason:
+            problems.append(f"scenes[{i}] {spec.name!r}: {explained}")
+    if problems:
+        raise InputError(config.source_path or "config", "; ".join(problems)
+                         + " (mark a scene that may be absent `optional: true` to skip it instead)")
+    return skips
 
 
 def _cameras_missing(spec: SceneSpec, base: Path) -> str | None:
@@ -213,7 +254,8 @@ class _LazyScene:
 
 def load_items(config: RunConfig, cache: StageCache, toolkit: Toolkit, versions: Versions,
                base: Path, on_skip=None) -> tuple[list[SceneItem], list[Skip]]:
-    """Resolve every scene's files, splat counts and cameras; absent scenes become skips.
+    """Resolve every scene's files, splat counts and cameras; absent optional scenes become skips,
+    absent required ones (gone since :func:`check_sources` passed) errors.
 
     Scenes are loaded only when a stage needs them (a miss of ``load`` or ``views``), so a rerun
     with everything cached never reads a scene file.
@@ -225,7 +267,7 @@ def load_items(config: RunConfig, cache: StageCache, toolkit: Toolkit, versions:
         frames, reason = resolve_paths(spec, toolkit, base)
         reason = reason or _cameras_missing(spec, base)
         if reason:
-            skips.append(Skip(spec.name, "", "*", "*", reason))
+            skips.append(Skip(spec.name, "", "*", "*", reason, status="skipped" if spec.optional else "error"))
             if on_skip:
                 on_skip(spec, reason)
             continue

@@ -47,33 +47,71 @@ def _thumbnail(image: np.ndarray, longest: int) -> Image.Image:
     return im
 
 
+#: the widest a sheet gets (px): many views get smaller thumbnails, so a sheet of 1,000 views stays
+#: a few tens of megapixels
+MAX_SHEET_SIDE = 8192
+
+
+class ContactSheet:
+    """A contact sheet built one view at a time: ``add(image, label)`` keeps only the view's
+    thumbnail and coverage (the image itself can be dropped at once: a caller rendering N views
+    holds one full image, not N), ``write(path)`` draws the grid. ``n`` views are expected, which
+    sets the columns and a thumbnail size that keeps the sheet within :data:`MAX_SHEET_SIDE`."""
+
+    def __init__(self, n: int, *, background=(0.0, 0.0, 0.0), thumb_longest: int = 320, columns: int | None = None):
+        if n < 1:
+            raise ValueError("a contact sheet needs at least one view")
+        self.cols = max(1, min(columns or math.ceil(math.sqrt(n) * 1.2), n))
+        self.thumb_longest = min(thumb_longest, max(32, MAX_SHEET_SIDE // self.cols - GAP))
+        self.background = background
+        self.thumbs: list[Image.Image] = []
+        self.labels: list[str] = []
+        self.covs: list[float] = []
+
+    def add(self, image: np.ndarray, label: str) -> float:
+        """Keep the view's thumbnail and label; returns its coverage."""
+        cov = coverage(image, self.background)
+        self.thumbs.append(_thumbnail(image, self.thumb_longest))
+        self.labels.append(label)
+        self.covs.append(cov)
+        return cov
+
+    def write(self, path: str | Path) -> list[float]:
+        """Write the grid PNG atomically; returns every view's coverage (labels get `` cov xx.x%``)."""
+        if not self.thumbs:
+            raise ValueError("need at least one image")
+        thumbs, cols = self.thumbs, min(self.cols, len(self.thumbs))
+        rows = math.ceil(len(thumbs) / cols)
+        cw = max(t.width for t in thumbs) + GAP
+        ch = max(t.height for t in thumbs) + LABEL_HEIGHT + GAP
+        sheet = Image.new("RGB", (cols * cw + GAP, rows * ch + GAP), (40, 40, 40))
+        draw = ImageDraw.Draw(sheet)
+        font = ImageFont.load_default()
+        for k, (thumb, label, cov) in enumerate(zip(thumbs, self.labels, self.covs)):
+            r, c = divmod(k, cols)
+            x, y = GAP + c * cw, GAP + r * ch
+            sheet.paste(thumb, (x, y))
+            draw.text((x + 2, y + thumb.height + 3), f"{label}  cov {100 * cov:.1f}%", fill=(235, 235, 235),
+                      font=font)
+        path = Path(path)
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        try:
+            sheet.save(tmp, format="PNG")
+            os.replace(tmp, path)
+        except BaseException:
+            tmp.unlink(missing_ok=True)
+            raise
+        return list(self.covs)
+
+
 def write_contact_sheet(images: list[np.ndarray], labels: list[str], path: str | Path, *,
                         background=(0.0, 0.0, 0.0), thumb_longest: int = 320,
                         columns: int | None = None) -> list[float]:
-    """Write the grid PNG atomically; returns the coverage of every view (labels get `` cov xx.x%``)."""
+    """Write the grid PNG of images already in memory (:class:`ContactSheet`); returns the coverage
+    of every view."""
     if len(images) != len(labels) or not images:
         raise ValueError("need one label per image and at least one image")
-    covs = [coverage(im, background) for im in images]
-    thumbs = [_thumbnail(im, thumb_longest) for im in images]
-    cols = columns or math.ceil(math.sqrt(len(thumbs)) * 1.2)
-    cols = max(1, min(cols, len(thumbs)))
-    rows = math.ceil(len(thumbs) / cols)
-    cw = max(t.width for t in thumbs) + GAP
-    ch = max(t.height for t in thumbs) + LABEL_HEIGHT + GAP
-    sheet = Image.new("RGB", (cols * cw + GAP, rows * ch + GAP), (40, 40, 40))
-    draw = ImageDraw.Draw(sheet)
-    font = ImageFont.load_default()
-    for k, (thumb, label, cov) in enumerate(zip(thumbs, labels, covs)):
-        r, c = divmod(k, cols)
-        x, y = GAP + c * cw, GAP + r * ch
-        sheet.paste(thumb, (x, y))
-        draw.text((x + 2, y + thumb.height + 3), f"{label}  cov {100 * cov:.1f}%", fill=(235, 235, 235), font=font)
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        sheet.save(tmp, format="PNG")
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    return covs
+    sheet = ContactSheet(len(images), background=background, thumb_longest=thumb_longest, columns=columns)
+    for im, label in zip(images, labels):
+        sheet.add(im, label)
+    return sheet.write(path)

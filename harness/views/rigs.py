@@ -58,6 +58,9 @@ LONGEST_SIDE = 1024  # px, the CTC setting
 ASPECT = 4.0 / 3.0
 N_TRAIN = 48
 N_TEST = 8
+#: the most views of one kind (training or held-out) a rig is built with, in configs and `harness
+#: render` alike: more is hours of rendering per scene, and almost surely a typo (--n-test 10000)
+MAX_VIEWS = 1000
 FOV_DEG = 60.0  # across the long side
 NEAR_MARGIN = 0.3  # keep content beyond the renderer's z > 0.2 cull
 DISTANCE_QUANTILE = 99.0
