@@ -1,8 +1,10 @@
-"""`harness bench reading select|confirm`: the pre-registered selection of BetaDescPrune's default
-reading (rule: ``ctc_configs/reading.yaml``, verbatim) and its confirmation on the other scenes.
+"""`harness bench reading select|confirm|directions`: the pre-registered selection of BetaDescPrune's
+default reading (round one; rule: ``ctc_configs/reading.yaml``, verbatim), its confirmation on the
+other scenes, and which way every reading of ℓ, s, u points.
 
-    harness bench reading select   [--config ctc_configs/reading.yaml] [--workers 2]
-    harness bench reading confirm  [--config ctc_configs/reading_confirm.yaml] [--workers 2] [--run]
+    harness bench reading select     [--config ctc_configs/reading.yaml] [--workers 2]
+    harness bench reading confirm    [--config ctc_configs/reading_confirm.yaml] [--workers 2] [--run]
+    harness bench reading directions [--scenes luigi,grape-small,bonsai-7k-mini]
 
 ``select`` runs the config (``harness run``; cached stages are reused) unless its results exist,
 then walks the axes in order (:mod:`harness.report.reading_search`). When an axis needs readings the
@@ -10,6 +12,9 @@ results do not hold (after an adoption), it writes a stage config next to the ru
 (``<output>/stage-<k>-<axis>.yaml``: the same protocol and scenes, ``random`` and the needed readings)
 and runs it. It writes ``results/reading/selection.md`` and ``selection.json`` and prints the
 selected reading. ``confirm`` runs the confirmation config and writes ``results/reading/confirmation.md``.
+``directions`` measures, render-free, the Spearman ρ of every reading of ℓ, s, u with neighbourhood
+homogeneity on real scenes (:mod:`methods.betadesc.directions`) and writes
+``results/reading/directions.md`` / ``.json``. Round two of the selection is ``harness bench reading2``.
 """
 
 from __future__ import annotations
@@ -119,8 +124,57 @@ def confirm(args) -> int:
     return 0
 
 
+DIRECTION_SCENES = "luigi,grape-small,bonsai-7k-mini,playbot,bonsai-7k"
+
+
+def directions(args) -> int:
+    from harness.io.scenes import load_scene
+    from methods.betadesc import directions as dirs
+
+    scenes = [s.strip() for s in args.scenes.split(",") if s.strip()]
+    rows = []
+    for name in scenes:
+        t0 = time.perf_counter()
+        found = dirs.directions(load_scene(name))
+        rows += [{"scene": name, **d.__dict__} for d in found]
+        print(f"{name}: {time.perf_counter() - t0:.1f} s", flush=True)
+    OUT.mkdir(parents=True, exist_ok=True)
+    (OUT / "directions.json").write_text(json.dumps(rows, indent=2) + "\n")
+    md = directions_markdown(rows, scenes)
+    (OUT / "directions.md").write_text(md)
+    print(md)
+    return 0
+
+
+def directions_markdown(rows: list[dict], scenes: list[str]) -> str:
+    from methods.betadesc.directions import PAPER_DIRECTION
+
+    want = {"ell": "ρ(ℓ, H_geo) > 0", "s": "ρ(s, H_app) > 0", "u": "ρ(u, H_geo) < 0"}
+    lines = ["# Which way each reading of ℓ, s, u points (`harness bench reading directions`)", "",
+             "Spearman ρ over the voxels (voxel 1 % of the diagonal, radius 5 voxels, max_nn 100, minmax "
+             "normalisation) between each statistic as the pipeline computes it and neighbourhood "
+             "homogeneity: H_geo = −surface variation of the voxel points of N(j), C = normal coherence "
+             "(a check on H_geo), H_app = −colour variance of the splats of N(j) "
+             "(`methods/betadesc/directions.py`). The paper's direction: " + "; ".join(
+                 f"{k} {v}" for k, v in want.items()) + ". Cell: ρ against the matching homogeneity "
+             "(C in brackets for ℓ and u); **P** = preserves the paper's direction, R = reverses it.", "",
+             "| statistic | reading | " + " | ".join(scenes) + " |", "|---|---|" + "---|" * len(scenes)]
+    by = {(r["scene"], r["statistic"], r["reading"]): r for r in rows}
+    for stat, reading in dict.fromkeys((r["statistic"], r["reading"]) for r in rows):
+        cells = []
+        for sc in scenes:
+            r = by[(sc, stat, reading)]
+            rho = r["rho_geo"] if PAPER_DIRECTION[stat][0] == "geo" else r["rho_app"]
+            extra = f" (C {r['rho_coherence']:+.2f})" if PAPER_DIRECTION[stat][0] == "geo" else ""
+            cells.append(f"{rho:+.2f}{extra} {'**P**' if r['preserves'] else 'R'}")
+        lines.append(f"| {stat} | `{reading}` | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
 def add_arguments(parser) -> None:
-    parser.add_argument("stage", choices=("select", "confirm"), help="select the reading, or confirm it")
+    parser.add_argument("stage", choices=("select", "confirm", "directions"),
+                        help="select the reading, confirm it, or measure the readings' directions")
+    parser.add_argument("--scenes", default=DIRECTION_SCENES, help="directions: comma-separated scenes")
     parser.add_argument("--config", default=None, help="the pre-registered config (default: ctc_configs/"
                         "reading.yaml for select, reading_confirm.yaml for confirm)")
     parser.add_argument("--workers", type=int, default=2)
@@ -128,6 +182,8 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    if args.stage == "directions":
+        return directions(args)
     default = "reading.yaml" if args.stage == "select" else "reading_confirm.yaml"
     args.config = args.config or str(REPO / "ctc_configs" / default)
     return select(args) if args.stage == "select" else confirm(args)
