@@ -164,9 +164,14 @@ def test_runtime_overhead_percentage_needs_a_denominator_of_a_second():
 def test_versus_pools_scenes_and_counts_verdicts():
     t = _t("versus", reference="betadesc-nodesc")
     row = _cell(t.tidy, scene="*", method="betadesc", variant="default", ratio=0.3, metric="psnr")
-    assert row["delta"] == pytest.approx(2.0) and row["n_pairs"] == 2 and row["verdict"] == "better"
+    # differences 1 and 3 dB on n = 2 views: the t interval 2 ± 12.71 includes 0 (a percentile
+    # bootstrap would have said [1, 3], "better", from two views)
+    assert row["delta"] == pytest.approx(2.0) and row["n_pairs"] == 2 and row["verdict"] == "unclear"
+    assert (row["ci_low"], row["ci_high"]) == (pytest.approx(2 - 12.7062047), pytest.approx(2 + 12.7062047))
     psnr = dict(t.sections)["PSNR (↑)"]
-    assert psnr.loc[("BetaDescPrune", "30%"), "better / worse / unclear"] == "1 / 0 / 0"
+    assert psnr.loc[("BetaDescPrune", "30%"), "better / worse / unclear"] == "0 / 0 / 1"
+    assert psnr.loc[("BetaDescPrune", "20%"), "better / worse / unclear"] == "1 / 0 / 0"  # 2, 2: zero width
+    assert any("Student-t" in n and "n = 1–2 paired views" in n for n in t.notes)  # sweep variants: 1 view
     assert isinstance(_t("versus", reference="nope"), Missing)
 
 

@@ -3,7 +3,7 @@
 Every cell is computed from the per-view results (``status == ok``) of one (scene, method, variant,
 ratio): the mean over its views (frames pooled), the median, the number of views and of
 near-identical views, and — against its reference row, the same scene and views — the mean paired
-difference Δ = cell − reference with its 95 % bootstrap CI. The metrics are every registered metric
+difference Δ = cell − reference with its 95 % interval (:func:`harness.report.stats.mean_ci`). The metrics are every registered metric
 the results carry (:func:`harness.report.catalog.display_metrics`: OM variants beside full-frame).
 
 * ``comparison`` (paper Table 1): each comparison-group method's default variant at Low/Mid/High =
@@ -105,7 +105,7 @@ TIDY = ["table", "scene", "label", "method", "method_label", "variant", "ratio",
 
 
 def _delta(d: np.ndarray, excluded: int, metric: str) -> dict:
-    lo, hi = stats.bootstrap_ci(d)
+    lo, hi = stats.mean_ci(d)
     return {"delta": float(d.mean()) if d.size else np.nan, "ci_low": lo, "ci_high": hi,
             "delta_median": float(np.median(d)) if d.size else np.nan, "n_pairs": int(d.size),
             "n_pairs_excluded": int(excluded), "verdict": stats.verdict(lo, hi, catalog.higher_is_better(metric))}
@@ -146,7 +146,7 @@ def cell_text(r, digits: int, ref_cell: bool) -> str:
 def notes_for(tidy: pd.DataFrame, reference: str) -> list[str]:
     n_near = int(tidy.drop_duplicates(["scene", "method", "variant", "ratio"])["n_near_identical"].sum())
     out = [f"cells: mean over held-out views (Δ = mean paired per-view difference against {reference} at the "
-           f"same ratio [95 % percentile bootstrap CI, {stats.N_RESAMPLES:,} resamples, seed {stats.SEED}])"]
+           f"same ratio [95 % CI])", stats.interval_note(tidy["n_pairs"])]
     if n_near:
         out.append(f"{NEAR}: cell with near-identical views (PSNR ≥ {stats.NEAR_IDENTICAL_DB:g} dB or inf; "
                    f"{n_near} view(s) in all) — left out of dB means and Δ; medians over all views in the .csv")
@@ -262,8 +262,8 @@ def table_versus(df: pd.DataFrame, reference: str | None = None):
         t["better / worse / unclear"] = [verdicts.get((*k, mk), "") for k in t.index]
     disp = pd.concat({h: t for h, t in secs}, names=["Metric"])
     notes = [f"Δ = mean paired per-view difference against {catalog.method_label(reference)} at the same ratio "
-             f"[95 % bootstrap CI]; all scenes = every pair of every scene; better/worse = scenes whose CI "
-             f"excludes 0 in the metric's good/bad direction",
+             f"[95 % CI]; all scenes = every pair of every scene; better/worse = scenes whose CI "
+             f"excludes 0 in the metric's good/bad direction", stats.interval_note(tidy.loc[tidy["scene"] != POOLED, "n_pairs"]),
              f"{NEAR}: some pairs left out as near-identical (PSNR ≥ {stats.NEAR_IDENTICAL_DB:g} dB or inf)"]
     return Table(disp, notes, tidy.drop(columns=["row", "prune"]), secs)
 
@@ -285,5 +285,6 @@ def table_per_scene(df: pd.DataFrame):
     secs = _sections(tidy, mets, (["scene"], ["label"]), lambda r: r["prune"], cols,
                      lambda r, dg: delta_text(r, dg).removeprefix("Δ ") + (NEAR if r["n_pairs_excluded"] else ""))
     disp = pd.concat({h: t for h, t in secs}, names=["Metric"])
-    return Table(disp, [f"descriptor gain {full} − {without}, paired per view [95 % bootstrap CI]; positive "
-                        "= descriptors raise the metric"], tidy.drop(columns=["prune"]), secs)
+    return Table(disp, [f"descriptor gain {full} − {without}, paired per view [95 % CI]; positive "
+                        "= descriptors raise the metric", stats.interval_note(tidy.loc[tidy["scene"] != POOLED, "n_pairs"])],
+                 tidy.drop(columns=["prune"]), secs)
