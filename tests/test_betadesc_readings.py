@@ -271,7 +271,7 @@ def test_reading_bundles_and_explicit_overrides():
 
 
 @pytest.mark.parametrize("values, key, match", [
-    ({"reading": "literal"}, "reading", "is not one of default, paper-literal, paper-direction, v1"),
+    ({"reading": "literal"}, "reading", "is not one of default, paper-literal, paper-direction, round-one, v1"),
     ({"reading": ["paper-literal"]}, "reading", "expected a string"),
     ({"o_norm": "zscore"}, "o_norm", "is not one of sigmoid, minmax, robust, rank"),
     ({"u_def": "std"}, "u_def", "is not one of dispersion, std-geo, std-hsfh, spread-hsfh"),

@@ -30,6 +30,9 @@ o_norm: rank}`` is paper-literal with rank-normalised opacity):
   distinctive neighbourhoods"): the same across-dimension quantities, ``ell_def = dims-peak``,
   ``s_def = dims-peak``, ``u_def = spread-hsfh``. Paper-literal's formulas reverse all three
   directions on real scenes (measured: ``results/reading/directions.md``; each reading's doc below);
+* ``round-one``: the default selected by round one (paper-literal with ``ell_def = nbhd-std``, and
+  its no-descriptor ablation of the time, ``opacity-only``), frozen: round two
+  (``ctc_configs/reading2.yaml``) starts from it and its confirmation compares with it;
 * ``v1``: the project's first reading (results before issue 13 are re-made with it).
 
 **Direction.** Every reading of ℓ, s and u says whether it *preserves* or *reverses* the direction
@@ -87,6 +90,11 @@ READINGS: dict[str, dict[str, Any]] = {
         "s_def": "dims-peak", "w_mode": "sum", "kernel": "gauss", "prior": 1.0, "coeff_order": "eq4",
         "nodesc_def": "splat-params", "preset": "baseline", "score": "ucb", "voxel": 0.01,
     },
+    "round-one": {
+        "o_norm": "minmax", "stat_norm": "minmax", "u_def": "std-hsfh", "ell_def": "nbhd-std",
+        "s_def": "dims-var", "w_mode": "sum", "kernel": "gauss", "prior": 1.0, "coeff_order": "eq4",
+        "nodesc_def": "opacity-only", "preset": "baseline", "score": "ucb", "voxel": 0.01,
+    },
     "v1": {
         "o_norm": "sigmoid", "stat_norm": "robust", "u_def": "dispersion", "ell_def": "nbhd-std",
         "s_def": "nbhd-var", "w_mode": "clip-sum", "kernel": "gauss", "prior": 1.0, "coeff_order": "eq4",
@@ -97,10 +105,11 @@ READINGS: dict[str, dict[str, Any]] = {
 
 @dataclass(frozen=True)
 class StatisticsParams(Params):
-    reading: Literal["default", "paper-literal", "paper-direction", "v1"] = param(
+    reading: Literal["default", "paper-literal", "paper-direction", "round-one", "v1"] = param(
         "default", doc="base bundle of reading choices (default = the rule-selected field defaults; "
         "paper-literal; paper-direction = paper-literal with ℓ, s, u oriented as the paper's prose says; "
-        "v1 = the project's first reading); axes given explicitly override the bundle",
+        "round-one = the default round one selected, frozen; v1 = the project's first reading); axes "
+        "given explicitly override the bundle",
         reading="the paper leaves the statistics under-specified (L227-249, L313); see methods/betadesc/params.py")
     o_norm: Literal["sigmoid", "minmax", "robust", "rank"] = param(
         "minmax", doc="opacity normalisation over the splats: sigmoid (stored logit → [0,1] only, v1), "
