@@ -127,12 +127,19 @@ def test_ablation_that_cannot_be_made_says_which_variants_are_missing():
     assert part.warnings == ["ablation: missing betadesc-nobeta at 20%"]
 
 
-def test_keep_table_delta_uses_the_papers_sign():
+def test_keep_table_per_scene_with_paired_intervals_and_the_papers_sign():
     t = _t("keep")
-    num = t.tidy.set_index(["Prune %", "side", "quantity"])["value"]
-    # prune 30%: no-desc 24, with desc (25+27)/2 = 26 -> ΔPSNR = 24 - 26 = -2
-    assert num[("30%", "ΔPSNR", "(dB)")] == pytest.approx(-2.0)
-    assert num[("70%", "ΔPSNR", "(dB)")] == pytest.approx(0.0)
+    # prune 30%: no-desc 24, 24 vs with desc 25, 27 -> Δ = no − with = −1, −3: mean −2, t interval −2 ± 12.71
+    row = _cell(t.tidy, scene="a", method="betadesc-nodesc", ratio=0.3, metric="psnr")
+    assert row["delta"] == pytest.approx(-2.0) and row["n_pairs"] == 2
+    assert (row["ci_low"], row["ci_high"]) == (pytest.approx(-2 - 12.7062047), pytest.approx(-2 + 12.7062047))
+    assert _cell(t.tidy, scene="a", method="betadesc-nodesc", ratio=0.7, metric="psnr")["delta"] == pytest.approx(0.0)
+    full = _cell(t.tidy, scene="a", method="betadesc", ratio=0.3, metric="psnr")
+    assert full["mean"] == pytest.approx(26.0) and np.isnan(full["delta"])  # Δ lives on the no-descriptor side
+    # scene b has only betadesc at keep 0.7: it enters neither the table nor the pooled means
+    assert "b" not in set(t.tidy["scene"])
+    assert _cell(t.tidy, scene="*", method="betadesc", ratio=0.3, metric="psnr")["mean"] == pytest.approx(26.0)
+    assert any("n = 2 paired views" in n for n in t.notes)
 
 
 def test_per_scene_gain_sensitivity_and_runtime():
@@ -141,10 +148,12 @@ def test_per_scene_gain_sensitivity_and_runtime():
     assert _cell(g, scene="a", ratio=0.3, metric="psnr")["delta"] == pytest.approx(2.0)
     assert _cell(g, scene="a", ratio=0.7, metric="psnr")["delta"] == pytest.approx(0.0)
     sens = t["sensitivity"]
-    assert "(a)" in sens.notes[0]
-    sv = sens.tidy.set_index(["knob", "variant", "column"])["value"]
+    assert "keep 0.7" in sens.notes[0] and "scene A 2.50 dB" in sens.notes[-1]
     assert list(dict.fromkeys(sens.tidy["variant"])) == ["default", "preset=flat", "voxel=0.02"]
-    assert sv[("baseline", "default", "PSNR (↑)")] == pytest.approx(26.0)
+    assert _cell(sens.tidy, scene="a", variant="default", metric="psnr")["mean"] == pytest.approx(26.0)
+    flat = _cell(sens.tidy, scene="a", variant="preset=flat", metric="psnr")
+    assert flat["delta"] == pytest.approx(24.0 - 25.0) and flat["n_pairs"] == 1  # paired with view v0 only
+    assert "b" not in set(sens.tidy["scene"])  # measured by the default variant only
     rt = t["runtime"]
     assert rt.disp.loc["scene A", "desc. overhead (s)"] == "0.50"
     assert set(rt.tidy.columns) >= {"scene", "method", "score_s"}

@@ -79,7 +79,7 @@ from harness.views import rigs
 from renderers import RENDERERS
 
 KINDS = ("forward-facing", "object-centric")
-TABLES = ("comparison", "ablation", "keep", "sensitivity", "runtime", "per_scene", "versus", "bd", "ctc")
+TABLES = ("comparison", "ablation", "keep", "sensitivity", "runtime", "per_scene", "versus", "bd", "ctc", "claims")
 PLOTS = ("curves", "figure1", "figure3")
 
 @dataclass(frozen=True)
