@@ -396,3 +396,25 @@ def test_paper_literal_from_harness_prune_and_from_a_config(tmp_path, capsys):
     lit, nd = cfg.methods
     assert lit.params.o_norm == "rank" and lit.params.s_def == "dims-var" and lit.variant == "o_norm=rank"
     assert nd.params.nodesc_def == "param-stats" and nd.params.o_norm == "sigmoid"
+
+
+@pytest.mark.data
+@pytest.mark.parametrize("name", ["luigi", "grape-small", "bonsai-7k-mini"])
+def test_the_two_no_descriptor_columns_differ_on_real_scenes(name):
+    """Issue 21: with opacity-only both no-descriptor variants pruned exactly like `opacity`. The
+    default no-descriptor ablation removes other splats than opacity, and Beta vs net evidence differ."""
+    from harness.io import datasets
+    from harness.io.scenes import load_scene
+
+    if not datasets.scene_path(name).exists():
+        pytest.skip(f"{name} not available (run `harness fetch` / provide ../shared/data)")
+    scene = load_scene(name)
+    keep = {m: select_by_ratio(get_pruner(m).score(scene, PruneContext()), 0.2).keep
+            for m in ("betadesc-nodesc", "betadesc-nodesc-nobeta", "opacity")}
+    n_removed = round(0.2 * len(scene))
+
+    def differ(a, b):  # splats removed by one and kept by the other, as a share of the removed
+        return int(np.sum(~keep[a] & keep[b])) / n_removed
+
+    assert differ("betadesc-nodesc", "betadesc-nodesc-nobeta") > 0.01
+    assert differ("betadesc-nodesc", "opacity") > 0.05 and differ("betadesc-nodesc-nobeta", "opacity") > 0.05
