@@ -115,6 +115,9 @@ def test_every_claim_on_a_synthetic_study():
     assert res["t3-keep-0.7"].verdict == "inconclusive" and res["t3-keep-0.7"].pooled["with − without descriptors"].mean \
         == pytest.approx(-0.5)
     assert res["heterogeneity"].verdict == "holds"
+    gap = res["t3-gap"]  # |Δ| ≤ 1.6 at all three keeps: +2 on A, −3 on B are outside on every keep
+    assert [n for n, _ in gap.per_scene["A"]] == [f"with − without descriptors, keep {k:g}" for k in (0.7, 0.5, 0.3)]
+    assert gap.scene_outcome("A") == "fails" and gap.scene_outcome("B") == "fails"
     assert res["t3-monotonic"].verdict == "holds" and res["t3-ssim"].verdict == "holds"
     # sensitivity: voxel 0.2 (default) − 0.1 = 0, 0.3 − 0.1 = +0.1: inside ±0.2 on every scene -> holds
     vox = res["voxel-literal"]
