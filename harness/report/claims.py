@@ -127,6 +127,7 @@ class Result:
 
 def _comparisons(run: Run, res: Result, specs, metric: str = "psnr") -> Result:
     """Fill ``res.per_scene`` from ``specs``: [(name, a(scene) -> cell | None, b(scene) -> cell | None)]."""
+    empty = []
     for scene in run.labels:
         got = []
         for name, a, b in specs:
@@ -134,8 +135,13 @@ def _comparisons(run: Run, res: Result, specs, metric: str = "psnr") -> Result:
             e = run.diff(scene, ca, cb, metric) if ca and cb else None
             if e is not None:
                 got.append((name, e))
+            elif ca and cb and run.cell(scene, *ca) is not None and run.cell(scene, *cb) is not None:
+                empty.append(run.labels[scene])  # both measured, every pair near-identical
         if len(got) == len(specs):
             res.per_scene[scene] = got
+    if empty:
+        res.note = "; ".join(filter(None, [res.note, "left out, every view pair near-identical (≥ 100 dB): "
+                                           + ", ".join(dict.fromkeys(empty))]))
     return res
 
 
@@ -159,7 +165,8 @@ def _best_camera_aware(run: Run, scene: str, ratio: float):
         g = run.cell(scene, m, ratio)
         if g is not None:
             mean = stats.summary(g["psnr"], g["near"], "psnr")["mean"]
-            if np.isfinite(mean) and (best is None or mean > best[0]):
+            mean = INF if not np.isfinite(mean) and g["near"].all() else mean  # lossless on every view
+            if not np.isnan(mean) and (best is None or mean > best[0]):
                 best = (mean, m)
     return (best[1], ratio) if best else None
 
@@ -316,6 +323,8 @@ def claim_overhead(run: Run, bench: dict | None) -> Result:
     for s in run.labels:
         if s in scenes:
             res.per_scene[s] = [("overhead %", estimate(scenes[s]["overhead_pct"]))]
+    res.note = (f"per scene: {bench.get('repeats', '?')} timed repeats of `harness bench methods --overhead` "
+                f"({bench.get('when', 'undated')}), process CPU seconds at one thread")
     if not res.per_scene:
         res.why = f"the overhead benchmark timed none of this run's scenes ({', '.join(scenes) or 'none'})"
         return res
@@ -409,7 +418,7 @@ def table_claims(df: pd.DataFrame, overhead: dict | None = None):
     disp = pd.DataFrame(rows, columns=["claim", "paper", "at", "claimed band", "measured: pooled over scenes",
                                        "per scene (✓ holds, ✗ fails, ? unclear)", "verdict"])
     disp.index = pd.Index([r.key for r in found], name="key")
-    notes = [stats.interval_note(t["n"] for t in tidy if t["scene"] not in (cells.POOLED, "")),
+    notes = [stats.interval_note(t["n"] for t in tidy if t["scene"] not in (cells.POOLED, "") and t["key"] != "runtime"),
              "pooled = mean of the per-scene means, t interval over the scenes (n = scenes); per scene: the "
              "comparison with the lowest mean where a claim has several",
              "verdicts (harness/report/claims.py): per-scene claims hold if every scene holds, fail if every "
