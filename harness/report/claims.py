@@ -55,7 +55,6 @@ Bands (the paper's number it is read from in brackets):
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -66,15 +65,13 @@ from harness.report.tabledata import Missing, Table
 from harness.report.verdicts import (
     INF,
     MARK,
-    UNCLEAR,
     Estimate,
+    Result,
     Run,
-    combine,
+    comparisons,
     estimate,
+    need,
     outcome,
-    pooled,
-    verdict_average,
-    verdict_per_scene,
 )
 from methods.registry import GROUPS
 
@@ -84,75 +81,6 @@ LARGE_SPLATS = 1_000_000
 
 
 # --------------------------------------------------------------------------- claims
-@dataclass
-class Result:
-    key: str
-    claim: str
-    paper: str
-    at: str
-    unit: str  # "scene", "average" or "split"
-    band: tuple[float, float] = (-INF, INF)
-    per_scene: dict[str, list[tuple[str, Estimate]]] = field(default_factory=dict)
-    pooled: dict[str, Estimate] = field(default_factory=dict)
-    verdict: str = "not testable here"
-    why: str = ""
-    digits: int = 2
-    note: str = ""
-
-    def scene_outcome(self, scene: str) -> str:
-        return combine([outcome(e, self.band) for _, e in self.per_scene[scene]])
-
-    def decide(self) -> "Result":
-        if self.why:
-            self.verdict = "not testable here"
-            return self
-        if not self.per_scene:
-            self.verdict, self.why = "not testable here", "no scene has the cells this claim needs"
-            return self
-        names = list(dict.fromkeys(n for comps in self.per_scene.values() for n, _ in comps))
-        self.pooled = {n: pooled({s: e for s, comps in self.per_scene.items() for m, e in comps if m == n})
-                       for n in names}
-        per = {s: self.scene_outcome(s) for s in self.per_scene}
-        if self.unit == "scene":
-            self.verdict = verdict_per_scene(per)
-        elif self.unit == "split":
-            up = any(e.n and e.lo > 0 for comps in self.per_scene.values() for _, e in comps)
-            down = any(e.n and e.hi < 0 for comps in self.per_scene.values() for _, e in comps)
-            same = all(o != UNCLEAR for o in (outcome(e, (0, INF)) for c in self.per_scene.values() for _, e in c))
-            self.verdict = "holds" if up and down else ("fails" if same else "inconclusive")
-        else:
-            self.verdict = verdict_average(combine([outcome(e, self.band) for e in self.pooled.values()]))
-        return self
-
-
-def _comparisons(run: Run, res: Result, specs, metric: str = "psnr") -> Result:
-    """Fill ``res.per_scene`` from ``specs``: [(name, a(scene) -> cell | None, b(scene) -> cell | None)]."""
-    empty = []
-    for scene in run.labels:
-        got = []
-        for name, a, b in specs:
-            ca, cb = a(scene), b(scene)
-            e = run.diff(scene, ca, cb, metric) if ca and cb else None
-            if e is not None:
-                got.append((name, e))
-            elif ca and cb and run.cell(scene, *ca) is not None and run.cell(scene, *cb) is not None:
-                empty.append(run.labels[scene])  # both measured, every pair near-identical
-        if len(got) == len(specs):
-            res.per_scene[scene] = got
-    if empty:
-        res.note = "; ".join(filter(None, [res.note, "left out, every view pair near-identical (≥ 100 dB): "
-                                           + ", ".join(dict.fromkeys(empty))]))
-    return res
-
-
-def _need(run: Run, res: Result, cells_needed: list[tuple[str, float]]) -> Result:
-    missing = list(dict.fromkeys(f"{m} at {ratios.percent(r)}" for m, r in cells_needed
-                                 if not any(run.cell(s, m, r) is not None for s in run.labels)))
-    if missing:
-        res.why = "the run has no " + ", ".join(missing)
-    return res
-
-
 def camera_aware(run: Run) -> list[str]:
     """The run's methods of the registry's camera-aware group."""
     return [m for grp, m in catalog.comparison_methods(run.ok["method"]) if grp == GROUPS["camera-aware"]]
@@ -179,11 +107,11 @@ def claim_t1_competitive(run: Run, ratio: float) -> Result:
     if not camera_aware(run):
         res.why = "no camera-aware method was measured"
         return res
-    _need(run, res, [(full, ratio)])
+    need(run, res, [(full, ratio)])
     if res.why:
         return res
     _best_note(run, res, ratio)
-    return _comparisons(run, res, [("BetaDesc − best camera-aware", lambda s: (full, ratio),
+    return comparisons(run, res, [("BetaDesc − best camera-aware", lambda s: (full, ratio),
                                     lambda s: _best_camera_aware(run, s, ratio))]).decide()
 
 
@@ -203,7 +131,7 @@ def claim_t1_large(run: Run, ratio: float = 0.3) -> Result:
         res.why = f"no scene of ≥ {LARGE_SPLATS:,} splats (the paper's large, room-scale scenes)"
         return res
     _best_note(run, res, ratio)
-    _comparisons(run, res, [("BetaDesc − best camera-aware", lambda s: (full, ratio),
+    comparisons(run, res, [("BetaDesc − best camera-aware", lambda s: (full, ratio),
                              lambda s: _best_camera_aware(run, s, ratio))])
     res.per_scene = {s: v for s, v in res.per_scene.items() if s in large}
     res.note += f"; large = ≥ {LARGE_SPLATS:,} splats: {', '.join(run.labels[s] for s in large)}"
@@ -212,12 +140,12 @@ def claim_t1_large(run: Run, ratio: float = 0.3) -> Result:
 
 def claim_t2(run: Run, key: str, claim: str, paper: str, pairs: list[tuple[str, str]], ratio: float = 0.2) -> Result:
     res = Result(key, claim, paper, f"prune {ratios.percent(ratio)}", "scene", (0.0, INF))
-    _need(run, res, [(m, ratio) for pair in pairs for m in pair])
+    need(run, res, [(m, ratio) for pair in pairs for m in pair])
     if res.why:
         return res
     specs = [(f"{catalog.method_label(a)} − {catalog.method_label(b)}", lambda s, a=a: (a, ratio),
               lambda s, b=b: (b, ratio)) for a, b in pairs]
-    return _comparisons(run, res, specs).decide()
+    return comparisons(run, res, specs).decide()
 
 
 def _descriptor_gain(run: Run, res: Result, keeps) -> Result:
@@ -228,13 +156,13 @@ def _descriptor_gain(run: Run, res: Result, keeps) -> Result:
         return res
     without, full = pair
     rs = [ratios.from_keep(k) for k in keeps]
-    _need(run, res, [(m, r) for r in rs for m in (full, without)])
+    need(run, res, [(m, r) for r in rs for m in (full, without)])
     if res.why:
         return res
     label = "with − without descriptors"
     specs = [((label if len(rs) == 1 else f"{label}, keep {k:g}"), lambda s, r=r: (full, r), lambda s, r=r: (without, r))
              for k, r in zip(keeps, rs)]
-    return _comparisons(run, res, specs).decide()
+    return comparisons(run, res, specs).decide()
 
 
 def claim_t3(run: Run, keep: float) -> Result:
@@ -256,10 +184,10 @@ def claim_monotonic(run: Run) -> Result:
     a, b, c = (ratios.from_keep(k) for k in (0.7, 0.5, 0.3))
     res = Result("t3-monotonic", "Table 3: quality degrades monotonically with pruning (L461)",
                  "37.38 > 33.68 > 29.07 dB (keep 0.7 / 0.5 / 0.3)", "keep 0.7 → 0.5 → 0.3", "scene", (0.0, INF))
-    _need(run, res, [(full, a), (full, b), (full, c)])
+    need(run, res, [(full, a), (full, b), (full, c)])
     if res.why:
         return res
-    return _comparisons(run, res, [("keep 0.7 − 0.5", lambda s: (full, a), lambda s: (full, b)),
+    return comparisons(run, res, [("keep 0.7 − 0.5", lambda s: (full, a), lambda s: (full, b)),
                                    ("keep 0.5 − 0.3", lambda s: (full, b), lambda s: (full, c))]).decide()
 
 
@@ -268,7 +196,7 @@ def claim_ssim_floor(run: Run, keep: float = 0.3) -> Result:
     r = ratios.from_keep(keep)
     res = Result("t3-ssim", "Table 3: SSIM stays above 0.87 at 70 % removal (L461)", "0.882 (14-scene mean)",
                  f"keep {keep:g}", "average", (0.87, INF), digits=3)
-    _need(run, res, [(full, r)])
+    need(run, res, [(full, r)])
     if res.why or "ssim" not in run.ok:
         res.why = res.why or "the run measured no SSIM"
         return res
@@ -302,7 +230,7 @@ def claim_sweep(run: Run, key: str, claim: str, paper: str, param: str, referenc
     ref_text = "default" if reference is None else _fmt(reference)
     specs = [(f"{param} {_fmt(v)} − {ref_text}", lambda s, n=name: (full, r, n), lambda s: (full, r, ref))
              for v, name in found.items() if name is not None]
-    _comparisons(run, res, specs).decide()
+    comparisons(run, res, specs).decide()
     why = untestable or (f"the run has no {full} variant {', '.join(absent)} at keep {keep:g}" if absent else "")
     if why:  # the measured comparisons stay in the row; the claim is not judged
         res.verdict, res.why = "not testable here", why

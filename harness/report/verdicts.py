@@ -6,7 +6,9 @@ the verdict rules of :mod:`harness.report.claims` (documented there), and the ru
 * :func:`outcome` — ``holds`` (the interval inside the band), ``fails`` (entirely outside),
   ``unclear`` (it straddles a bound); :func:`combine` — several comparisons that must all hold;
 * :func:`verdict_per_scene`, :func:`verdict_average` — a claim's verdict from its scenes or its pooled interval;
-* :class:`Run` — measured rows by (scene, method, variant, ratio), paired differences and levels.
+* :class:`Run` — measured rows by (scene, method, variant, ratio), paired differences and levels;
+* :class:`Result` — one claim's comparisons per scene, pooled, and its verdict (:meth:`Result.decide`);
+  :func:`comparisons` fills it from cell pairs, :func:`need` names the cells a run lacks.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from harness.core import ratios
 from harness.report import cells, stats
 
 INF = math.inf
@@ -149,3 +152,72 @@ def _close(a, b) -> bool:
     if isinstance(a, (int, float)) and isinstance(b, (int, float)):
         return abs(float(a) - float(b)) <= 1e-9 * max(1.0, abs(float(b)))
     return a == b
+
+
+@dataclass
+class Result:
+    key: str
+    claim: str
+    paper: str
+    at: str
+    unit: str  # "scene", "average" or "split"
+    band: tuple[float, float] = (-INF, INF)
+    per_scene: dict[str, list[tuple[str, Estimate]]] = field(default_factory=dict)
+    pooled: dict[str, Estimate] = field(default_factory=dict)
+    verdict: str = "not testable here"
+    why: str = ""
+    digits: int = 2
+    note: str = ""
+
+    def scene_outcome(self, scene: str) -> str:
+        return combine([outcome(e, self.band) for _, e in self.per_scene[scene]])
+
+    def decide(self) -> "Result":
+        if self.why:
+            self.verdict = "not testable here"
+            return self
+        if not self.per_scene:
+            self.verdict, self.why = "not testable here", "no scene has the cells this claim needs"
+            return self
+        names = list(dict.fromkeys(n for comps in self.per_scene.values() for n, _ in comps))
+        self.pooled = {n: pooled({s: e for s, comps in self.per_scene.items() for m, e in comps if m == n})
+                       for n in names}
+        per = {s: self.scene_outcome(s) for s in self.per_scene}
+        if self.unit == "scene":
+            self.verdict = verdict_per_scene(per)
+        elif self.unit == "split":
+            up = any(e.n and e.lo > 0 for comps in self.per_scene.values() for _, e in comps)
+            down = any(e.n and e.hi < 0 for comps in self.per_scene.values() for _, e in comps)
+            same = all(o != UNCLEAR for o in (outcome(e, (0, INF)) for c in self.per_scene.values() for _, e in c))
+            self.verdict = "holds" if up and down else ("fails" if same else "inconclusive")
+        else:
+            self.verdict = verdict_average(combine([outcome(e, self.band) for e in self.pooled.values()]))
+        return self
+
+
+def comparisons(run: Run, res: Result, specs, metric: str = "psnr") -> Result:
+    """Fill ``res.per_scene`` from ``specs``: [(name, a(scene) -> cell | None, b(scene) -> cell | None)]."""
+    empty = []
+    for scene in run.labels:
+        got = []
+        for name, a, b in specs:
+            ca, cb = a(scene), b(scene)
+            e = run.diff(scene, ca, cb, metric) if ca and cb else None
+            if e is not None:
+                got.append((name, e))
+            elif ca and cb and run.cell(scene, *ca) is not None and run.cell(scene, *cb) is not None:
+                empty.append(run.labels[scene])  # both measured, every pair near-identical
+        if len(got) == len(specs):
+            res.per_scene[scene] = got
+    if empty:
+        res.note = "; ".join(filter(None, [res.note, "left out, every view pair near-identical (≥ 100 dB): "
+                                           + ", ".join(dict.fromkeys(empty))]))
+    return res
+
+
+def need(run: Run, res: Result, cells_needed: list[tuple[str, float]]) -> Result:
+    missing = list(dict.fromkeys(f"{m} at {ratios.percent(r)}" for m, r in cells_needed
+                                 if not any(run.cell(s, m, r) is not None for s in run.labels)))
+    if missing:
+        res.why = "the run has no " + ", ".join(missing)
+    return res
