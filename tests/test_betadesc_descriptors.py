@@ -9,11 +9,11 @@ from harness.core.scene import SH_C0, GaussianScene
 from methods.betadesc.grid import build_grid
 from methods.betadesc.hsfh import band_fractions, compute_hsfh, normalise_fpfh
 from methods.betadesc.interpolate import interpolate_to_splats
+from methods.betadesc.nodesc import splat_statistics
 from methods.betadesc.normals import voxel_normals
 from methods.betadesc.statistics import (
     geometric_spread,
     robust_unit,
-    splat_statistics,
     voxel_statistics,
 )
 from tests.scene_factory import random_scene

@@ -44,7 +44,7 @@ def test_registered_with_documented_params():
         assert {"preset", "view_weight"} <= set(spec.params.names())
         assert all(p.doc for p in spec.params.specs())
     full = get_pruner("betadesc").parse_params()
-    assert 0.01 <= full.voxel <= 0.02 and full.gamma == 0.25 and full.score == "ucb"
+    assert full.voxel == 0.2 and full.gamma == 0.25 and full.score == "ucb"  # round two's selection
     assert full.view_weight == 0.0  # camera-agnostic unless asked
     assert "score" not in get_pruner("betadesc-nobeta").params.names()
     assert "voxel" not in get_pruner("betadesc-nodesc").params.names()
@@ -261,15 +261,15 @@ def test_keeps_thin_structure_and_the_literal_sign_removes_it_first():
 
 
 def test_the_literal_u_reads_a_plane_as_distinctive():
-    """Characterisation of the selected default (and paper-literal): u = std across descriptor
+    """Characterisation of round one's default (and paper-literal): u = std across descriptor
     dimensions is high for the peaked FPFH histograms of a plane and low for a pole, so on this scene
     the pole and the faint floaters go before the redundant plane (v1's dispersion u did the reverse)."""
     from methods.betadesc.pipeline import components
 
     scene, label = _plane_pole_floaters()
-    for reading in ("default", "paper-literal"):
+    for reading in ("round-one", "paper-literal"):
         plane, pole, floaters = _removed(scene, label, 0.3, reading=reading)
         assert (pole, floaters) == (300, 300) and plane == 780
         c = components(scene, get_pruner("betadesc").parse_params({"reading": reading}))
         assert c.u[label == 0].mean() > 0.8 > 0.4 > c.u[label == 1].mean()
-    assert _removed(scene, label, 0.3, u_def="dispersion")[1] < 30
+    assert _removed(scene, label, 0.3, reading="round-one", u_def="dispersion")[1] < 30

@@ -33,9 +33,10 @@ from tests.scene_factory import random_scene
 SMALL = {"voxel": 0.05, "radius_voxels": 3.0, "max_nn": 40}
 #: every value of every reading axis, each on the selected default
 AXES = {"o_norm": ["sigmoid", "minmax", "robust", "rank"], "stat_norm": ["robust", "minmax", "rank"],
-        "u_def": ["dispersion", "std-geo", "std-hsfh"], "ell_def": ["nbhd-std", "dims-std"],
-        "s_def": ["nbhd-var", "dims-var"], "kernel": ["gauss", "trilinear", "nearest"],
-        "w_mode": ["clip-sum", "sum", "sum-median", "one"], "coeff_order": ["eq4", "prose"]}
+        "u_def": ["dispersion", "std-geo", "std-hsfh", "spread-hsfh"],
+        "ell_def": ["nbhd-std", "dims-std", "dims-peak"], "s_def": ["nbhd-var", "dims-var", "dims-peak"],
+        "kernel": ["gauss", "trilinear", "nearest"], "w_mode": ["clip-sum", "sum", "sum-median", "one"],
+        "coeff_order": ["eq4", "prose"], "nodesc_def": ["splat-params", "param-stats", "opacity-only"]}
 READ = [{"reading": r} for r in READINGS] + [{k: v} for k, vals in AXES.items() for v in vals]
 NAMES = ("betadesc", "betadesc-nodesc", "betadesc-nobeta", "betadesc-nodesc-nobeta")
 
@@ -185,17 +186,64 @@ def test_coefficient_order_and_opacity_only():
         ev.preset("baseline", "alphabetical")
 
 
-@pytest.mark.parametrize("reading", ["default", "paper-literal"])
-def test_nodesc_carries_nothing_but_opacity(reading):
+def test_opacity_only_is_the_opacity_baselines_twin():
     scene = random_scene(500, sh_degree=2, seed=5)
     opacity = get_pruner("opacity").score(scene, PruneContext())
     for name in ("betadesc-nodesc", "betadesc-nodesc-nobeta"):
-        s = _score(name, scene, reading=reading)
+        s = _score(name, scene, nodesc_def="opacity-only")
         assert stats.spearmanr(s, opacity)[0] == pytest.approx(1.0)
         for r in (0.1, 0.3, 0.7):  # the same pruned set as the opacity baseline
             np.testing.assert_array_equal(select_by_ratio(s, r).keep, select_by_ratio(opacity, r).keep)
-    v1 = _score("betadesc-nodesc", scene, reading="v1")  # param-stats: uses more than opacity
-    assert stats.spearmanr(v1, opacity)[0] < 0.99
+
+
+@pytest.mark.parametrize("read", [{"reading": "default"}, {"reading": "paper-literal"}, {"reading": "v1"},
+                                  {"nodesc_def": "param-stats"}], ids=str)
+def test_the_no_descriptor_ablation_uses_more_than_opacity(read):
+    scene = random_scene(500, sh_degree=2, seed=5)
+    opacity = get_pruner("opacity").score(scene, PruneContext())
+    beta, nobeta = _score("betadesc-nodesc", scene, **read), _score("betadesc-nodesc-nobeta", scene, **read)
+    assert stats.spearmanr(beta, opacity)[0] < 0.99 and stats.spearmanr(nobeta, opacity)[0] < 0.99
+    # Beta and no-Beta rank differently: the two columns of the ablation can differ
+    assert any(not np.array_equal(select_by_ratio(beta, r).keep, select_by_ratio(nobeta, r).keep)
+               for r in (0.1, 0.2, 0.3))
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**16), n=st.integers(4, 60), o=st.floats(-4, 4),
+       nodesc_def=st.sampled_from(["splat-params", "param-stats"]), name=st.sampled_from(NAMES[1::2]))
+def test_no_descriptor_scores_are_not_a_function_of_opacity(seed, n, o, nodesc_def, name):
+    """Two splats of equal opacity, one an isotropic sphere and one a needle, in a scene whose other
+    splats spread anisotropy and colour: their scores differ, so no function of opacity gives them."""
+    scene = random_scene(n, sh_degree=1, seed=seed)
+    scales = scene.scales_log.astype(np.float64).copy()
+    scales[0] = [-3.0, -3.0, -3.0]
+    scales[1] = [-1.0, -3.0, -5.0]  # same extent (mean log-scale), very anisotropic
+    logit = scene.opacity_logit.astype(np.float64).copy()
+    logit[:2] = o
+    scene = GaussianScene.from_arrays(scene.means, scales, scene.quats, logit, scene.sh_dc, scene.sh_rest)
+    s = _score(name, scene, nodesc_def=nodesc_def)
+    assert s[0] != s[1]
+
+
+def test_no_descriptor_statistics_by_hand():
+    from methods.betadesc.nodesc import splat_parameters, splat_statistics
+
+    scales = np.log([[1.0, 1.0, 1.0], [4.0, 1.0, 0.25], [2.0, 2.0, 2.0]])
+    dc = np.array([[0.0, 0.0, 0.0], [1.0, -1.0, 0.0], [0.0, 0.0, 0.0]])
+    scene = GaussianScene.from_arrays(np.zeros((3, 3)), scales, np.tile([1.0, 0, 0, 0], (3, 1)), np.zeros(3),
+                                      dc, np.zeros((3, 0, 3)))
+    a, e, d = splat_parameters(scene)
+    np.testing.assert_allclose(a, [0.0, np.log(4.0) * np.sqrt(2 / 3), 0.0], atol=1e-6)
+    np.testing.assert_allclose(e, [0.0, 0.0, np.log(2.0)], atol=1e-6)
+    c = np.clip(0.5 + 0.28209479177387814 * dc, 0, 1)
+    np.testing.assert_allclose(d, c.var(axis=1), atol=1e-7)  # degree 0: no view-dependent share
+    ell, s_, u = splat_statistics(scene, "splat-params", "minmax").T
+    np.testing.assert_allclose(ell, [1.0, 0.0, 1.0], atol=1e-6)  # the needle is the contrasted one
+    np.testing.assert_allclose(s_, [1.0, 0.0, 1.0], atol=1e-6)   # grey splats are consistent
+    np.testing.assert_allclose(u, [0.0, 0.0, 1.0], atol=1e-6)    # the big splat is distinctive
+    np.testing.assert_allclose(splat_statistics(scene, "param-stats", "minmax")[:, 2], 1.0 - ell, atol=1e-12)
+    with pytest.raises(ValueError, match="opacity-only"):
+        splat_statistics(scene, "opacity-only")
 
 
 # --------------------------------------------------------------------------- parameters
@@ -211,7 +259,10 @@ def test_reading_bundles_and_explicit_overrides():
     assert lit.replace(prior=2.0).o_norm == "minmax"
     nd = NoDescParams.parse({"reading": "v1"})
     assert nd.nodesc_def == "param-stats" and not hasattr(nd, "u_def")
-    assert NoDescParams.parse({}).nodesc_def == "opacity-only"
+    assert NoDescParams.parse({}).nodesc_def == "splat-params"
+    assert NoDescParams.parse({"reading": "paper-literal"}).nodesc_def == "splat-params"
+    pd_ = BetaDescParams.parse({"reading": "paper-direction"})
+    assert (pd_.ell_def, pd_.s_def, pd_.u_def, pd_.o_norm) == ("dims-peak", "dims-peak", "spread-hsfh", "minmax")
     text = BetaDescParams.parse_text({"reading": "paper-literal", "w-mode".replace("-", "_"): "one"})
     assert text.w_mode == "one" and text.reading == "paper-literal"
     for spec in BetaDescParams.specs():
@@ -220,10 +271,10 @@ def test_reading_bundles_and_explicit_overrides():
 
 
 @pytest.mark.parametrize("values, key, match", [
-    ({"reading": "literal"}, "reading", "is not one of default, paper-literal, v1"),
+    ({"reading": "literal"}, "reading", "is not one of default, paper-literal, paper-direction, round-one, v1"),
     ({"reading": ["paper-literal"]}, "reading", "expected a string"),
     ({"o_norm": "zscore"}, "o_norm", "is not one of sigmoid, minmax, robust, rank"),
-    ({"u_def": "std"}, "u_def", "is not one of dispersion, std-geo, std-hsfh"),
+    ({"u_def": "std"}, "u_def", "is not one of dispersion, std-geo, std-hsfh, spread-hsfh"),
     ({"ell_def": 1}, "ell_def", "expected a string"),
     ({"s_def": None}, "s_def", "must not be null"),
     ({"kernel": "idw"}, "kernel", "is not one of gauss, trilinear, nearest"),
@@ -240,7 +291,7 @@ def test_bad_reading_parameters_are_clear_errors(values, key, match):
 
 
 def test_nodesc_def_validated_and_absent_from_the_full_method():
-    with pytest.raises(ParamError, match="is not one of opacity-only, param-stats"):
+    with pytest.raises(ParamError, match="is not one of splat-params, param-stats, opacity-only"):
         NoDescParams.parse({"nodesc_def": "none"})
     with pytest.raises(ParamError, match="no such parameter"):
         BetaDescParams.parse({"nodesc_def": "opacity-only"})
@@ -345,3 +396,25 @@ def test_paper_literal_from_harness_prune_and_from_a_config(tmp_path, capsys):
     lit, nd = cfg.methods
     assert lit.params.o_norm == "rank" and lit.params.s_def == "dims-var" and lit.variant == "o_norm=rank"
     assert nd.params.nodesc_def == "param-stats" and nd.params.o_norm == "sigmoid"
+
+
+@pytest.mark.data
+@pytest.mark.parametrize("name", ["luigi", "grape-small", "bonsai-7k-mini"])
+def test_the_two_no_descriptor_columns_differ_on_real_scenes(name):
+    """Issue 21: with opacity-only both no-descriptor variants pruned exactly like `opacity`. The
+    default no-descriptor ablation removes other splats than opacity, and Beta vs net evidence differ."""
+    from harness.io import datasets
+    from harness.io.scenes import load_scene
+
+    if not datasets.scene_path(name).exists():
+        pytest.skip(f"{name} not available (run `harness fetch` / provide ../shared/data)")
+    scene = load_scene(name)
+    keep = {m: select_by_ratio(get_pruner(m).score(scene, PruneContext()), 0.2).keep
+            for m in ("betadesc-nodesc", "betadesc-nodesc-nobeta", "opacity")}
+    n_removed = round(0.2 * len(scene))
+
+    def differ(a, b):  # splats removed by one and kept by the other, as a share of the removed
+        return int(np.sum(~keep[a] & keep[b])) / n_removed
+
+    assert differ("betadesc-nodesc", "betadesc-nodesc-nobeta") > 0.01
+    assert differ("betadesc-nodesc", "opacity") > 0.05 and differ("betadesc-nodesc-nobeta", "opacity") > 0.05

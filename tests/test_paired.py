@@ -101,8 +101,9 @@ def test_greedy_walk_adopts_only_clear_wins_on_both_scenes():
     assert step2.candidate == 2.0 and not step2.adopted  # no gain on s2
     assert rs.label(space, rs.with_value(inc, "prior", 2.0)) == "lit+o_norm=rank+prior=2"
     assert rs.overrides(space, inc) == {"reading": "paper-literal", "o_norm": "rank"}
-    md = rs.selection_markdown(space, [step, step2], inc)
-    assert "**adopted**" in md and "not adopted" in md and "| `o_norm` | `rank` |" in md
+    md = rs.selection_markdown(space, [step, step2], {rs.METHOD: inc})
+    assert "**adopted**" in md and "not adopted" in md and "| betadesc | `o_norm` | `rank` |" in md
+    assert "percentile-bootstrap" in md  # round one's rule names the bootstrap
 
 
 def test_missing_lists_readings_without_rows():
@@ -112,3 +113,61 @@ def test_missing_lists_readings_without_rows():
     assert rs.missing(df, space, [base]) == []
     other = rs.with_value(base, "stat_norm", "rank")
     assert rs.missing(df, space, [other]) == [other]
+
+
+def test_round_two_config_encodes_the_registered_axes():
+    from harness.core.paths import REPO_ROOT
+
+    raw = yaml.safe_load((REPO_ROOT / "ctc_configs" / "reading2.yaml").read_text())
+    space = rs.search_space(raw, interval="t", searched=rs.SEARCHED)
+    assert space.interval == "t" and space.scenes == ("bonsai-7k-mini", "luigi") and space.ratio == 0.3
+    assert space.starts == {"betadesc": {"reading": "round-one"}, "betadesc-nodesc": {"reading": "paper-literal"}}
+    got = [(a.method, a.name, a.values) for a in space.axes]
+    assert got == [
+        ("betadesc", "ell_def+s_def+u_def", (("nbhd-std", "dims-var", "std-hsfh"), ("dims-peak", "dims-peak", "spread-hsfh"))),
+        ("betadesc", "s_def", ("dims-var", "nbhd-var", "dims-peak")),
+        ("betadesc", "u_def", ("std-hsfh", "spread-hsfh", "dispersion", "std-geo")),
+        ("betadesc", "ell_def", ("nbhd-std", "dims-std", "dims-peak")),
+        ("betadesc", "voxel", (0.01, 0.02, 0.03, 0.1, 0.2, 0.3)),
+        ("betadesc-nodesc", "nodesc_def", ("splat-params", "param-stats"))]
+
+
+def test_round_two_walk_joint_axis_then_single_axes_then_the_ablation():
+    """A fake study: the joint direction axis wins on both scenes, then s_def=nbhd-var wins on one
+    scene only (kept), and param-stats beats splat-params for the ablation on both (adopted)."""
+    from harness.core.paths import REPO_ROOT
+
+    raw = yaml.safe_load((REPO_ROOT / "ctc_configs" / "reading2.yaml").read_text())
+    space = rs.search_space(raw, interval="t", searched=rs.SEARCHED)
+    rng = np.random.default_rng(0)
+    noise = rng.normal(0, 0.05, 8)
+
+    def effect(method, p, scene):
+        if method == "betadesc-nodesc":
+            return 0.8 if p["nodesc_def"] == "param-stats" else 0.0
+        joint = 1.0 if (p["ell_def"], p["s_def"], p["u_def"]) == ("dims-peak", "dims-peak", "spread-hsfh") else 0.0
+        return joint + (0.6 if p["s_def"] == "nbhd-var" and scene == "luigi" else 0.0)
+
+    rows = [r for s in space.scenes for r in _rows(s, "random", {}, 20 + noise)]
+    incumbents = {m: rs.resolved(p, m) for m, p in space.starts.items()}
+    steps = []
+    for axis in space.axes:  # what the driver does: run the missing readings, then evaluate
+        m = axis.method
+        df = pd.DataFrame(rows)
+        for p in rs.missing(df, space, [rs.with_value(incumbents[m], axis, v) for v in axis.values], m):
+            for s in space.scenes:
+                rows += _rows(s, m, p, 20 + effect(m, p, s) + noise + rng.normal(0, 0.01, 8))
+        step = rs.evaluate_axis(pd.DataFrame(rows), space, axis, incumbents[m])
+        steps.append(step)
+        if step.adopted:
+            incumbents[m] = rs.with_value(incumbents[m], axis, step.candidate)
+    assert [s.adopted for s in steps] == [True, False, False, False, False, True]
+    assert steps[0].candidate == ("dims-peak", "dims-peak", "spread-hsfh")
+    assert steps[1].current == "dims-peak" and steps[1].candidate == "nbhd-var"  # evaluated on the new incumbent
+    # nbhd-var gains 0.6 on luigi but leaves the joint reading (-1.0): evaluated with the others at the incumbent
+    assert steps[1].delta["luigi"].mean == pytest.approx(-0.4, abs=0.05) and steps[1].delta["luigi"].n == 8
+    assert incumbents["betadesc-nodesc"]["nodesc_def"] == "param-stats"
+    assert rs.label(space, incumbents["betadesc"], "betadesc", "r1") == "r1+ell_def=dims-peak+s_def=dims-peak+u_def=spread-hsfh"
+    md = rs.selection_markdown(space, steps, incumbents)
+    assert "Student-t" in md and "of `betadesc-nodesc`" in md and "| betadesc-nodesc | `nodesc_def` | `param-stats` |" in md
+    assert "(incumbent `nbhd-std, dims-var, std-hsfh`)" in md

@@ -111,8 +111,9 @@ def test_methods_command_lists_json(capsys):
     by_name = {r["name"]: r for r in rows}
     assert by_name["random"]["params"] == {} and by_name["random"]["group"] == "baseline"
     assert by_name["opacity"]["needs"] == [] and by_name["lightgs"]["needs"] == ["cameras"]
-    assert by_name["betadesc"]["params"]["voxel"] == {"type": "float > 0, <= 1", "default": 0.01,
-                                                      "doc": "voxel edge as a fraction of the bounding-box diagonal"}
+    voxel = by_name["betadesc"]["params"]["voxel"]
+    assert voxel["type"] == "float > 0, <= 1" and voxel["default"] == 0.2
+    assert voxel["doc"].startswith("voxel edge as a fraction of the bounding-box diagonal")
     assert by_name["betadesc"]["ablation"] == {"descriptors": True, "beta": True}
 
 

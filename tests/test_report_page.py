@@ -159,7 +159,7 @@ def test_page_summary_first_the_rest_folded_captions_and_every_record(tmp_path):
         assert f"<details id='t-{key}'>" in rest
     tables = re.findall(r"<table>(.*?)</table>", page, re.S)
     assert tables and all("<caption>n = " in t for t in tables)  # n (and the interval) on every data table
-    assert all("bootstrap" in t for t in tables if "Δ" in t)
+    assert all("Student-t" in t for t in tables if "Δ" in t)
     assert "**" not in re.sub(r"<[^>]+>", "", page)  # no markdown syntax shown
     for scene in ("sc.a", "sc.b"):  # every scene's images reachable from the index
         assert f"<a href='#img-{scene}'>" in page and f"<details id='img-{scene}'>" in page

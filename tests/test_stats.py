@@ -29,10 +29,11 @@ def test_paired_bootstrap_matches_scipy_paired():
     cur = pd.DataFrame({"frame": "", "view": [f"v{i}" for i in range(8)], "psnr": a, "near": False})
     ref = cur.assign(psnr=b)
     got = stats.paired(cur, ref, "psnr")
+    boot = stats.bootstrap_ci(np.asarray(a - b))  # the percentile bootstrap of the differences = scipy's paired one
     want = sst.bootstrap((a, b), lambda p, q, axis: np.mean(p - q, axis=axis), paired=True, vectorized=True,
                          method="percentile", n_resamples=10_000, rng=np.random.default_rng(0)).confidence_interval
     assert got["delta"] == pytest.approx(np.mean(a - b))
-    assert (got["ci_low"], got["ci_high"]) == (pytest.approx(want.low, abs=1e-12), pytest.approx(want.high, abs=1e-12))
+    assert boot == (pytest.approx(want.low, abs=1e-12), pytest.approx(want.high, abs=1e-12))
     assert got["n_pairs"] == 8 and got["ci_low"] > 0  # a consistent +0.5 dB shows as an interval above 0
 
 
@@ -105,3 +106,43 @@ def test_paired_diffs_equals_an_inner_join(seed):
     d0, excluded0 = _merge_diffs(cur, ref, "psnr")
     np.testing.assert_array_equal(d, d0)
     assert excluded == excluded0
+
+
+# --------------------------------------------------------------------------- the house interval
+@pytest.mark.parametrize("n", [2, 3, 8, 25])
+def test_t_interval_matches_scipy(n):
+    x = np.random.default_rng(n).normal(30.0, 2.0, n)
+    lo, hi = stats.mean_ci(x)
+    ref = sst.t.interval(0.95, n - 1, loc=x.mean(), scale=sst.sem(x))
+    assert (lo, hi) == (pytest.approx(ref[0], abs=1e-12), pytest.approx(ref[1], abs=1e-12))
+    assert stats.INTERVAL == "t" and "Student-t" in stats.INTERVAL_DESCRIPTION
+
+
+def test_t_interval_edge_cases():
+    assert stats.t_ci([5.0, 5.0, 5.0]) == (5.0, 5.0)
+    assert all(math.isnan(v) for v in stats.t_ci([1.0]))
+    assert all(math.isnan(v) for v in stats.t_ci([1.0, math.inf]))
+    # two values 0 and 1: mean 0.5, s = 1/√2, t(0.975, 1) = 12.706 -> ± 12.706 · 0.5
+    lo, hi = stats.t_ci([0.0, 1.0])
+    assert hi - 0.5 == pytest.approx(12.7062047 * 0.5, rel=1e-7) and lo == pytest.approx(1.0 - hi)
+
+
+def test_coverage_at_eight_views_t_holds_the_percentile_bootstrap_does_not():
+    """Known mean, n = 8 paired differences (a default study's views): the t interval covers ~95 %,
+    the percentile bootstrap the tables used before ~88 % (normal) — the reason for the switch."""
+    from harness.benchmarks.intervals import coverage
+
+    normal = coverage("normal", 8, reps=2000, bca_reps=0, seed=11)
+    heavy = coverage("t3", 8, reps=2000, bca_reps=0, seed=11)
+    assert 0.935 <= normal["t"]["coverage"] <= 0.965  # 0.95 ± 3 binomial SE (0.0049 at 2,000)
+    assert heavy["t"]["coverage"] >= 0.935
+    assert normal["percentile bootstrap"]["coverage"] <= 0.91 and heavy["percentile bootstrap"]["coverage"] <= 0.92
+
+
+def test_paired_uses_the_house_interval():
+    rng = np.random.default_rng(3)
+    a = rng.normal(30, 3, 8)
+    cur = pd.DataFrame({"frame": "", "view": [f"v{i}" for i in range(8)], "psnr": a, "near": False})
+    ref = cur.assign(psnr=a - 0.5 + rng.normal(0, 0.3, 8))
+    got = stats.paired(cur, ref, "psnr")
+    assert (got["ci_low"], got["ci_high"]) == stats.t_ci(cur["psnr"] - ref["psnr"])

@@ -129,16 +129,20 @@ def test_ablation_that_cannot_be_made_says_which_variants_are_missing():
     assert part.warnings == ["ablation: missing betadesc-nobeta at 20%"]
 
 
-def test_keep_table_delta_uses_the_papers_sign():
+def test_keep_table_per_scene_with_paired_intervals_and_the_papers_sign():
     t = _t("keep")
-    # prune 30%: no-desc 24, with desc (25+27)/2 = 26 -> ΔPSNR = 24 - 26 = -2
-    assert t.disp.loc["30%", ("ΔPSNR", "(dB)")] == "-2.00"
-    assert t.disp.loc["70%", ("ΔPSNR", "(dB)")] == "0.00"
-    # the .csv: each pooled mean with its sample std beside it (ddof = 1, by hand)
-    row = _cell(t.tidy, prune="30%", method="betadesc", metric="psnr")
-    assert row["mean"] == pytest.approx(26.0) and row["std"] == pytest.approx(math.sqrt(2.0)) and row["n"] == 2
-    assert _cell(t.tidy, prune="30%", method="betadesc-nodesc", metric="psnr")["std"] == 0.0  # 24, 24
-    assert "n = " in t.caption and "no interval" in t.caption
+    # prune 30%: no-desc 24, 24 vs with desc 25, 27 -> Δ = no − with = −1, −3: mean −2, t interval −2 ± 12.71
+    row = _cell(t.tidy, scene="a", method="betadesc-nodesc", ratio=0.3, metric="psnr")
+    assert row["delta"] == pytest.approx(-2.0) and row["n_pairs"] == 2
+    assert (row["ci_low"], row["ci_high"]) == (pytest.approx(-2 - 12.7062047), pytest.approx(-2 + 12.7062047))
+    assert _cell(t.tidy, scene="a", method="betadesc-nodesc", ratio=0.7, metric="psnr")["delta"] == pytest.approx(0.0)
+    full = _cell(t.tidy, scene="a", method="betadesc", ratio=0.3, metric="psnr")
+    assert full["mean"] == pytest.approx(26.0) and np.isnan(full["delta"])  # Δ lives on the no-descriptor side
+    assert full["std"] == pytest.approx(math.sqrt(2.0))  # sample std (ddof = 1) of 25, 27, beside the mean
+    # scene b has only betadesc at keep 0.7: it enters neither the table nor the pooled means
+    assert "b" not in set(t.tidy["scene"])
+    assert _cell(t.tidy, scene="*", method="betadesc", ratio=0.3, metric="psnr")["mean"] == pytest.approx(26.0)
+    assert any("n = 2 paired views" in n for n in t.notes)
 
 
 def test_per_scene_gain_sensitivity_and_runtime():
@@ -147,11 +151,12 @@ def test_per_scene_gain_sensitivity_and_runtime():
     assert _cell(g, scene="a", ratio=0.3, metric="psnr")["delta"] == pytest.approx(2.0)
     assert _cell(g, scene="a", ratio=0.7, metric="psnr")["delta"] == pytest.approx(0.0)
     sens = t["sensitivity"]
-    assert "(a)" in sens.notes[0]
-    sv = sens.tidy.set_index(["knob", "variant", "metric"])
+    assert "keep 0.7" in sens.notes[0] and "scene A 2.50 dB" in sens.notes[-1]
     assert list(dict.fromkeys(sens.tidy["variant"])) == ["default", "preset=flat", "voxel=0.02"]
-    assert sv.loc[("baseline", "default", "psnr"), "mean"] == pytest.approx(26.0)
-    assert sv.loc[("baseline", "default", "psnr"), "std"] == pytest.approx(math.sqrt(2.0))
+    assert _cell(sens.tidy, scene="a", variant="default", metric="psnr")["mean"] == pytest.approx(26.0)
+    flat = _cell(sens.tidy, scene="a", variant="preset=flat", metric="psnr")
+    assert flat["delta"] == pytest.approx(24.0 - 25.0) and flat["n_pairs"] == 1  # paired with view v0 only
+    assert "b" not in set(sens.tidy["scene"])  # measured by the default variant only
     rt = t["runtime"]
     assert rt.disp.loc["scene A", "desc. overhead (s)"] == "0.50"
     assert set(rt.tidy.columns) >= {"scene", "method", "score_s", "score_s_std", "frames"}
@@ -172,9 +177,14 @@ def test_runtime_overhead_percentage_needs_a_denominator_of_a_second():
 def test_versus_pools_scenes_and_counts_verdicts():
     t = _t("versus", reference="betadesc-nodesc")
     row = _cell(t.tidy, scene="*", method="betadesc", variant="default", ratio=0.3, metric="psnr")
-    assert row["delta"] == pytest.approx(2.0) and row["n_pairs"] == 2 and row["verdict"] == "better"
+    # differences 1 and 3 dB on n = 2 views: the t interval 2 ± 12.71 includes 0 (a percentile
+    # bootstrap would have said [1, 3], "better", from two views)
+    assert row["delta"] == pytest.approx(2.0) and row["n_pairs"] == 2 and row["verdict"] == "unclear"
+    assert (row["ci_low"], row["ci_high"]) == (pytest.approx(2 - 12.7062047), pytest.approx(2 + 12.7062047))
     psnr = dict(t.sections)["PSNR (↑)"]
-    assert psnr.loc[("BetaDescPrune", "30%"), "better / worse / unclear"] == "1 / 0 / 0"
+    assert psnr.loc[("BetaDescPrune", "30%"), "better / worse / unclear"] == "0 / 0 / 1"
+    assert psnr.loc[("BetaDescPrune", "20%"), "better / worse / unclear"] == "1 / 0 / 0"  # 2, 2: zero width
+    assert "Student-t" in t.caption and "n = " in t.caption  # the caption states n and the interval
     assert isinstance(_t("versus", reference="nope"), Missing)
 
 
@@ -254,5 +264,5 @@ def test_every_written_table_has_a_caption_with_n_and_the_interval(tmp_path):
         assert b.table.caption.startswith("n = "), key
     tidy = pd.DataFrame({"n": [2, 4], "ci_low": [0.1, 0.2], "ci_high": [0.3, 0.4]})
     t = with_caption(Table(pd.DataFrame(), [], tidy))
-    assert t.caption.startswith("n = 2–4 per cell; intervals: ") and "bootstrap" in t.caption
+    assert t.caption.startswith("n = 2–4 per cell; intervals: ") and "Student-t" in t.caption
     assert with_caption(Table(pd.DataFrame(), [], pd.DataFrame({"x": [1]}))).caption == "no interval"

@@ -3,7 +3,7 @@
 Every cell is computed from the per-view results (``status == ok``) of one (scene, method, variant,
 ratio): the mean over its views (frames pooled), the median, the number of views and of
 near-identical views, and — against its reference row, the same scene and views — the mean paired
-difference Δ = cell − reference with its 95 % bootstrap CI. The metrics are every registered metric
+difference Δ = cell − reference with its 95 % interval (:func:`harness.report.stats.mean_ci`). The metrics are every registered metric
 the results carry (:func:`harness.report.catalog.display_metrics`: OM variants beside full-frame).
 
 * ``comparison`` (paper Table 1): each comparison-group method's default variant at Low/Mid/High =
@@ -135,14 +135,14 @@ def caption(tidy: pd.DataFrame, interval: bool = True) -> str:
         k = per["scene"].nunique()
         lo, hi = int(pooled["n_pairs"].min()), int(pooled["n_pairs"].max())
         parts.append(f"all scenes: n = {lo if lo == hi else f'{lo}–{hi}'} pairs pooled over {k} scene(s) — the "
-                     "interval resamples views, so it does not generalise to scenes outside this run")
+                     "interval is over views, so it does not generalise to scenes outside this run")
     if interval:
         parts.append(f"Δ: {stats.INTERVAL_DESCRIPTION}")
     return "; ".join(parts)
 
 
 def _delta(d: np.ndarray, excluded: int, metric: str) -> dict:
-    lo, hi = stats.bootstrap_ci(d)
+    lo, hi = stats.mean_ci(d)
     return {"delta": float(d.mean()) if d.size else np.nan, "ci_low": lo, "ci_high": hi,
             "delta_median": float(np.median(d)) if d.size else np.nan, "n_pairs": int(d.size),
             "n_pairs_excluded": int(excluded), "verdict": stats.verdict(lo, hi, catalog.higher_is_better(metric))}

@@ -1,12 +1,15 @@
-"""Paired per-view differences between two pruned sets and their percentile-bootstrap CI.
+"""Paired per-view differences between two pruned sets and their 95 % interval.
 
 The unit of comparison is a held-out view: two methods (or variants) pruned from the same scene at
 the same ratio are rendered from the same cameras, so their PSNRs differ per view by the method
 alone. For a candidate C and a reference R (e.g. ``random``) at one (scene, ratio)::
 
     d_v = PSNR_C(v) − PSNR_R(v)      for every view v measured for both,
-    D   = mean_v d_v,   95 % CI = the 2.5th / 97.5th percentiles of the means of 10,000 resamples
-                                  of the views with replacement (numpy default_rng(seed), seed 0)
+    D   = mean_v d_v,   95 % CI by ``interval``:
+          "t"          the house interval, D ± t_{0.975, n−1}·s/√n (:func:`harness.report.stats.t_ci`);
+          "bootstrap"  the 2.5th / 97.5th percentiles of the means of 10,000 resamples of the views
+                       with replacement (numpy default_rng(seed), seed 0) — the interval round one of
+                       the reading selection was pre-registered with (``ctc_configs/reading.yaml``)
 
 Views where either side reaches ``max_psnr`` (100 dB, +inf included: the pruned render equals the
 reference render there, e.g. nothing pruned is visible) are excluded and counted (``n_excluded``).
@@ -33,7 +36,7 @@ MAX_PSNR = stats.NEAR_IDENTICAL_DB
 
 @dataclass(frozen=True)
 class Paired:
-    """A paired comparison: mean difference, its 95 % percentile-bootstrap CI, views used/excluded."""
+    """A paired comparison: mean difference, its 95 % interval, views used/excluded."""
 
     mean: float
     lo: float
@@ -54,14 +57,28 @@ class Paired:
         return f"{self.mean:+.{digits}f} [{self.lo:+.{digits}f}, {self.hi:+.{digits}f}]"
 
 
+INTERVALS = ("t", "bootstrap")
+
+
 def bootstrap_ci(d: Sequence[float], *, resamples: int = RESAMPLES, seed: int = 0,
                  level: float = 0.95) -> tuple[float, float, float]:
     """(mean, lo, hi): the mean of ``d`` and its percentile-bootstrap CI
     (:func:`harness.report.stats.bootstrap_ci`, the one bootstrap of the house)."""
+    return mean_interval(d, "bootstrap", resamples=resamples, seed=seed, level=level)
+
+
+def mean_interval(d: Sequence[float], interval: str = stats.INTERVAL, *, resamples: int = RESAMPLES,
+                  seed: int = 0, level: float = 0.95) -> tuple[float, float, float]:
+    """(mean, lo, hi) of ``d`` with the named interval (module docstring)."""
     d = np.asarray(d, dtype=np.float64)
+    if interval not in INTERVALS:
+        raise ValueError(f"unknown interval {interval!r}; known: {', '.join(INTERVALS)}")
     if d.size == 0:
         return math.nan, math.nan, math.nan
-    lo, hi = stats.bootstrap_ci(d, n_resamples=resamples, confidence=level, seed=seed)
+    if interval == "t":
+        lo, hi = stats.t_ci(d, confidence=level)
+    else:
+        lo, hi = stats.bootstrap_ci(d, n_resamples=resamples, confidence=level, seed=seed)
     return float(d.mean()), lo, hi
 
 
@@ -88,7 +105,8 @@ def per_view(df: pd.DataFrame, *, scene: str, method: str, ratio: float, variant
 
 
 def paired_difference(candidate: pd.Series, reference: pd.Series | Sequence[pd.Series], *,
-                      max_psnr: float = MAX_PSNR, resamples: int = RESAMPLES, seed: int = 0) -> Paired:
+                      max_psnr: float = MAX_PSNR, resamples: int = RESAMPLES, seed: int = 0,
+                      interval: str = stats.INTERVAL) -> Paired:
     """D = mean_v (candidate − reference) over the views both have, each side < ``max_psnr``
     (several references: averaged per view over the views all of them have)."""
     refs = [reference] if isinstance(reference, pd.Series) else list(reference)
@@ -99,17 +117,18 @@ def paired_difference(candidate: pd.Series, reference: pd.Series | Sequence[pd.S
     cand = candidate.loc[common]
     ok = (cand < max_psnr) & (ref < max_psnr).all(axis=1)
     d = (cand[ok] - ref[ok].mean(axis=1)).to_numpy()
-    mean, lo, hi = bootstrap_ci(d, resamples=resamples, seed=seed)
+    mean, lo, hi = mean_interval(d, interval, resamples=resamples, seed=seed)
     return Paired(mean, lo, hi, int(ok.sum()), int((~ok).sum()))
 
 
 def compare(df: pd.DataFrame, *, scene: str, ratio: float, candidate: Mapping[str, Any],
             reference: Mapping[str, Any] | Sequence[Mapping[str, Any]], metric: str = "psnr",
-            max_psnr: float = MAX_PSNR, resamples: int = RESAMPLES, seed: int = 0) -> Paired:
+            max_psnr: float = MAX_PSNR, resamples: int = RESAMPLES, seed: int = 0,
+            interval: str = stats.INTERVAL) -> Paired:
     """:func:`paired_difference` of two sides each given as ``{method, variant?, params?}``."""
     def side(s):
         return per_view(df, scene=scene, ratio=ratio, metric=metric, **s)
 
     refs = [reference] if isinstance(reference, Mapping) else list(reference)
     return paired_difference(side(candidate), [side(r) for r in refs], max_psnr=max_psnr,
-                             resamples=resamples, seed=seed)
+                             resamples=resamples, seed=seed, interval=interval)

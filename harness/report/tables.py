@@ -12,14 +12,13 @@ registry (every registered metric the results carry).
 
 * ``comparison``, ``ablation``, ``versus``, ``per_scene``: cells with per-view paired differences and
   bootstrap CIs, :mod:`harness.report.cells`.
-* ``keep`` (Table 3): keep 0.7/0.5/0.3 (prune 30/50/70 %), pooled over scenes, betadesc-nodesc
-  vs betadesc, and ΔPSNR = PSNR(no descriptors) − PSNR(with descriptors) — the paper's sign
-  (negative when descriptors help). PSNR means exclude +inf pairs (counted in a note).
-* ``sensitivity``: betadesc variants at keep 0.7 — coefficient presets and voxel sizes (variants
-  named ``preset=…`` / ``voxel=…``; the default variant is the baseline row).
+* ``keep`` (Table 3) and ``sensitivity`` (presets, voxel sizes at keep 0.7): per scene and pooled,
+  with paired intervals against the reference cell (:mod:`harness.report.sensitivity`).
 * ``runtime``: scoring seconds per scene of every method's default variant, with the descriptor
   overhead betadesc − betadesc-nodesc in seconds and in % of betadesc-nodesc's time — "–" when that
   time is under :data:`MIN_BASE_S` (a percentage of timer noise means nothing).
+* ``claims``: one row per claim of the paper with its number, ours per scene and pooled with 95 %
+  intervals, and a verdict (:mod:`harness.report.claims`).
 * ``bd`` and ``ctc``: rate points, BD-rate / BD-PSNR against the config's anchor, and the CTC's
   per-sequence CSV layout (:mod:`harness.report.bd`).
 """
@@ -33,32 +32,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from harness.core import ratios
 from harness.io.files import atomic_write_text
-from harness.report import bd, catalog, cells
+from harness.report import bd, catalog, cells, claims, sensitivity
 from harness.report.summary import PROTOCOL_NOTES, protocol_subsets, summarise
 from harness.report.tabledata import Built, Missing, Table, Written, as_table
 
-KEEPS = cells.KEEPS
 #: the runtime table's overhead percentage needs at least this many seconds in its denominator
 MIN_BASE_S = 1.0
-#: the paper's sensitivity knobs (Table 4): swept parameter -> row group
-SENSITIVITY_KNOBS = {"preset": "coefficients (presets other than baseline: ours)", "voxel": "voxel size"}
-
-
-def _at(df: pd.DataFrame, ratio: float) -> pd.Series:
-    """Rows of ``df`` at pruning ratio ``ratio``."""
-    return (df["ratio"] - ratio).abs() <= ratios.TOLERANCE
-
-
-def _metrics(s: pd.DataFrame | None = None) -> list[tuple[str, str, int]]:
-    """(name, heading, digits) of the metrics to show: the 3DGS set, or every registered metric
-    ``s`` has values for (MPEG columns carry the tool's names: RGB-PSNR, YUV-PSNR, YUV-SSIM, OM-…)."""
-    if s is None:
-        return catalog.metric_columns(("psnr", "ssim", "lpips"))
-    return [c for c in catalog.metric_columns(s.columns) if s[c[0]].notna().any()]
-
-
 
 
 def _fmt(v, digits: int) -> str:
@@ -70,123 +50,6 @@ def _fmt(v, digits: int) -> str:
 
 
 # --------------------------------------------------------------------------- tables
-def _pooled(df: pd.DataFrame, method: str, ratio: float, variant: str = "default") -> dict:
-    """Means of PSNR (finite views), SSIM and LPIPS over every measured view of a cell pooled over
-    scenes, each with its sample standard deviation (``<metric>_std``, ddof = 1), ``n`` and ``n_inf``."""
-    ok = df[(df["status"] == "ok") & (df["method"] == method) & (df["variant"] == variant)
-            & _at(df, ratio)]
-    fin = ok["psnr"][np.isfinite(ok["psnr"])]
-    out = {"psnr": fin.mean() if len(fin) else (np.inf if len(ok) else np.nan), "psnr_std": _std(fin),
-           "n": len(ok), "n_inf": int(np.isinf(ok["psnr"]).sum())}
-    for m in ("ssim", "lpips"):
-        out[m], out[f"{m}_std"] = ok[m].mean(), _std(ok[m])
-    return out
-
-
-def _std(values) -> float:
-    """Sample standard deviation (ddof = 1) of the non-NaN values; NaN below two values."""
-    v = pd.to_numeric(pd.Series(values), errors="coerce").dropna()
-    return float(v.std(ddof=1)) if len(v) > 1 else np.nan
-
-
-def _pooled_tidy(records) -> pd.DataFrame:
-    """Tidy rows of pooled cells: [(row keys dict, _pooled dict)] -> one row per metric with
-    ``mean, std, n, n_inf``."""
-    rows = [{**keys, "metric": m, "mean": p[m], "std": p[f"{m}_std"], "n": p["n"], "n_inf": p["n_inf"]}
-            for keys, p in records for m in ("psnr", "ssim", "lpips")]
-    return pd.DataFrame(rows)
-
-
-#: caption of the tables that pool views over scenes without an interval
-POOLED_CAPTION = ("n = the views pooled into each mean (the pairs columns); no interval: plain means "
-                  "(the .csv has each mean's std)")
-
-
-def _common(df: pd.DataFrame, cells) -> tuple[pd.DataFrame, list[str]]:
-    """Rows of the scenes (and frames) that every (method, variant, ratio) cell was measured on, so
-    pooled means compare the methods on the same image pairs; also those scenes' names."""
-    ok = df[df["status"] == "ok"]
-    sets = []
-    for m, v, r in cells:
-        c = ok[(ok["method"] == m) & (ok["variant"] == v) & _at(ok, r)]
-        if len(c):
-            sets.append(set(c["scene"]))
-    common = sorted(set.intersection(*sets)) if sets else []
-    return df[df["scene"].isin(common)], common
-
-
-def table_keep(df: pd.DataFrame):
-    pair = catalog.descriptor_pair()
-    if pair is None:
-        return Missing("no registered pair of betadesc with and without descriptors")
-    without, full = pair
-    rows, idx, records = [], [], []
-    for k in KEEPS:
-        r = ratios.from_keep(k)
-        sub, _ = _common(df, [(without, "default", r), (full, "default", r)])
-        a, b = _pooled(sub, without, r), _pooled(sub, full, r)
-        if a["n"] == 0 and b["n"] == 0:
-            continue
-        idx.append(ratios.percent(r))
-        rows.append([a["psnr"], a["ssim"], a["lpips"], b["psnr"], b["ssim"], b["lpips"], a["psnr"] - b["psnr"],
-                     a["n"], b["n"]])
-        records += [({"prune": ratios.percent(r), "ratio": r, "keep": k, "method": m}, p)
-                    for m, p in ((without, a), (full, b))]
-    if not rows:
-        return Missing(f"needs {without} and {full} at keep {' / '.join(f'{k:g}' for k in KEEPS)} "
-                       "on a common scene; neither was measured at those keep fractions")
-    mi = pd.MultiIndex.from_tuples(
-        [("No Descriptors", m) for _, m, _ in _metrics()] + [("With Descriptors", m) for _, m, _ in _metrics()]
-        + [("ΔPSNR", "(dB)"), ("pairs", "no desc."), ("pairs", "with desc.")], names=["side", "quantity"])
-    num = pd.DataFrame(rows, pd.Index(idx, name="Prune %"), mi)
-    digits = [2, 3, 3, 2, 3, 3, 2, 0, 0]
-    disp = num.copy().astype(object)
-    for j, d in enumerate(digits):
-        disp.iloc[:, j] = [(_fmt(v, d) if d else str(int(v))) for v in num.iloc[:, j]]
-    notes = ["pooled over every pair of the scenes both were measured on; "
-             "ΔPSNR = no-desc − with-desc (paper's sign)"]
-    sub = df[(df["status"] == "ok") & df["method"].isin([full, without])]
-    k_inf = int(np.isinf(sub["psnr"]).sum())
-    notes += [f"{k_inf} identical pair(s) (PSNR = inf) excluded from PSNR means"] if k_inf else []
-    return Table(disp, notes, _pooled_tidy(records), caption=POOLED_CAPTION)
-
-
-def table_sensitivity(df: pd.DataFrame, keep: float = 0.7):
-    method = catalog.proposed_method()
-    r = ratios.from_keep(keep)
-    sub = df[(df["method"] == method) & _at(df, r)]
-    knobs = list(SENSITIVITY_KNOBS)
-
-    def knob(v: str) -> str | None:  # sweep variants are named "<param>=<value>"
-        return next((k for k in knobs if v.startswith(f"{k}=")), None)
-
-    variants = [v for v in dict.fromkeys(sub["variant"]) if v == "default" or knob(v)]
-    if len(variants) < 2:
-        return Missing(f"needs {method}'s default variant and at least one sweep variant "
-                       f"({' / '.join(f'{k}=…' for k in knobs)}) at keep {keep:g}; found "
-                       f"{', '.join(variants) or 'none'}")
-    variants = sorted(variants, key=lambda v: (v != "default", knobs.index(knob(v)) if knob(v) else -1, v))
-    df, common = _common(df, [(method, v, r) for v in variants])
-    idx, rows, records = [], [], []
-    for v in variants:
-        p = _pooled(df, method, r, v)
-        knob_label = "baseline" if v == "default" else SENSITIVITY_KNOBS[knob(v)]
-        idx.append((knob_label, v))
-        rows.append([p["psnr"], p["ssim"], p["lpips"], p["n"], p["n_inf"]])
-        records.append(({"knob": knob_label, "variant": v, "method": method, "ratio": r, "keep": keep}, p))
-    num = pd.DataFrame(rows, pd.MultiIndex.from_tuples(idx, names=["knob", "variant"]),
-                       ["PSNR (↑)", "SSIM (↑)", "LPIPS (↓)", "pairs", "inf"])
-    disp = num.copy().astype(object)
-    for j, d in enumerate([2, 4, 4, 0, 0]):
-        disp.iloc[:, j] = [(_fmt(v, d) if d else str(int(v))) for v in num.iloc[:, j]]
-    spread = num["PSNR (↑)"].replace(np.inf, np.nan)
-    notes = [f"{method} at keep {keep} on the scenes every variant ran on ({', '.join(common)}); "
-             f"PSNR spread across variants {spread.max() - spread.min():.2f} dB",
-             "the paper gives values only for the baseline preset; flat, opacity-heavy and "
-             "structure-heavy are this project's own coefficients"]
-    return Table(disp, notes, _pooled_tidy(records), caption=POOLED_CAPTION.replace("the pairs columns", "pairs"))
-
-
 def table_runtime(s: pd.DataFrame):
     """Scoring seconds per scene and method (the summary's ``score_s``: the mean over frames, with
     ``score_s_std`` over frames in the .csv)."""
@@ -219,9 +82,9 @@ def table_runtime(s: pd.DataFrame):
                          "no interval")
 
 
-BUILDERS = {"comparison": cells.table_comparison, "ablation": cells.table_ablation, "keep": table_keep,
-            "sensitivity": table_sensitivity, "runtime": table_runtime, "per_scene": cells.table_per_scene,
-            "versus": cells.table_versus, "bd": bd.table_bd, "ctc": bd.table_ctc}
+BUILDERS = {"comparison": cells.table_comparison, "ablation": cells.table_ablation, "keep": sensitivity.table_keep,
+            "sensitivity": sensitivity.table_sensitivity, "runtime": table_runtime, "per_scene": cells.table_per_scene,
+            "versus": cells.table_versus, "bd": bd.table_bd, "ctc": bd.table_ctc, "claims": claims.table_claims}
 #: builders that read the summary (one row per cell) rather than the per-view results
 _USES_SUMMARY = {"runtime", "bd", "ctc"}
 TITLES = {"comparison": "Comparison at low (10 %), mid (20 %) and high (30 %) pruning (paper Table 1)",
@@ -231,7 +94,8 @@ TITLES = {"comparison": "Comparison at low (10 %), mid (20 %) and high (30 %) pr
           "runtime": "Scoring runtime per scene", "per_scene": "Per-scene descriptor gains",
           "versus": "Every method against the reference, per view",
           "bd": "Bjøntegaard deltas against the anchor (BD-rate on .ply bytes; RGB-PSNR, YUV-PSNR, YUV-SSIM)",
-          "ctc": "Per sequence and rate point (MPEG CTC layout)"}
+          "ctc": "Per sequence and rate point (MPEG CTC layout)",
+          "claims": "The paper's claims, each tested as the paper states it, with a verdict"}
 
 
 def _call(fn, data, opts: dict):

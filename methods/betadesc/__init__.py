@@ -4,12 +4,13 @@
   box diagonal), statistics s, ℓ, u interpolated to the splats with weight w, per-splat opacity o,
   Eq. 4 evidence → Beta(A, B) retention posterior → score (default μ + γσ, μ = A/(A+B), the
   erratum reading; ``score="literal"`` gives the paper's literal B/(A+B) + γσ).
-* ``betadesc-nodesc``: the same Beta model and the same reading without neighbourhood descriptors.
-  Default ``nodesc_def="opacity-only"``: the s, ℓ, u terms are dropped, so the score is a monotone
-  function of the (normalised) opacity and ranks exactly like the ``opacity`` baseline up to ties —
-  this is what "without descriptors" leaves when the ablation may not carry information the full
-  method lacks. ``nodesc_def="param-stats"`` (the v1 ablation) replaces s, ℓ, u by per-splat proxies
-  (scale anisotropy, colour variance) that the full method does not use.
+* ``betadesc-nodesc``: the same Beta model and the same reading without neighbourhood descriptors:
+  the s, ℓ, u slots of Eq. 4 are filled from each splat's own parameters (the paper's "individual
+  splat parameters"; :mod:`.nodesc`, ``nodesc_def``: ``splat-params`` = anisotropy, colour/SH
+  dispersion and extent, or ``param-stats`` = v1's, anisotropy for both ℓ and u), w = 1. With
+  ``nodesc_def="opacity-only"`` the s, ℓ, u terms are dropped and the score is a monotone function
+  of opacity: it ranks exactly like the ``opacity`` baseline (its twin, not an ablation; the
+  default before issue 21).
 * ``betadesc-nobeta``: the same descriptor statistics and evidence, ranked deterministically by
   the net evidence A − B (no posterior mean, no σ: evidence magnitude is not turned into
   confidence and uncertainty earns no bonus).

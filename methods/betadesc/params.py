@@ -15,15 +15,35 @@ the sentence it reads; ``harness methods`` prints them. ``reading`` picks a bund
 the base, and any axis given explicitly next to it overrides the bundle (``{reading: paper-literal,
 o_norm: rank}`` is paper-literal with rank-normalised opacity):
 
-* ``default``: the field defaults below, chosen by the pre-registered rule of
-  ``ctc_configs/reading.yaml`` (outcome in ``results/reading/selection.md``): paper-literal except
-  ``ell_def = nbhd-std`` (the only change that beat its incumbent beyond the CI on both selection
-  scenes);
+* ``default``: the field defaults below, chosen by two pre-registered rules: round one
+  (``ctc_configs/reading.yaml``, outcome ``results/reading/selection.md``): paper-literal except
+  ``ell_def = nbhd-std``; round two (``ctc_configs/reading2.yaml``, ``results/reading/selection2.md``):
+  ``voxel = 0.2`` (× the diagonal; the only round-two change that beat its incumbent beyond the
+  interval on both selection scenes — outside the paper's stated 1–2 % default, L314, and one of
+  its sensitivity values, L470), ``nodesc_def = splat-params`` kept. So the default reverses the
+  paper's stated direction of ℓ, s and u: the direction-preserving readings lost on the selection
+  scenes;
 * ``paper-literal``: the most literal reading of every sentence (minmax normalisation, std/var
-  *across descriptor dimensions* for ℓ, s, u, w = the distance-weighted kernel sum), with the μ
-  erratum corrected (``score = ucb``: the sign-literal ``score = literal`` prunes the most
-  retention-worthy splats first, see :mod:`.scores`);
+  *across descriptor dimensions* for ℓ, s, u, w = the distance-weighted kernel sum, voxel 1 % of the
+  diagonal — "1–2 %", L314 —, the no-descriptor ablation from the splat's own parameters,
+  ``nodesc_def = splat-params``), with the μ erratum corrected (``score = ucb``: the sign-literal
+  ``score = literal`` prunes the most retention-worthy splats first, see :mod:`.scores`). Where the
+  formulas and the prose disagree (the direction of ℓ, s, u), paper-literal follows the formulas;
+* ``paper-direction``: paper-literal with ℓ, s and u oriented as the paper's prose says they point
+  ("homogeneous neighbourhoods … increase pruning evidence", "higher values indicating structurally
+  distinctive neighbourhoods"): the same across-dimension quantities, ``ell_def = dims-peak``,
+  ``s_def = dims-peak``, ``u_def = spread-hsfh``. Paper-literal's formulas reverse all three
+  directions on real scenes (measured: ``results/reading/directions.md``; each reading's doc below);
+* ``round-one``: the default selected by round one (paper-literal with ``ell_def = nbhd-std``, and
+  its no-descriptor ablation of the time, ``opacity-only``), frozen: round two
+  (``ctc_configs/reading2.yaml``) starts from it and its confirmation compares with it;
 * ``v1``: the project's first reading (results before issue 13 are re-made with it).
+
+**Direction.** Every reading of ℓ, s and u says whether it *preserves* or *reverses* the direction
+the paper's words give (ℓ and s rise with neighbourhood homogeneity, u falls with it), with the
+Spearman ρ measured against homogeneity on luigi / grape-small / bonsai-7k-mini
+(:mod:`methods.betadesc.directions`, ``harness bench reading directions``; geometric homogeneity
+for ℓ and u, colour homogeneity for s).
 
 Variants share the reading: an ablation takes the same bundle and the same values of the axes it
 has, so it differs from the full method only in the component the ablation removes.
@@ -56,8 +76,10 @@ L254 = ("L254: \"The weighting coefficients (0.50, 0.35, 0.20) for B_i and (0.55
         "distinctiveness\" (prose order ℓ, s; Eq. 4 puts 0.50 on s)")
 L468 = ("L468: \"four preset configurations: baseline (B-coefficients: 0.50, 0.35, 0.20; A-coefficients: "
         "0.55, 0.50), flat, opacity-heavy, and structure-heavy\" (values given for baseline only)")
-L384 = ("L384: \"(ii) pruning without descriptors but with Beta modelling\" (the statistics without "
-        "descriptors are not defined)")
+L384 = ("L384: \"(ii) pruning without descriptors but with Beta modelling\"; descriptors add \"local structural "
+        "context beyond individual splat parameters\" (L384), decisions use \"descriptor-level statistics rather "
+        "than raw Gaussian parameters\" (L313): without descriptors, the statistics come from the splat's own "
+        "parameters (position, covariance, opacity, SH, L164)")
 
 #: named bundles of reading choices (``reading`` parameter); ``default`` = the field defaults
 READINGS: dict[str, dict[str, Any]] = {
@@ -65,21 +87,33 @@ READINGS: dict[str, dict[str, Any]] = {
     "paper-literal": {
         "o_norm": "minmax", "stat_norm": "minmax", "u_def": "std-hsfh", "ell_def": "dims-std",
         "s_def": "dims-var", "w_mode": "sum", "kernel": "gauss", "prior": 1.0, "coeff_order": "eq4",
-        "nodesc_def": "opacity-only", "preset": "baseline", "score": "ucb",
+        "nodesc_def": "splat-params", "preset": "baseline", "score": "ucb", "voxel": 0.01,
+    },
+    "paper-direction": {
+        "o_norm": "minmax", "stat_norm": "minmax", "u_def": "spread-hsfh", "ell_def": "dims-peak",
+        "s_def": "dims-peak", "w_mode": "sum", "kernel": "gauss", "prior": 1.0, "coeff_order": "eq4",
+        "nodesc_def": "splat-params", "preset": "baseline", "score": "ucb", "voxel": 0.01,
+    },
+    "round-one": {
+        "o_norm": "minmax", "stat_norm": "minmax", "u_def": "std-hsfh", "ell_def": "nbhd-std",
+        "s_def": "dims-var", "w_mode": "sum", "kernel": "gauss", "prior": 1.0, "coeff_order": "eq4",
+        "nodesc_def": "opacity-only", "preset": "baseline", "score": "ucb", "voxel": 0.01,
     },
     "v1": {
         "o_norm": "sigmoid", "stat_norm": "robust", "u_def": "dispersion", "ell_def": "nbhd-std",
         "s_def": "nbhd-var", "w_mode": "clip-sum", "kernel": "gauss", "prior": 1.0, "coeff_order": "eq4",
-        "nodesc_def": "param-stats", "preset": "baseline", "score": "ucb",
+        "nodesc_def": "param-stats", "preset": "baseline", "score": "ucb", "voxel": 0.01,
     },
 }
 
 
 @dataclass(frozen=True)
 class StatisticsParams(Params):
-    reading: Literal["default", "paper-literal", "v1"] = param(
+    reading: Literal["default", "paper-literal", "paper-direction", "round-one", "v1"] = param(
         "default", doc="base bundle of reading choices (default = the rule-selected field defaults; "
-        "paper-literal; v1 = the project's first reading); axes given explicitly override the bundle",
+        "paper-literal; paper-direction = paper-literal with ℓ, s, u oriented as the paper's prose says; "
+        "round-one = the default round one selected, frozen; v1 = the project's first reading); axes "
+        "given explicitly override the bundle",
         reading="the paper leaves the statistics under-specified (L227-249, L313); see methods/betadesc/params.py")
     o_norm: Literal["sigmoid", "minmax", "robust", "rank"] = param(
         "minmax", doc="opacity normalisation over the splats: sigmoid (stored logit → [0,1] only, v1), "
@@ -101,22 +135,31 @@ class StatisticsParams(Params):
 
 @dataclass(frozen=True)
 class DescriptorParams(Params):
-    voxel: float = param(0.01, gt=0, le=1, doc="voxel edge as a fraction of the bounding-box diagonal")
+    voxel: float = param(0.2, gt=0, le=1, doc="voxel edge as a fraction of the bounding-box diagonal (default 0.2: "
+                         "round two's selection, one of the sensitivity values of L470 and outside the 1–2 % the "
+                         "implementation details give, L314; paper-literal uses 0.01)")
     radius_voxels: float = param(5.0, gt=0, doc="FPFH neighbourhood radius, in voxels")
     max_nn: int = param(100, ge=1, doc="most neighbours per FPFH neighbourhood")
     colour_bins: int = param(8, ge=1, le=256, doc="bins per channel of the neighbourhood colour histogram")
-    ell_def: Literal["nbhd-std", "dims-std"] = param(
-        "nbhd-std", doc="raw ℓ before 1 − norm(·): nbhd-std = std of the geometric block over the "
-        "neighbourhood N(j) (v1); dims-std = std across the 33 dimensions of the voxel's own geometric block",
+    ell_def: Literal["nbhd-std", "dims-std", "dims-peak"] = param(
+        "nbhd-std", doc="ℓ: nbhd-std = 1 − norm(std of the geometric block over the neighbourhood N(j)) (v1; "
+        "REVERSES the paper's direction: ρ with geometric homogeneity −0.35/−0.38/−0.34); dims-std = 1 − "
+        "norm(std across the 33 dimensions of the voxel's own geometric block) (REVERSES: −0.44/−0.38/−0.42); "
+        "dims-peak = norm(that std), a peaked (planar) FPFH is homogeneous (PRESERVES: +0.44/+0.38/+0.42)",
         reading=L233)
-    s_def: Literal["nbhd-var", "dims-var"] = param(
-        "dims-var", doc="raw s before 1 − norm(·): nbhd-var = colour-histogram dispersion + band-power "
-        "variance over N(j) (v1); dims-var = variance across the appearance components [P_ℓ block | colour "
-        "histogram] of the voxel's HSFH", reading=L236)
-    u_def: Literal["dispersion", "std-geo", "std-hsfh"] = param(
-        "std-hsfh", doc="raw u before norm(·): dispersion = mean over angles of (1 − Σp²)/(10/11) (v1; "
-        "a decreasing affine function of std-geo); std-geo = std across the 33 geometric dimensions; "
-        "std-hsfh = std across the whole HSFH vector [g | P_ℓ | colour], each block summing to 1 per histogram",
+    s_def: Literal["nbhd-var", "dims-var", "dims-peak"] = param(
+        "dims-var", doc="s: nbhd-var = 1 − norm(colour-histogram dispersion + band-power variance over N(j)) "
+        "(v1; PRESERVES the paper's direction: ρ with colour homogeneity +0.93/+0.87/+0.88); dims-var = 1 − "
+        "norm(variance across the appearance components [P_ℓ block | colour histogram] of the voxel's HSFH) "
+        "(REVERSES: −0.93/−0.83/−0.88); dims-peak = norm(that variance), a peaked colour histogram is "
+        "homogeneous (PRESERVES: +0.93/+0.83/+0.88)", reading=L236)
+    u_def: Literal["dispersion", "std-geo", "std-hsfh", "spread-hsfh"] = param(
+        "std-hsfh", doc="u (paper: higher = structurally distinctive = less homogeneous): dispersion = "
+        "norm(mean over angles of (1 − Σp²)/(10/11)) (v1; a decreasing affine function of std-geo; PRESERVES: "
+        "ρ with geometric homogeneity −0.44/−0.38/−0.42); std-geo = norm(std across the 33 geometric "
+        "dimensions) (REVERSES: +0.44/+0.38/+0.42); std-hsfh = norm(std across the whole HSFH vector "
+        "[g | P_ℓ | colour], each block summing to 1 per histogram) (REVERSES: +0.37/+0.01/+0.55; normal "
+        "coherence +0.60/+0.49/+0.40); spread-hsfh = 1 − norm(that std) (PRESERVES: −0.37/−0.01/−0.55)",
         reading=L240)
     kernel: Literal["gauss", "trilinear", "nearest"] = param(
         "gauss", doc="voxel → splat interpolation over the 2×2×2 stencil of occupied cells: gauss = "
@@ -130,11 +173,12 @@ class DescriptorParams(Params):
 
 @dataclass(frozen=True)
 class NoDescStatisticsParams(Params):
-    nodesc_def: Literal["opacity-only", "param-stats"] = param(
-        "opacity-only", doc="statistics without descriptors: opacity-only = the s, ℓ, u terms are dropped "
-        "(no information the full method lacks; the ranking is then monotone in opacity), param-stats = "
-        "per-splat proxies from scale anisotropy and colour variance (v1; information the full method lacks)",
-        reading=L384)
+    nodesc_def: Literal["splat-params", "param-stats", "opacity-only"] = param(
+        "splat-params", doc="statistics without descriptors, from each splat's own parameters "
+        "(methods/betadesc/nodesc.py; w = 1): splat-params = ℓ from the scale anisotropy, s from the "
+        "colour/SH dispersion, u from the extent (size); param-stats = the same with u from the anisotropy "
+        "(v1); opacity-only = the s, ℓ, u terms dropped: monotone in opacity, the `opacity` baseline's "
+        "twin (the default from 185f6c2 to issue 21)", reading=L384)
 
 
 @dataclass(frozen=True)

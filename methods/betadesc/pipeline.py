@@ -8,10 +8,10 @@ Stages (timed when a caller wraps the run in :func:`harness.core.timing.record_s
 Every reading choice comes from ``params`` (:mod:`methods.betadesc.params`); the ablations read the
 same attributes, so they share the full method's reading of everything they keep:
 
-* without descriptors, ``nodesc_def="opacity-only"`` drops the s, ℓ, u terms of Eq. 4 (w = 1); its
-  ranking is then a monotone function of opacity alone. ``"param-stats"`` (v1) uses per-splat
-  proxies (:func:`methods.betadesc.statistics.splat_statistics`) instead — information the full
-  method does not have;
+* without descriptors, s, ℓ, u come from each splat's own parameters (w = 1;
+  :mod:`methods.betadesc.nodesc`: ``nodesc_def`` ``splat-params`` or ``param-stats``);
+  ``"opacity-only"`` drops the s, ℓ, u terms of Eq. 4, so its ranking is a monotone function of
+  opacity alone (the ``opacity`` baseline's twin);
 * without Beta, the score is the net evidence A − B of the same (A, B) (the prior cancels).
 """
 
@@ -27,12 +27,9 @@ from methods.betadesc import evidence as ev
 from methods.betadesc.grid import build_grid
 from methods.betadesc.hsfh import compute_hsfh
 from methods.betadesc.interpolate import interpolate_to_splats
+from methods.betadesc.nodesc import splat_statistics
 from methods.betadesc.scores import beta_score
-from methods.betadesc.statistics import (
-    opacity_statistic,
-    splat_statistics,
-    voxel_statistics,
-)
+from methods.betadesc.statistics import opacity_statistic, voxel_statistics
 
 
 @dataclass(frozen=True)
@@ -53,7 +50,7 @@ class Components:
 
 
 def _nodesc_opacity_only(params) -> bool:
-    return getattr(params, "nodesc_def", "param-stats") == "opacity-only"
+    return params.nodesc_def == "opacity-only"
 
 
 def statistics(scene: GaussianScene, params, descriptors: bool) -> tuple[np.ndarray, ...]:
@@ -66,7 +63,7 @@ def statistics(scene: GaussianScene, params, descriptors: bool) -> tuple[np.ndar
             if _nodesc_opacity_only(params):
                 ell = s = u = np.zeros(n)
             else:
-                ell, s, u = splat_statistics(scene, params.stat_norm).T
+                ell, s, u = splat_statistics(scene, params.nodesc_def, params.stat_norm).T
         return s, ell, o, u, np.ones(n), np.full(n, -1, dtype=np.int64)
     with stage("voxels"):
         grid = build_grid(scene.means, params.voxel)

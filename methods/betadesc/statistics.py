@@ -14,35 +14,41 @@ Descriptor statistics, per voxel j (notation of :mod:`methods.betadesc.hsfh`: g_
 geometric block, each angle histogram summing to 1 (all 0 when FPFH is undefined); f̄_j the band
 powers; h_j the colour histograms):
 
-* ``ℓ`` low geometric contrast = 1 − norm(raw ℓ) [``ell_def``]:
-  ``nbhd-std`` (v1) σ_g with σ_g² = ⅓ mean_{k∈N(j)} ‖g_k − ḡ_j‖², the spread of the geometric block
-  over the neighbourhood: a neighbourhood whose FPFH does not change gets ℓ → 1;
-  ``dims-std`` the std of g_j across its 33 dimensions (the literal "standard deviation of the
-  geometric descriptor block"; a peaked, planar histogram has a *high* std, hence a low ℓ).
-* ``s`` appearance consistency = 1 − norm(raw s) [``s_def``]:
-  ``nbhd-var`` (v1) the mean variance of the appearance components over the neighbourhood's splats —
-  for the colour histogram the variance of the bin indicators, 1 − Σ_b h_b² averaged over channels;
-  for SH degree ≥ 1 also 4·mean_ℓ var(f_ℓ), the two averaged;
-  ``dims-var`` the variance across the components [f̄_j | h_j] of the voxel's appearance blocks.
-* ``u`` geometric uniqueness = norm(raw u) [``u_def``]:
-  ``dispersion`` (v1) per angle histogram (1 − Σ_b p_b²)/(1 − 1/11), averaged over the three (0 if
+Each reading is a raw quantity and an orientation: ``inverse`` maps it to 1 − norm(raw),
+``direct`` to norm(raw). After each reading: whether it *preserves* or *reverses* the direction the
+paper's words give (ℓ, s rise with neighbourhood homogeneity; u, "structurally distinctive", falls
+with it), with Spearman ρ against homogeneity on luigi / grape-small / bonsai-7k-mini
+(:mod:`methods.betadesc.directions`; all five scenes in ``results/reading/directions.md``).
+
+* ``ℓ`` low geometric contrast [``ell_def``] (against geometric homogeneity H_geo):
+  ``nbhd-std`` (v1) 1 − norm(σ_g), σ_g² = ⅓ mean_{k∈N(j)} ‖g_k − ḡ_j‖², the spread of the geometric
+  block over the neighbourhood — reverses (ρ −0.35 / −0.38 / −0.34: peaked FPFH histograms of flat
+  regions change more from voxel to voxel than spread ones);
+  ``dims-std`` 1 − norm(std of g_j across its 33 dimensions) (the literal "standard deviation of the
+  geometric descriptor block") — reverses (−0.44 / −0.38 / −0.42: a planar histogram is peaked,
+  its std high, its ℓ low);
+  ``dims-peak`` norm(the same std) — preserves (+0.44 / +0.38 / +0.42).
+* ``s`` appearance consistency [``s_def``] (against colour homogeneity H_app):
+  ``nbhd-var`` (v1) 1 − norm(the mean variance of the appearance components over the neighbourhood's
+  splats — for the colour histogram the variance of the bin indicators, 1 − Σ_b h_b² averaged over
+  channels; for SH degree ≥ 1 also 4·mean_ℓ var(f_ℓ), the two averaged) — preserves (+0.93 / +0.87 / +0.88);
+  ``dims-var`` 1 − norm(the variance across the components [f̄_j | h_j] of the voxel's appearance
+  blocks) (the literal "inverse normalized variance of appearance-related descriptor components")
+  — reverses (−0.93 / −0.83 / −0.88: one colour fills one bin, a peaked histogram has a high variance);
+  ``dims-peak`` norm(the same variance) — preserves (+0.93 / +0.83 / +0.88).
+* ``u`` geometric uniqueness [``u_def``] (against H_geo; the paper: higher = distinctive):
+  ``dispersion`` (v1) norm(per angle histogram (1 − Σ_b p_b²)/(1 − 1/11), averaged over the three; 0 if
   FPFH is empty). Since std² across the 11 bins of a unit-sum histogram = (Σp² − 1/11)/11, this is a
-  decreasing affine function of the literal std: v1 ranks by the *opposite* of the text;
-  ``std-geo`` the std across the 33 geometric dimensions ("variability of descriptor components
-  across dimensions", read on the geometric block the name "geometry uniqueness" points at);
-  ``std-hsfh`` the std across the whole HSFH vector [g | f̄ | h] (the text's subject, "descriptor
-  components"; every histogram block sums to 1, so the block scale is the paper's "normalized").
+  decreasing affine function of the literal std — preserves (−0.44 / −0.38 / −0.42);
+  ``std-geo`` norm(std across the 33 geometric dimensions) ("variability of descriptor components
+  across dimensions", read on the geometric block the name "geometry uniqueness" points at) —
+  reverses (+0.44 / +0.38 / +0.42);
+  ``std-hsfh`` norm(std across the whole HSFH vector [g | f̄ | h]) (the text's subject, "descriptor
+  components"; every histogram block sums to 1, so the block scale is the paper's "normalized") —
+  reverses (+0.37 / +0.01 / +0.55; against normal coherence +0.60 / +0.49 / +0.40);
+  ``spread-hsfh`` 1 − norm(the same std) — preserves (−0.37 / −0.01 / −0.55).
 
-No-descriptor variant [``nodesc_def``]: ``opacity-only`` drops the s, ℓ, u terms (see
-:mod:`methods.betadesc.pipeline`); ``param-stats`` (v1) per splat, from its own parameters (w = 1):
-
-* ``u = norm(std_k log s_k)``: the splat's shape anisotropy;
-* ``ℓ = 1 − u``: without a neighbourhood the only geometric contrast is the splat's own shape;
-* ``s = 1 − norm(var_rgb(base colour) + (1 − f₀))``: grey, view-independent splats are consistent.
-
-These use information the full method does not have (scale anisotropy, base-colour variance), which
-is why ``opacity-only`` is the default ablation. Size is deliberately not used. Every quantity is
-invariant to translation, and to scaling up to float rounding.
+The no-descriptor ablation's per-splat statistics [``nodesc_def``] are in :mod:`methods.betadesc.nodesc`.
 """
 
 from __future__ import annotations
@@ -50,8 +56,8 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
-from harness.core.scene import SH_C0, GaussianScene, opacities
-from methods.betadesc.hsfh import BINS_PER_ANGLE, HSFH, band_fractions
+from harness.core.scene import GaussianScene, opacities
+from methods.betadesc.hsfh import BINS_PER_ANGLE, HSFH
 
 
 def robust_unit(x: np.ndarray, lo_pct: float = 5.0, hi_pct: float = 95.0) -> np.ndarray:
@@ -131,46 +137,67 @@ def appearance_block(desc: HSFH) -> np.ndarray:
     return np.concatenate([desc.spectrum, desc.colour.reshape(len(desc.colour), -1)], axis=1)
 
 
+def _dims_var_appearance(desc: HSFH) -> np.ndarray:
+    return dims_std(appearance_block(desc)) ** 2
+
+
+#: reading -> (raw statistic per voxel, orientation): "inverse" maps raw x to 1 − norm(x), "direct"
+#: to norm(x); the docstring of each reading's parameter (params.py) says which way it points
+def _dims_std_geometric(desc: HSFH) -> np.ndarray:
+    return dims_std(desc.geometric)
+
+
+def _dims_std_hsfh(desc: HSFH) -> np.ndarray:
+    return dims_std(desc.descriptor())
+
+
+def _spread_geometric(desc: HSFH) -> np.ndarray:
+    return geometric_spread(desc.geometric)
+
+
+ELL_READINGS = {"nbhd-std": (geometric_contrast, "inverse"),
+                "dims-std": (_dims_std_geometric, "inverse"),
+                "dims-peak": (_dims_std_geometric, "direct")}
+S_READINGS = {"nbhd-var": (appearance_dispersion, "inverse"),
+              "dims-var": (_dims_var_appearance, "inverse"),
+              "dims-peak": (_dims_var_appearance, "direct")}
+U_READINGS = {"dispersion": (_spread_geometric, "direct"),
+              "std-geo": (_dims_std_geometric, "direct"),
+              "std-hsfh": (_dims_std_hsfh, "direct"),
+              "spread-hsfh": (_dims_std_hsfh, "inverse")}
+_READINGS = {"ell": ("ell_def", ELL_READINGS), "s": ("s_def", S_READINGS), "u": ("u_def", U_READINGS)}
+
+
+def _raw(stat: str, desc: HSFH, how: str) -> np.ndarray:
+    name, table = _READINGS[stat]
+    if how not in table:
+        raise ValueError(f"unknown {name} {how!r}; known: {', '.join(table)}")
+    return table[how][0](desc)
+
+
 def raw_ell(desc: HSFH, how: str) -> np.ndarray:
-    if how == "nbhd-std":
-        return geometric_contrast(desc)
-    if how == "dims-std":
-        return dims_std(desc.geometric)
-    raise ValueError(f"unknown ell_def {how!r}")
+    """ℓ before its orientation and normalisation, per voxel (``ell_def`` = ``how``)."""
+    return _raw("ell", desc, how)
 
 
 def raw_s(desc: HSFH, how: str) -> np.ndarray:
-    if how == "nbhd-var":
-        return appearance_dispersion(desc)
-    if how == "dims-var":
-        return dims_std(appearance_block(desc)) ** 2
-    raise ValueError(f"unknown s_def {how!r}")
+    """s before its orientation and normalisation, per voxel (``s_def`` = ``how``)."""
+    return _raw("s", desc, how)
 
 
 def raw_u(desc: HSFH, how: str) -> np.ndarray:
-    if how == "dispersion":
-        return geometric_spread(desc.geometric)
-    if how == "std-geo":
-        return dims_std(desc.geometric)
-    if how == "std-hsfh":
-        return dims_std(desc.descriptor())
-    raise ValueError(f"unknown u_def {how!r}")
+    """u before its orientation and normalisation, per voxel (``u_def`` = ``how``)."""
+    return _raw("u", desc, how)
+
+
+def voxel_statistic(desc: HSFH, stat: str, reading: str, norm: str = "robust") -> np.ndarray:
+    """One statistic (``ell``, ``s`` or ``u``) per voxel in [0, 1] under ``reading``."""
+    x = normalise(_raw(stat, desc, reading), norm)
+    return 1.0 - x if _READINGS[stat][1][reading][1] == "inverse" else x
 
 
 def voxel_statistics(desc: HSFH, *, ell_def: str = "nbhd-std", s_def: str = "nbhd-var",
                      u_def: str = "dispersion", norm: str = "robust") -> np.ndarray:
     """(M, 3) columns ℓ, s, u per voxel, each in [0, 1] (defaults: the v1 reading)."""
-    ell = 1.0 - normalise(raw_ell(desc, ell_def), norm)
-    s = 1.0 - normalise(raw_s(desc, s_def), norm)
-    u = normalise(raw_u(desc, u_def), norm)
-    return np.stack([ell, s, u], axis=1)
-
-
-def splat_statistics(scene: GaussianScene, norm: str = "robust") -> np.ndarray:
-    """(N, 3) columns ℓ, s, u per splat for the ``param-stats`` no-descriptor variant (module doc)."""
-    log_s = scene.scales_log.astype(np.float64)
-    u = normalise(log_s.std(axis=1), norm)
-    colour = np.clip(0.5 + SH_C0 * scene.sh_dc.astype(np.float64), 0.0, 1.0)
-    view_share = 1.0 - band_fractions(scene)[:, 0] if scene.sh_degree > 0 else 0.0
-    s = 1.0 - normalise(colour.var(axis=1) + view_share, norm)
-    return np.stack([1.0 - u, s, u], axis=1)
+    return np.stack([voxel_statistic(desc, "ell", ell_def, norm), voxel_statistic(desc, "s", s_def, norm),
+                     voxel_statistic(desc, "u", u_def, norm)], axis=1)
