@@ -10,6 +10,7 @@ import sys
 import numpy as np
 import pytest
 
+from harness.core.errors import InputError
 from harness.io.files import atomic_write_with
 from harness.run.cache import (
     FileDigests,
@@ -103,7 +104,7 @@ def test_atomic_write_leaves_nothing_on_failure(tmp_path):
         p.write_bytes(b"partial")
         raise OSError("disk full")
 
-    with pytest.raises(OSError):
+    with pytest.raises(InputError, match="out.parquet: cannot write: disk full"):  # the path given, not the temp
         atomic_write_with(target, failing)
     assert list(tmp_path.iterdir()) == []
     atomic_write_with(target, lambda p: p.write_bytes(b"done"))

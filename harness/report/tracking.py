@@ -262,7 +262,7 @@ def load_baseline(path: str | Path) -> dict:
     from harness.io.safe import read_json
 
     path = Path(path)
-    data = read_json(path, "json", "baseline")
+    data = read_json(path, "json", "baseline", record=False)  # state that --update-baseline rewrites
     if not isinstance(data, dict) or not isinstance(data.get("summary"), dict) \
             or not isinstance(data["summary"].get("groups"), dict) or "calibration_s" not in data["summary"]:
         raise InputError(path, "not a tracking baseline (expected {'tolerances': ..., 'summary': {...}} as "
@@ -307,13 +307,13 @@ def write_baseline(path: str | Path, summary: dict, tolerances: dict | None = No
 
 def append_history(history_dir: str | Path, summary: dict) -> Path:
     """Append ``summary`` as one JSON line to ``<history_dir>/history.jsonl``."""
+    from harness.io.files import append_line
+
     d = Path(history_dir)
     path = d / "history.jsonl"
     line = json.dumps(summary, sort_keys=True, allow_nan=False) + "\n"
     try:
         d.mkdir(parents=True, exist_ok=True)
-        with open(path, "a", encoding="utf-8") as fh:  # one write of one line: readers see whole lines
-            fh.write(line)
     except OSError as err:
         raise InputError(path, f"cannot append to the history: {err.strerror or err}") from None
-    return path
+    return append_line(path, line)  # one write of one line (readers see whole lines); no FIFO, no symlink

@@ -244,7 +244,7 @@ def _scene_items(spec, frames, config, cache, toolkit, versions, base) -> list[S
     items, views, shifted = [], None, None
     for frame, path in frames:
         t0 = time.perf_counter()
-        digest = digest_json({"file": cache.files.digest(path), "lod": spec.lod})
+        digest = digest_json({"file": cache.files.scene(path), "lod": spec.lod})
         scene = _LazyScene(toolkit, str(path), spec.lod)
         key = cache.key("load", scene=digest, code=versions.reader)
         info = cache.get_json("load", key, check=load_check())

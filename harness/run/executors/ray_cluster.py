@@ -59,17 +59,24 @@ def _ray_load_scene(setup, toolkit, path, lod):
     return toolkit.load_scene(path, lod)
 
 
-def _ray_probe(location: str, rel: str) -> tuple[str, bytes | None]:
-    """What the cache location holds at ``rel`` as seen from the node this runs on."""
+def _ray_probe(location: str, rel: str) -> tuple[str, bytes | None, str | None]:
+    """(host, payload, problem) of the sealed probe at ``rel`` as this node sees it: unreadable,
+    absent, or failing this node's checksum / cache key (``HARNESS_CACHE_KEY`` unset or different)."""
     import socket
 
-    from harness.run.cache import open_store
+    from harness.run.cache_entries import Sealer, cache_secret
+    from harness.run.cache_stores import open_store
 
+    host = socket.gethostname()
     try:
         store, _ = open_store(location)
-        return socket.gethostname(), store.read(rel)
+        data = store.read(rel)
     except Exception as err:  # an unreachable location: report what the node saw
-        return socket.gethostname(), f"{type(err).__name__}: {err}".encode()
+        return host, None, f"{type(err).__name__}: {err}"
+    if data is None:
+        return host, None, "nothing there"
+    payload, problem = Sealer(cache_secret()).open_envelope(rel, data)
+    return host, payload, problem
 
 
 @dataclass
@@ -189,7 +196,8 @@ class RayExecutor(Executor):
         import uuid
 
         from harness.core.errors import InputError
-        from harness.run.cache import open_store
+        from harness.run.cache_entries import Sealer, cache_secret
+        from harness.run.cache_stores import open_store
 
         ray = self._ray
         from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
@@ -197,19 +205,19 @@ class RayExecutor(Executor):
         store, _ = open_store(location)
         rel = f".probe/{uuid.uuid4().hex}"
         token = uuid.uuid4().hex.encode()
-        store.write(rel, token)
+        store.write(rel, Sealer(cache_secret()).envelope(rel, token))
         try:
             probe = ray.remote(_ray_probe)
             nodes = [n for n in ray.nodes() if n.get("Alive") and n.get("Resources", {}).get("CPU", 0) > 0]
             refs = [probe.options(num_cpus=0, max_retries=1, name="probe-cache", scheduling_strategy=
                                   NodeAffinitySchedulingStrategy(n["NodeID"], soft=False)).remote(location, rel)
                     for n in nodes]
-            for n, (host, seen) in zip(nodes, ray.get(refs, timeout=300)):
+            for n, (host, seen, problem) in zip(nodes, ray.get(refs, timeout=300)):
                 if seen != token:
-                    raise InputError(location, f"the stage cache is not reachable from Ray node {host} "
-                                               f"({n.get('NodeManagerAddress')}): it read "
-                                               f"{'nothing' if seen is None else seen[:80]!r} there; give a folder "
-                                               "every node mounts (NFS ...) or an fsspec URL (s3://bucket/prefix)")
+                    raise InputError(location, f"the stage cache is not usable from Ray node {host} "
+                                               f"({n.get('NodeManagerAddress')}): {problem or 'it read another probe'}; "
+                                               "give a folder every node mounts (NFS ...) or an fsspec URL "
+                                               "(s3://bucket/prefix), and the same HARNESS_CACHE_KEY on every node")
         finally:
             store.delete(rel)
 
