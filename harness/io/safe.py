@@ -154,8 +154,8 @@ def open_regular(path: str | Path, kind: str = "json", what: str = "file", recor
 def read_bytes(path: str | Path, kind: str = "json", what: str = "file", record: bool = True) -> bytes:
     """All bytes of a checked regular file (at most its cap, read once)."""
     with open_regular(path, kind, what, record) as f:
-        try:
-            return f.read(limit(kind) + 1)
+        try:  # the size on disk (+1, for a file that grew), never the cap: read(n) allocates n bytes
+            return f.read(min(os.fstat(f.fileno()).st_size, limit(kind)) + 1)
         except OSError as err:
             raise InputError(path, f"cannot read: {err.strerror or err}") from None
 

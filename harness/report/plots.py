@@ -152,7 +152,7 @@ def _first_frame_dir(images: Path, scene: str) -> Path | None:
 def _grid(df: pd.DataFrame, images: Path, columns, title: str, path: Path, caption=None) -> list[Path]:
     """Rows = scenes with at least two images; ``columns`` = [(header, method, variant, ratio)];
     ``caption(scene, column)`` -> text under an image (or "")."""
-    from PIL import Image
+    from harness.io.safe import open_image
 
     plt = _plt()
     scenes = [(label, name) for name, label in dict.fromkeys(zip(df["scene"], df["label"]))]
@@ -173,7 +173,7 @@ def _grid(df: pd.DataFrame, images: Path, columns, title: str, path: Path, capti
             ax.set_xticks([])
             ax.set_yticks([])
             if f.exists():
-                ax.imshow(np.asarray(Image.open(f).convert("RGB")))
+                ax.imshow(np.asarray(open_image(f, "run image")))  # bounded read (harness.io.safe)
             else:
                 ax.text(0.5, 0.5, "not run", ha="center", va="center", transform=ax.transAxes)
             if i == 0:
