@@ -255,6 +255,10 @@ def _scene_items(spec, frames, config, cache, toolkit, versions, base) -> list[S
             size = ply_size_model(s)
             info = {"n_splats": len(s), "sh_degree": int(s.sh_degree), "ply_base": size.base, "ply_row": size.row}
             cache.put_json("load", key, info)
+        if not info["n_splats"]:  # an error of this scene (exit 1), not of the run
+            from harness.core.errors import InputError
+
+            raise InputError(path, "holds no splats: there is nothing to prune or render")
         if views is None:  # the first frame's views serve the whole sequence
             views = scene_views(spec, scene, path, config.protocol, cache, toolkit, versions, digest, base)
         rig, train, test = views

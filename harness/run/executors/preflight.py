@@ -19,6 +19,8 @@ from harness.core.errors import InputError
 
 #: how long a Ray cluster address may take to accept a connection
 CONNECT_TIMEOUT_S = 10.0
+#: where Ray records the GCS address of the cluster started on this machine (``address="auto"``)
+CURRENT_CLUSTER = "/tmp/ray/ray_current_cluster"
 
 
 def preflight(spec, workers: int, cache: str | None, *, timeout: float = CONNECT_TIMEOUT_S) -> None:
@@ -53,10 +55,15 @@ def check_ray_address(address: str, timeout: float = CONNECT_TIMEOUT_S) -> None:
     if address == "auto":
         if os.environ.get("RAY_ADDRESS"):
             return check_ray_address(os.environ["RAY_ADDRESS"], timeout)
-        if not os.path.exists("/tmp/ray/ray_current_cluster"):
+        try:  # the GCS address Ray writes when a cluster starts on this machine (stale once it stops)
+            with open(CURRENT_CLUSTER, encoding="utf-8") as f:
+                known = f.readline(256).strip()
+        except OSError:
+            known = ""
+        if not known:
             raise InputError("--address", "auto: no Ray cluster is running on this machine (start one with "
                                           "`ray start --head`, or give HOST:PORT)")
-        return None
+        return check_ray_address(known, timeout)
     text = address[len("ray://"):] if address.startswith("ray://") else address
     host, port = _host_port(text, 10001 if address.startswith("ray://") else 6379)
     try:

@@ -159,10 +159,18 @@ class RayExecutor(Executor):
                 # AF_UNIX socket paths (<temp>/session_<date>_<pid>/sockets/plasma_store) must stay
                 # under 108 bytes: a short folder of our own, removed at close
                 self._temp_dir = tempfile.mkdtemp(prefix="ray-", dir="/tmp")
-                ray.init(address="local", num_cpus=self.workers * self.threads, include_dashboard=False,
-                         _temp_dir=self._temp_dir, **kw)
+                kw.update(address="local", num_cpus=self.workers * self.threads, include_dashboard=False,
+                          _temp_dir=self._temp_dir)
             else:
-                ray.init(address=self.address, **kw)
+                kw.update(address=self.address)
+            try:
+                ray.init(**kw)
+            except Exception as err:  # noqa: BLE001 - ConnectionError, RuntimeError, TimeoutError ...
+                from harness.core.errors import InputError
+
+                raise InputError("--executor ray", f"Ray could not {'start' if self.address is None else 'join'} "
+                                                   f"the cluster: {type(err).__name__}: "
+                                                   f"{' '.join(str(err).split())[:200]}") from None
             self._owns = True
             self._ray = ray
             from harness.core.lifecycle import install_signal_handlers
@@ -347,6 +355,12 @@ class RayExecutor(Executor):
             return job.task.failed(f"{what}: {type(cause).__name__}: {first[-1] if first else ''}")
         except TaskCancelledError:
             return job.task.failed(f"{what}: cancelled")
+        except ray.exceptions.LocalRayletDiedError:  # no task can run any more: stop the run, say why
+            from harness.core.errors import InputError
+
+            raise InputError("--executor ray", "the Ray cluster stopped during the run: the raylet of this node "
+                                               "died (killed, out of memory, or its runtime-env agent died); what "
+                                               "was computed is in the stage cache, a rerun resumes there") from None
         except ray.exceptions.RayError as err:  # the worker (or its node) died on every attempt
             first = _ANSI.sub("", str(err)).strip().splitlines()
             return job.task.failed(f"{what}: the worker died {self.max_retries + 1} times running it (killed, out "
