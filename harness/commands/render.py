@@ -167,9 +167,11 @@ def run(args) -> int:
         renderer = get_renderer(args.backend, args.device)
     except Exception as err:  # noqa: BLE001  no EGL/CUDA here (moderngl, torch errors): usage, not a crash
         raise InputError(f"--backend {args.backend}", f"cannot start the renderer: {err}") from None
-    from harness.io.files import make_output_folder
+    from harness.io.files import make_output_folder, refuse_inputs
 
     make_output_folder(out)  # created, writable (not /proc, not read-only), stale temp files swept
+    refuse_inputs(*(out / n for n in ("cameras.json", "coverage.json", "contact_sheet.png")),  # before any write
+                  *(out / f"{i:03d}_{_safe(c.name)}.{args.format}" for i, c in enumerate(cams)))
     images, labels = [], []
     try:
         for i, cam in enumerate(cams):

@@ -353,10 +353,19 @@ def image_size(path: str | Path, what: str = "image") -> tuple[int, int]:
         try:
             with Image.open(f) as im:
                 w, h = im.size
-        except (UnidentifiedImageError, OSError, SyntaxError, ValueError, Image.DecompressionBombError) as err:
+        except Image.DecompressionBombError as err:
+            raise InputError(path, _bomb(err)) from None
+        except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as err:
             raise InputError(path, f"not a readable image: {' '.join(str(err).split())[:160]}") from None
     _check_pixels(path, w, h, None)
     return w, h
+
+
+def _bomb(err) -> str:
+    """Pillow refused a header before we could read its size: it claims even more than its own limit."""
+    from harness.core.cameras import MAX_SIDE
+
+    return f"image is larger than the maximum ({MAX_SIDE} per side): {' '.join(str(err).split())[:120]}"
 
 
 def _check_pixels(path, w: int, h: int, max_pixels: int | None) -> None:
@@ -381,5 +390,7 @@ def open_image(path: str | Path, what: str = "image", mode: str | None = "RGB", 
             _check_pixels(path, *im.size, None)
             im.load()
             return im.convert(mode) if mode and im.mode != mode else im.copy()
-    except (UnidentifiedImageError, OSError, SyntaxError, ValueError, Image.DecompressionBombError) as err:
+    except Image.DecompressionBombError as err:
+        raise InputError(path, _bomb(err)) from None
+    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as err:
         raise InputError(path, f"not a readable image: {' '.join(str(err).split())[:160]}") from None
