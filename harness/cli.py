@@ -115,7 +115,13 @@ def _run(args, debug: bool) -> int:
             pass
         return 0
     except MemoryError:
-        print("harness: out of memory (input too large for this machine?)", file=sys.stderr)
+        if debug:
+            traceback.print_exc()
+        from harness.io.safe import last_input
+
+        where = last_input()
+        print(f"harness: {args.command}: out of memory" + (f" (last input read: {where})" if where else "")
+              + "; the input may be too large for this machine", file=sys.stderr)
         return InputError.exit_status
     except OSError as err:  # disk full, read-only, vanished folder: one line, not a traceback
         if debug:

@@ -73,7 +73,7 @@ class LocalStore:
             if st.st_size > cap:
                 raise BadEntry(f"is {st.st_size:,} bytes, more than the {cap:,}-byte limit of an entry")
             with os.fdopen(os.dup(fd), "rb") as f:
-                return f.read(cap + 1)
+                return f.read(st.st_size + 1)  # never read(cap): read(n) allocates n bytes
         except OSError as err:
             raise BadEntry(f"cannot read: {err.strerror or err}") from None
         finally:
