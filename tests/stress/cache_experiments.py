@@ -150,7 +150,10 @@ def _score_entry(cache: Path) -> Path:
 
 
 def _metric_entry(cache: Path) -> Path:
-    return _entries(cache, "metrics", "json")[0]
+    """The first metrics entry with a finite PSNR (an edit of +inf would leave its bytes unchanged)."""
+    import math
+
+    return next(p for p in _entries(cache, "metrics", "json") if math.isfinite(json.loads(_payload(p)[1])["psnr"]))
 
 
 def _ten_scores(cache: Path) -> None:
@@ -314,7 +317,9 @@ def _copy_scene(base_scene: Path, d: Path) -> Path:
 def _outcome(eid, opts, r, d: Path, base: Path, root: Path, scene: Path) -> str:
     if r.returncode is None:
         return f"hang (killed after {opts.get('timeout', 300)} s)"
-    last = (r.stderr.strip().splitlines() or [""])[-1][:110]
+    lines = r.stderr.strip().splitlines() or [""]
+    said = [ln for ln in (r.stderr + "\n" + r.stdout).splitlines() if ln.startswith(("harness:", "error:"))]
+    last = (said[0] if said else lines[-1])[:110]  # the run's own words, else its last line
     if opts.get("compare") == "refused":
         made = (d / "out").exists()
         return f"exit {r.returncode}: {last}" + (" (output folder created)" if made else " (nothing created)")

@@ -13,8 +13,14 @@ Outcomes:
   (inputs unchanged, nothing written, no temporary files left) hold;
 * ``ok``: for the cases where the right answer is success (exit 0 and the checks hold, e.g. valid
   JSON on stdout);
+* ``scene error``: for a run where one scene must fail and the rest finish (exit 1, results written);
 * otherwise what happened: ``hang``, ``traceback``, ``memory``, ``accepted (exit 0)``,
-  ``input changed``, ``wrote output``, ``tmp left``, ``exit N`` ...
+  ``input changed``, ``wrote output``, ``tmp left``, ``names a temp file``, a failed extra check
+  (``mode 600 (want 644)`` ...), ``exit N`` ...; ``skipped: why`` where a case cannot be set up on
+  this machine (``mount --bind`` without the right to mount).
+
+Issue 15's families are below; issue 24's (aliases of inputs, cache locations, bounded reads,
+limits, one-line failures, named scenes, escaping) are in :mod:`tests.stress.cases_issue24`.
 
 Each case says which outcome it must have (``want``); :func:`run_case` is also what
 ``tests/test_safety_cases.py`` runs, one test per case.
@@ -58,6 +64,7 @@ class Setup:
     check: Callable[[], "str | None"] | None = None      # an extra check after the run: a problem or None
     cleanup: list = field(default_factory=list)          # callables run after the case (umount ...)
     umask: int | None = None                             # the child's umask
+    timeout: float = TIMEOUT_S                           # wall-clock limit (a hang past it)
     skip: str | None = None                              # the case cannot be set up here (why)
 
 
@@ -832,7 +839,7 @@ def run_case(c: Case, root: Path = ROOT, work: Path | None = None) -> dict:
                                 stderr=subprocess.PIPE, stdin=subprocess.DEVNULL,
                                 preexec_fn=_limits(s.fsize, s.mem_limit, s.umask))
         try:
-            out, err = proc.communicate(timeout=TIMEOUT_S)
+            out, err = proc.communicate(timeout=s.timeout)
             rc = proc.returncode
         except subprocess.TimeoutExpired:
             os.killpg(proc.pid, signal.SIGKILL)
