@@ -11,6 +11,10 @@ its own; a builder that needs the command's arguments to decide its options (``p
 flags of the chosen ``--method``) takes them as a second parameter, ``add_arguments(parser, argv)``.
 Unknown options, commands and choices get a "did you mean" (:class:`Parser`). Bad input anywhere
 raises :class:`harness.core.errors.InputError`, printed here as one line on stderr with exit status 2.
+Any other exception that reaches :func:`main` is also one line with exit status 2 — the command,
+the input it read last, the exception type and message — and its traceback is printed only with
+``--debug`` (anywhere on the command line) or ``HARNESS_DEBUG=1``. While a command runs, the files it
+reads are recorded (:func:`harness.io.safe.recording_inputs`) so that no output replaces one.
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ import inspect
 import os
 import pkgutil
 import sys
+import traceback
 
 from harness import __version__
 from harness.commands import help_text
@@ -93,6 +98,8 @@ def build_parser() -> argparse.ArgumentParser:
         description="Camera-agnostic 3DGS pruning (BetaDescPrune) and its MPEG-CTC-style evaluation harness.",
     )
     parser.add_argument("--version", action="version", version=f"harness {__version__}")
+    parser.add_argument("--debug", action="store_true",
+                        help="print the traceback of an unexpected error (also accepted after the command)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for mod in _command_modules():
         _fill(sub.add_parser(mod.NAME, help=help_text(mod.HELP), description=help_text(mod.HELP)), mod)
@@ -116,14 +123,42 @@ def _os_error_line(err: OSError) -> str:
     return f"{where}: {err.strerror or err}"
 
 
-def main(argv: list[str] | None = None) -> int:
-    from harness.core.lifecycle import Terminated, install_signal_handlers
+def _debug_flag(argv: list[str]) -> tuple[list[str], bool]:
+    """``argv`` without ``--debug`` (before a ``--``), and whether it was there or HARNESS_DEBUG is set."""
+    end = argv.index("--") if "--" in argv else len(argv)
+    debug = "--debug" in argv[:end]
+    rest = [a for a in argv[:end] if a != "--debug"] + argv[end:]
+    return rest, debug or os.environ.get("HARNESS_DEBUG", "") not in ("", "0")
 
+
+def _unexpected_line(command: str, err: BaseException) -> str:
+    """One line for an exception no command turned into an InputError: the command, the file it
+    involves (its own ``filename``, else the input read last), the exception and its first line."""
+    from harness.io.safe import last_input
+
+    where = getattr(err, "filename", None) or last_input()
+    text = " ".join(str(err).split())[:300] or "(no message)"
+    return (f"harness: {command}: {type(err).__name__}: {text}" + (f" (last input read: {where})" if where else "")
+            + "; this is a bug or an unreadable input: rerun with --debug for the traceback")
+
+
+def main(argv: list[str] | None = None) -> int:
+    from harness.core.lifecycle import install_signal_handlers
+    from harness.io.safe import recording_inputs
+
+    argv, debug = _debug_flag(list(sys.argv[1:] if argv is None else argv))
     args = parse_args(argv)
     if not getattr(args, "_run", None):
         build_parser().print_help()
         return 2
     install_signal_handlers()
+    with recording_inputs():  # what the command reads, no output may replace
+        return _run(args, debug)
+
+
+def _run(args, debug: bool) -> int:
+    from harness.core.lifecycle import Terminated
+
     try:
         return int(args._run(args) or 0)
     except InputError as err:
@@ -142,10 +177,23 @@ def main(argv: list[str] | None = None) -> int:
             pass
         return 0
     except MemoryError:
-        print("harness: out of memory (input too large for this machine?)", file=sys.stderr)
+        if debug:
+            traceback.print_exc()
+        from harness.io.safe import last_input
+
+        where = last_input()
+        print(f"harness: {args.command}: out of memory" + (f" (last input read: {where})" if where else "")
+              + "; the input may be too large for this machine", file=sys.stderr)
         return InputError.exit_status
     except OSError as err:  # disk full, read-only, vanished folder: one line, not a traceback
+        if debug:
+            traceback.print_exc()
         print(f"harness: {_os_error_line(err)}", file=sys.stderr)
+        return InputError.exit_status
+    except Exception as err:  # the last resort: one line naming what failed (traceback with --debug)
+        if debug:
+            traceback.print_exc()
+        print(_unexpected_line(args.command, err), file=sys.stderr)
         return InputError.exit_status
 
 

@@ -173,3 +173,85 @@ def test_console_script_prints_one_line_without_traceback(tmp_path):
     assert proc.returncode == 2 and proc.stdout == ""
     assert proc.stderr.strip() == (f"harness: {tmp_path / 'bad.ply'}: header declares 2 vertices but the file "
                                    "is too short to hold them (truncated file or wrong count)")
+
+
+# ----------------------------------------------------------------------------- issue 24: bounded reads everywhere
+def _png_header_only(path, w, h):
+    """A PNG whose IHDR claims w x h pixels and whose data is a few bytes (a decompression bomb)."""
+    from tests.stress.cases import _png
+
+    return _png(path, w, h, 0, 8, rows=b"")  # no rows: the header lies
+
+
+def test_transforms_json_frame_image_bomb_is_one_line(tmp_path, capsys):
+    import zlib
+
+    from harness.cli import main
+
+    write_ply(random_scene(30, 0, seed=1), tmp_path / "s.ply")
+    raw = zlib.compress(b"\0" * 1000)
+    import struct
+
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+
+    (tmp_path / "a.png").write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 20000, 20000, 8, 0, 0,
+                                                                                     0, 0))
+                                     + chunk(b"IDAT", raw) + chunk(b"IEND", b""))
+    (tmp_path / "transforms.json").write_text(json.dumps({"camera_angle_x": 0.8, "frames": [
+        {"file_path": "a.png", "transform_matrix": np.eye(4).tolist()}]}))
+    rc = main(["render", str(tmp_path / "s.ply"), "--cameras", str(tmp_path / "transforms.json"),
+               "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert rc == 2 and len(err.strip().splitlines()) == 1 and "larger than the maximum (8192 per side)" in err
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("kind", ["fifo", "bomb", "truncated"])
+def test_report_reads_run_images_through_the_bounded_reader(tmp_path, kind):
+    import os
+    import time
+
+    from harness.io.safe import open_image
+    from harness.report.pageimages import scene_images
+
+    d = tmp_path / "images" / "s"
+    d.mkdir(parents=True)
+    from PIL import Image
+
+    Image.new("RGB", (8, 6), (10, 20, 30)).save(d / "input.png")
+    bad = d / "opacity__default__r0.30.png"
+    if kind == "fifo":
+        os.mkfifo(bad)
+    elif kind == "bomb":
+        import struct
+        import zlib
+
+        ihdr = struct.pack(">IIBBBBB", 20000, 20000, 8, 2, 0, 0, 0)
+        bad.write_bytes(b"\x89PNG\r\n\x1a\n" + struct.pack(">I", 13) + b"IHDR" + ihdr
+                        + struct.pack(">I", zlib.crc32(b"IHDR" + ihdr) & 0xFFFFFFFF))
+    else:
+        good = (d / "input.png").read_bytes()
+        bad.write_bytes(good[: len(good) // 2])
+    t0 = time.perf_counter()
+    with pytest.raises(InputError) as err:
+        scene_images(tmp_path / "images", [("s", "s")], {})
+    assert str(err.value).startswith(str(bad)) and time.perf_counter() - t0 < 2
+    with pytest.raises(InputError):
+        open_image(bad)
+
+
+def test_tex_and_markdown_tables_escape_what_they_embed():
+    import pandas as pd
+
+    from harness.report.formats import tex_escape, to_latex, to_markdown
+
+    evil = r"\input{/etc/passwd} $x$ 50% a_b & #1 ^~ <b>"
+    disp = pd.DataFrame({"PSNR ↑": ["**31.2**", evil]}, index=pd.Index([evil, "luigi"], name="scene"))
+    tex = to_latex(disp, "title " + evil, notes=[evil], label="tab:" + evil)
+    assert r"\input{" not in tex and "$x$" not in tex and r"\textbackslash{}input\{/etc/passwd\}" in tex
+    assert r"\textbf{31.2}" in tex and r"$\uparrow$" in tex and r"50\%" in tex
+    assert tex_escape(r"\\") == r"\textbackslash{}\textbackslash{}"  # one pass: an escape is not escaped again
+    md = to_markdown(disp, "t")
+    assert "<b>" not in md.replace(r"\<b>", "") and r"\<b>" in md and "**31.2**" in md
+    assert "| 0 | x\\|y z |" in to_markdown(pd.DataFrame({"a": ["x|y\nz"]}), "t")  # one row, one cell

@@ -70,14 +70,46 @@ def test_missing_path_and_unfetched_name_say_how_to_get_them(cache, tmp_path, mo
     assert "no-mirror" in str(err.value) and "asny/three-d-asset/f8a193b5619c410fccb00535718f458bfdb40337" in str(err.value)
 
 
+def _pin_grape(monkeypatch, content: bytes) -> None:
+    """grape-small pinned to ``content`` (the real pin needs the real file)."""
+    spec = datasets.SCENES["grape-small"]
+    fake = datasets.PublicScene(spec.disk_name, spec.base_url, 1, spec.license, spec.credit,
+                                files=((spec.disk_name, len(content), hashlib.sha256(content).hexdigest()),))
+    monkeypatch.setitem(datasets.SCENES, "grape-small", fake)
+
+
 def test_public_scenes_resolve_to_the_fetched_copy_else_the_mirror(cache, tmp_path, monkeypatch):
+    _pin_grape(monkeypatch, b"x")
     monkeypatch.setenv("HARNESS_SHARED_DATA", str(tmp_path / "mirror"))
     (tmp_path / "mirror").mkdir()
     (tmp_path / "mirror" / "grape_small.ply").write_bytes(b"x")
     assert datasets.resolve_scene("grape-small") == tmp_path / "mirror" / "grape_small.ply"
     (cache / "data").mkdir(parents=True, exist_ok=True)
-    (cache / "data" / "grape_small.ply").write_bytes(b"y")
+    (cache / "data" / "grape_small.ply").write_bytes(b"x")
     assert datasets.resolve_scene("grape-small") == cache / "data" / "grape_small.ply"
+
+
+def test_named_scenes_are_verified_on_use_and_rehashed_only_when_they_change(cache, monkeypatch):
+    """An edited copy is refused (whatever its mtime says); an unchanged one is not read again."""
+    import os
+
+    _pin_grape(monkeypatch, b"the pinned content")
+    copy = cache / "data" / "grape_small.ply"
+    copy.parent.mkdir(parents=True)
+    copy.write_bytes(b"the pinned content")
+    hashed = []
+    real = datasets.sha256_file
+    monkeypatch.setattr(datasets, "sha256_file", lambda p: hashed.append(p) or real(p))
+    assert datasets.resolve_scene("grape-small") == copy and len(hashed) == 1
+    assert datasets.resolve_scene("grape-small") == copy and len(hashed) == 1  # memo: size, mtime, ctime, inode
+    st = copy.stat()
+    copy.write_bytes(b"the pinned CONTENT")  # same size, edited in place
+    os.utime(copy, ns=(st.st_atime_ns, st.st_mtime_ns))  # mtime set back; ctime cannot be
+    with pytest.raises(InputError, match=r"grape-small: .*grape_small.ply does not match its pinned sha256 .*"
+                                         r"`harness fetch grape-small` restores it"):
+        datasets.resolve_scene("grape-small")
+    assert len(hashed) == 2
+    assert main(["info", "grape-small"]) == 2  # the CLI: one line, exit 2
 
 
 def test_fetch_extracts_by_name_verifies_and_is_idempotent(cache, fake_registry):

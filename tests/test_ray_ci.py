@@ -133,7 +133,7 @@ def test_ci_on_ray_with_a_worker_killed_mid_task_equals_local(local, tmp_path):
     assert killed, "no render+metrics task was seen running"
     pd.testing.assert_frame_equal(_results(tmp_path), local)
     # the kill left no torn entry: every cache entry passes its checksum
-    from harness.run.cache import open_envelope
+    from harness.run.cache import StageCache
 
-    entries = [p for p in (tmp_path / "cache").rglob("*") if p.is_file() and p.suffix in (".json", ".npy")]
-    assert entries and all(open_envelope(p.read_bytes())[1] is None for p in entries)
+    audit = StageCache(tmp_path / "cache").audit()
+    assert audit and not {rel: why for rel, why in audit.items() if why}

@@ -199,15 +199,6 @@ def _save_image(image: np.ndarray, path: Path, fmt: str) -> None:
         atomic_write_with(path, lambda t: Image.fromarray(to_uint8(image)).save(t, format="PNG"))
 
 
-def _not_the_camera_file(args, out: Path) -> None:
-    """The cameras.json written into ``out`` must not be the camera file being read."""
-    if not args.cameras:
-        return
-    target, src = out / "cameras.json", Path(args.cameras)
-    if target.exists() and src.exists() and target.resolve() == src.resolve():
-        raise InputError(args.cameras, f"is the cameras.json this render would write into {out}; give another --out")
-
-
 def run(args) -> int:
     from harness.core.devices import check_device
     from harness.io.cameras import write_3dgs_cameras
@@ -219,7 +210,6 @@ def run(args) -> int:
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise InputError(out, "exists and is not a folder")
-    _not_the_camera_file(args, out)
     scene = load_scene(args.scene)
     origin, cams = select_views(args, scene)
     from renderers import get_renderer
@@ -228,9 +218,11 @@ def run(args) -> int:
         renderer = get_renderer(args.backend, args.device)
     except Exception as err:  # noqa: BLE001  no EGL/CUDA here (moderngl, torch errors): usage, not a crash
         raise InputError(f"--backend {args.backend}", f"cannot start the renderer: {err}") from None
-    from harness.io.files import make_output_folder
+    from harness.io.files import make_output_folder, refuse_inputs
 
     make_output_folder(out)  # created, writable (not /proc, not read-only), stale temp files swept
+    refuse_inputs(*(out / n for n in ("cameras.json", "coverage.json", "contact_sheet.png")),  # before any write
+                  *(out / f"{i:03d}_{_safe(c.name)}.{args.format}" for i, c in enumerate(cams)))
     sheet, labels = ContactSheet(len(cams), background=background), []
     try:
         for i, cam in enumerate(cams):  # one image in memory at a time: rendered, written, thumbnailed

@@ -70,6 +70,9 @@ def run(args) -> int:
     if args.threads is not None and not 1 <= args.threads <= 1024:
         raise InputError("--threads", f"must be 1..1024, got {args.threads}")
     spec = executor_spec(config.executor, args.executor, args.address)
+    from harness.run.executors import preflight
+
+    preflight(spec, workers, args.cache)  # before the output folder: a bad cache URL or Ray address
     from harness.core.devices import check_device
     from harness.io.files import make_output_folder, sweep_stale_temps
     from harness.run.cache import is_url

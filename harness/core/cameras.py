@@ -13,6 +13,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from harness.core.errors import InputError
+
 #: the largest image any camera may ask for (camera files, rigs, ``--longest-side``, configs): 8192
 #: pixels per side and 8192² = 64 Mi pixels in all — a float32 RGB render of that size is 768 MiB
 MAX_SIDE = 8192
@@ -76,6 +78,13 @@ def camera_problem(cam: "Camera") -> str | None:
     return None
 
 
+class CameraSizeError(InputError, ValueError):
+    """A camera asking for an image beyond :data:`MAX_SIDE` (or of no pixels): refused when the
+    :class:`Camera` is made, so no source of sizes — camera files, PLY header camera lines, rigs,
+    configs, ``--width/--height`` — can reach a renderer with one. A ValueError too, for callers
+    that validate cameras rebuilt from stored dicts."""
+
+
 @dataclass(frozen=True)
 class Camera:
     world_to_cam: np.ndarray  # (4, 4) float64
@@ -92,6 +101,9 @@ class Camera:
         if m.shape != (4, 4):
             raise ValueError(f"world_to_cam must be 4x4, got {m.shape}")
         object.__setattr__(self, "world_to_cam", m)
+        why = size_problem(self.width, self.height)  # where every size enters: no bypass
+        if why:
+            raise CameraSizeError(f"camera {self.name!r}" if self.name else "camera", why)
 
     # ---------------------------------------------------------------- geometry
     @property

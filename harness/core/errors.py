@@ -18,3 +18,6 @@ class InputError(Exception):
         self.source = None if source is None else str(source)
         self.problem = " ".join(str(problem).split())  # always a single line
         super().__init__(self.problem if self.source is None else f"{self.source}: {self.problem}")
+
+    def __reduce__(self):  # raised in a pool worker or Ray task, it travels back whole
+        return (self.__class__, (self.source, self.problem))

@@ -150,16 +150,14 @@ def write_3dgs_cameras(cameras: list[Camera], path: str | Path) -> None:
 
 # ------------------------------------------------------------------------------ NeRF transforms.json
 def _image_size(base: Path, file_path: str) -> tuple[int, int] | None:
-    from PIL import Image  # header read only
+    """(w, h) from the header of a frame's image (bounded read: a FIFO, a decompression bomb or a
+    header beyond the maximum render size is an InputError naming the image); None when absent."""
+    from harness.io.safe import image_size
 
     p = base / file_path
     for cand in (p, *(p.with_name(p.name + ext) for ext in (".png", ".jpg", ".jpeg", ".exr"))):
-        if cand.is_file():
-            try:
-                with Image.open(cand) as im:
-                    return im.size
-            except OSError:
-                return None
+        if cand.exists():
+            return image_size(cand, "frame image")
     return None
 
 

@@ -12,6 +12,13 @@ Two kinds of source, both pinned and verified by sha256 (:mod:`harness.io.fetch`
 
 A named scene resolves to its fetched copy under :func:`harness.core.paths.data_dir`, else to the
 mirror's copy, else it is absent and the message says exactly how to get it.
+
+**Verified on use** (:func:`verify_copy`, from :func:`scene_path`): every file of a present copy must
+still have its pinned sha256, so an edited ``grape_small.ply`` is refused (one line: ``harness
+fetch NAME`` restores it) instead of being measured as ``grape-small``. Cheaply: a file whose
+identity ``(size, mtime, ctime, inode, device)`` matches the memo of its last successful check
+(``<data>/verified.json``) is not read again — ctime cannot be set back by a user, so an edit in
+place with its mtime restored is still re-hashed; any other file is hashed in full.
 """
 
 from __future__ import annotations
@@ -110,12 +117,72 @@ def mirror_path(name: str) -> Path:
 
 
 def scene_path(name: str) -> Path:
-    """Where the named scene is: its fetched copy, else the mirror's, else the (absent) fetched path."""
+    """Where the named scene is: its fetched copy, else the mirror's, else the (absent) fetched path.
+    A present copy is verified against its pinned sha256 first (module docstring)."""
     fetched = fetched_path(name)
     if fetched.exists() or isinstance(SCENES[name], RegistryScene):
-        return fetched
-    mirror = mirror_path(name)
-    return mirror if mirror.exists() else fetched
+        path = fetched
+    else:
+        mirror = mirror_path(name)
+        path = mirror if mirror.exists() else fetched
+    if path.exists():
+        verify_copy(name, path)
+    return path
+
+
+def _pinned_files(name: str, path: Path) -> list[tuple[Path, str]]:
+    """(file, sha256) of every file of the named scene's copy at ``path``."""
+    spec = SCENES[name]
+    if isinstance(spec, RegistryScene):
+        return [(path, spec.sha256)]
+    if spec.is_folder:
+        return [(path / rel, sha) for rel, _, sha in spec.entries()]
+    return [(path, spec.entries()[0][2])]
+
+
+_memos: dict[Path, dict[str, list]] = {}  # per memo file (HARNESS_CACHE may differ between calls)
+
+
+def _memo_path() -> Path:
+    return paths.data_dir() / "verified.json"
+
+
+def _load_memo() -> dict[str, list]:
+    where = _memo_path()
+    if where not in _memos:
+        from harness.io.safe import read_json
+
+        try:
+            data = read_json(where, "json", "verification memo", record=False)
+        except InputError:  # absent or damaged: every file is hashed once more
+            data = {}
+        _memos[where] = data if isinstance(data, dict) else {}
+    return _memos[where]
+
+
+def verify_copy(name: str, path: Path) -> None:
+    """InputError unless every file of the named scene's copy at ``path`` has its pinned sha256."""
+    memo, checked = _load_memo(), False
+    for file, sha in _pinned_files(name, Path(path)):
+        try:
+            st = os.stat(file)
+        except OSError:
+            raise InputError(name, f"{file} is missing from its copy; `harness fetch {name}` restores it") from None
+        ident = [st.st_size, st.st_mtime_ns, st.st_ctime_ns, st.st_ino, st.st_dev, sha]
+        if memo.get(str(file)) == ident:
+            continue
+        if sha256_file(file) != sha:
+            raise InputError(name, f"{file} does not match its pinned sha256 (edited or damaged since it was "
+                                   f"fetched); `harness fetch {name}` restores it")
+        memo[str(file)] = ident
+        checked = True
+    if checked:
+        from harness.io.files import atomic_write_text
+
+        try:
+            atomic_write_text(_memo_path(), json.dumps(memo, sort_keys=True))
+        except (InputError, OSError):  # a read-only data folder: verified again next time
+            pass
 
 
 def missing_reason(name: str) -> str:
@@ -159,8 +226,11 @@ def identify(path_or_name) -> str | None:
 
 
 def sha256_file(path: Path, chunk: int = 1 << 22) -> str:
+    """sha256 of a regular file (bounded reader; not recorded as an input: ``fetch`` replaces it)."""
+    from harness.io.safe import open_regular
+
     h = hashlib.sha256()
-    with open(path, "rb") as f:
+    with open_regular(path, "scene", "scene file", record=False) as f:
         while block := f.read(chunk):
             h.update(block)
     return h.hexdigest()

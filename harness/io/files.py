@@ -12,6 +12,21 @@ starts: a temporary file of this host whose PID is not running is removed at onc
 host (a cache folder shared between nodes) only once it is older than :data:`STALE_AFTER_S`.
 SIGTERM and SIGINT are turned into exceptions by the CLI, so the ``except`` below removes the
 temporary file of a write they interrupt.
+
+**Inputs are never replaced.** Before a write starts and again just before its rename, the
+destination's identity ``(st_dev, st_ino)`` (symlinks followed) is looked up among the files the
+running command read (:func:`harness.io.safe.recording_inputs`): an input reached under any other
+name — a symlinked folder, a hard link, a bind mount of its folder — is refused with one line naming
+the output as given and the input. Commands that know their outputs up front call
+:func:`refuse_inputs` before any work, so a refusal leaves nothing behind.
+
+**Permissions.** ``mkstemp`` creates ``0600`` files; every output is given ``0666 & ~umask`` before
+its rename (``0644`` under the usual umask ``022``), whether it is new or replaces a file, as a
+plain ``open(path, "w")`` would create it: results, tables and a stage cache shared between users
+or served by a web server are readable.
+
+Failures are one :class:`~harness.core.errors.InputError` naming the destination the caller gave,
+never the temporary file.
 """
 
 from __future__ import annotations
@@ -33,6 +48,48 @@ STALE_AFTER_S = 24 * 3600
 
 def _host() -> str:
     return re.sub(r"[^A-Za-z0-9-]", "-", socket.gethostname())[:40] or "host"
+
+
+def umask() -> int:
+    """The process umask, read without changing it (``/proc/self/status`` on Linux; elsewhere the
+    set-and-restore idiom)."""
+    try:
+        with open("/proc/self/status", "rb") as f:
+            for line in f:
+                if line.startswith(b"Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    old = os.umask(0o022)
+    os.umask(old)
+    return old
+
+
+def output_mode() -> int:
+    """Permission bits of a new output: ``0666 & ~umask``."""
+    return 0o666 & ~umask()
+
+
+def _reason(err: OSError) -> str:
+    """The first line of an OSError's reason (pyarrow's messages span lines and name no file)."""
+    return err.strerror or (str(err).strip().splitlines() or [type(err).__name__])[0]
+
+
+def refuse_inputs(*paths: str | Path) -> None:
+    """InputError when one of ``paths`` is a file the running command read (by device and inode,
+    so every alias of it counts); a path that does not exist is fine."""
+    from harness.core.errors import InputError
+    from harness.io.safe import input_named
+
+    for path in paths:
+        try:
+            st = os.stat(path)
+        except OSError:
+            continue
+        given = input_named(st)
+        if given is not None:
+            same = "" if os.path.abspath(given) == os.path.abspath(path) else " (the same file under another name)"
+            raise InputError(path, f"would overwrite the input {given}{same}; choose another output")
 
 
 def temp_path(path: Path) -> Path:
@@ -130,16 +187,28 @@ def make_output_folder(folder: str | Path, source=None) -> Path:
 def atomic_write_with(path: str | Path, writer: Callable[[Path], None]) -> Path:
     """Let ``writer(tmp_path)`` produce the file (pandas ``to_parquet``, ``fig.savefig`` ...), fsync
     it and rename it into place; returns ``path``. The parent folder is created when missing."""
+    from harness.core.errors import InputError
+
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = temp_path(path)
+    refuse_inputs(path)
+    tmp = None
     try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = temp_path(path)
         writer(tmp)
         with open(tmp, "rb+") as f:
+            os.fchmod(f.fileno(), output_mode())
             os.fsync(f.fileno())
+        refuse_inputs(path)  # again: the destination may have been replaced meanwhile
         os.replace(tmp, path)
+    except OSError as err:
+        if tmp is not None:
+            tmp.unlink(missing_ok=True)
+        raise InputError(path, "is a folder" if isinstance(err, IsADirectoryError) else f"cannot write: {_reason(err)}") \
+            from None
     except BaseException:
-        tmp.unlink(missing_ok=True)
+        if tmp is not None:
+            tmp.unlink(missing_ok=True)
         raise
     return path
 
@@ -174,3 +243,45 @@ def atomic_write_npy(path: str | Path, array: np.ndarray) -> Path:
             np.save(f, np.asarray(array), allow_pickle=False)
 
     return atomic_write_with(path, write)
+
+
+def append_line(path: str | Path, line: str) -> Path:
+    """Append one line to a log-like file (``history.jsonl``) with one ``write``: created
+    ``0666 & ~umask`` when absent; a symlink, FIFO, device or folder in its place is refused rather
+    than followed or blocked on, and an input of the running command is never appended to."""
+    import stat
+
+    from harness.core.errors import InputError
+
+    path = Path(path)
+    refuse_inputs(path)
+    try:
+        st = os.lstat(path)
+    except FileNotFoundError:
+        st = None
+    except OSError as err:
+        raise InputError(path, f"cannot append: {_reason(err)}") from None
+    if st is not None and not stat.S_ISREG(st.st_mode):
+        from harness.io.safe import kind_of
+
+        what = "a symlink" if stat.S_ISLNK(st.st_mode) else kind_of(st.st_mode)
+        raise InputError(path, f"is {what}; expected a regular file to append to")
+    flags = os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NONBLOCK | getattr(os, "O_NOFOLLOW", 0) \
+        | getattr(os, "O_CLOEXEC", 0)
+    try:
+        fd = os.open(path, flags, output_mode())
+    except OSError as err:  # swapped for a symlink (ELOOP) or a FIFO without reader (ENXIO) meanwhile
+        raise InputError(path, f"cannot append: {_reason(err)}") from None
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            raise InputError(path, "is not a regular file; refusing to append to it")
+        data = line.encode("utf-8")
+        if os.write(fd, data) != len(data):
+            raise InputError(path, "short write (disk full?)")
+        os.fsync(fd)
+    except OSError as err:
+        raise InputError(path, f"cannot append: {_reason(err)}") from None
+    finally:
+        os.close(fd)
+    return path

@@ -158,8 +158,11 @@ def cameras_from_lines(comments, source, width: int | None = None, height: int |
         except ValueError:
             raise InputError(source, f"bad {SIZE_TAG} line: {size[-1]}") from None
         width, height = width or w, height or h
-    if width < 1 or height < 1:
-        raise InputError(source, f"image size must be positive, got {width}x{height}")
+    from harness.core.cameras import size_problem
+
+    why = size_problem(width, height)
+    if why:  # the size line of the file (or --width/--height): refused before any camera is made
+        raise InputError(source, f"camera image size: {why}")
     lines = [c for c in comments if _is_pose_line(c)]
     return [_parse(c, width, height, source, i + 1) for i, c in enumerate(lines)]
 

@@ -98,11 +98,20 @@ def _section_bytes(level: int, sec: np.ndarray) -> np.ndarray:
         + per_splat * sec["max_splats"]
 
 
+def _fromfile(path: Path, dtype, count: int, offset: int = 0) -> np.ndarray:
+    """``np.fromfile`` through the bounded reader (a regular file, opened without blocking)."""
+    from harness.io.safe import open_regular
+
+    with open_regular(path, "scene", ".ksplat file") as f:
+        f.seek(offset)
+        return np.fromfile(f, dtype, count=count)
+
+
 def parse_headers(path: Path, size: int) -> KsplatHeader:
     """The main and section headers; InputError naming what does not fit a ksplat."""
     if size < HEADER_BYTES:
         raise InputError(path, f"a ksplat starts with a 4096-byte header; the file has {size:,} bytes")
-    main = np.fromfile(path, _MAIN, count=1)[0]
+    main = _fromfile(path, _MAIN, count=1)[0]
     if main["major"] != 0 or main["minor"] < 1 or main["pad"] != 0:
         raise InputError(path, f"ksplat version {main['major']}.{main['minor']} is not supported (0.1 and later 0.x)")
     if main["level"] > 2:
@@ -111,7 +120,7 @@ def parse_headers(path: Path, size: int) -> KsplatHeader:
     if count < 1 or HEADER_BYTES + count * SECTION_BYTES > size:
         raise InputError(path, f"ksplat header lists {count:,} sections; their headers need "
                                f"{HEADER_BYTES + count * SECTION_BYTES:,} bytes, the file has {size:,}")
-    sections = np.fromfile(path, _SECTION, count=count, offset=HEADER_BYTES)
+    sections = _fromfile(path, _SECTION, count=count, offset=HEADER_BYTES)
     total = HEADER_BYTES + count * SECTION_BYTES + int(_section_bytes(int(main["level"]), sections).sum())
     return KsplatHeader(main, sections, total)
 
@@ -184,10 +193,10 @@ def _read_section(path: Path, h: KsplatHeader, sec: np.void, offset: int, sh_ran
     n, partial, buckets = int(sec["splats"]), int(sec["partial"]), int(sec["buckets"])
     rec_type = _record_dtype(level, degree)
     data_at = offset + partial * 4 + int(sec["bucket_bytes"]) * buckets
-    rec = np.fromfile(path, rec_type, count=n, offset=data_at)
+    rec = _fromfile(path, rec_type, count=n, offset=data_at)
     if level:
-        lengths = np.fromfile(path, "<u4", count=partial, offset=offset)
-        centres = np.fromfile(path, "<f4", count=3 * buckets, offset=offset + partial * 4).reshape(-1, 3)
+        lengths = _fromfile(path, "<u4", count=partial, offset=offset)
+        centres = _fromfile(path, "<f4", count=3 * buckets, offset=offset + partial * 4).reshape(-1, 3)
         r = int(sec["scale_range"]) or 32767
         step = float(sec["block"]) / 2.0 / r
         means = (rec["centre"].astype(np.float64) - r) * step + centres[_bucket_of(sec, lengths, source)]
@@ -210,8 +219,10 @@ def _read_section(path: Path, h: KsplatHeader, sec: np.void, offset: int, sh_ran
 
 def read_ksplat(path: str | Path) -> GaussianScene:
     """Read a ``.ksplat`` file (levels 0-2, every section, in file order)."""
+    from harness.io.safe import check_regular
+
     path = Path(path)
-    size = path.stat().st_size
+    size = check_regular(path, "scene", ".ksplat file").st_size
     h = parse_headers(path, size)
     _validate(h, size, path)
     lo, hi = (float(h.main[k]) for k in ("sh_min", "sh_max"))

@@ -52,7 +52,10 @@ _ENDIAN = {"binary_little_endian": "<", "binary_big_endian": ">", "ascii": "<"}
 REQUIRED = ("x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity",
             "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3")
 NORMALS = ("nx", "ny", "nz")
-_MAX_HEADER_LINES = 100_000
+_MAX_HEADER_LINES = 100_000  # comments included (an MPEG capture header holds a few hundred camera lines)
+#: properties of one element: a 3DGS vertex has 17..62; a header of more is refused before any
+#: structured dtype of that many fields is built
+_MAX_PROPERTIES = 4096
 _MAX_HEADER_LINE = 1 << 20  # bytes per header line (a camera comment is ~400)
 #: the 3DGS properties must be stored as float or double: integer bytes read as floats (or the
 #: reverse) decode to garbage that no check downstream can tell from data
@@ -84,6 +87,7 @@ def read_ply_header(path: str | Path) -> PlyHeader:
     elements: list[PlyElement] = []
     comments: list[str] = []
     preamble: list[str] = []
+    declared: dict[int, set[str]] = {}  # property names per element
     fmt = None
     with open_regular(path, "scene", "PLY file") as f:
         if f.readline(16).strip() != b"ply":
@@ -118,18 +122,23 @@ def read_ply_header(path: str | Path) -> PlyHeader:
                 if not elements:
                     raise InputError(path, f"PLY property before any element: {line!r}")
                 props = elements[-1].properties
+                if len(props) >= _MAX_PROPERTIES:
+                    raise InputError(path, f"PLY element {elements[-1].name!r} declares more than "
+                                           f"{_MAX_PROPERTIES:,} properties")
                 if len(words) == 5 and words[1] == "list":
                     props.append((words[4], "list"))
                 elif len(words) == 3 and words[1] in PLY_TYPES:
-                    if any(words[2] == n for n, _ in props):
+                    names = declared.setdefault(len(elements), set())  # a set: linear in the header
+                    if words[2] in names:
                         raise InputError(path, f"PLY property {words[2]!r} is declared twice")
+                    names.add(words[2])
                     props.append((words[2], PLY_TYPES[words[1]]))
                 else:
                     raise InputError(path, f"bad PLY property line {line!r}")
             else:
                 raise InputError(path, f"unknown PLY header keyword {key!r}")
         else:
-            raise InputError(path, "PLY header has no 'end_header' line")
+            raise InputError(path, f"PLY header has more than {_MAX_HEADER_LINES:,} lines without 'end_header'")
         offset = f.tell()
     if fmt is None:
         raise InputError(path, "PLY header has no 'format' line")

@@ -14,6 +14,14 @@ Rules (issue 15):
   ``lod-meta.json`` may name files only below the scene's folder; absolute paths, ``..`` that
   climbs out, and symlinks that lead out are refused.
 * **JSON**: bounded size; nesting too deep for the parser is an error, not a RecursionError.
+* **Images** (:func:`open_image`, :func:`image_size`): bytes read as above, the pixel count taken
+  from the header and checked against the maximum render size before anything is decoded.
+* **What a command read is remembered** (:func:`recording_inputs`): while a CLI command runs,
+  every file opened here is recorded by its identity ``(st_dev, st_ino)`` taken from the open
+  descriptor, with the path the user gave. :mod:`harness.io.files` refuses to replace any of them,
+  whatever other path names it (a symlinked folder, a hard link, a bind mount): inputs are never
+  overwritten. State that a command reads in order to update it (a tracking baseline, the stage
+  cache, the fetched copy of a named scene) is read with ``record=False``.
 
 Every refusal is an :class:`~harness.core.errors.InputError` naming the file.
 
@@ -26,6 +34,7 @@ from __future__ import annotations
 import json
 import os
 import stat
+from contextlib import contextmanager
 from pathlib import Path
 from typing import BinaryIO
 
@@ -54,7 +63,39 @@ def limit(kind: str) -> int:
     return LIMITS[kind]
 
 
-def _kind_of(mode: int) -> str:
+# ----------------------------------------------------------------------------- inputs of a command
+#: (st_dev, st_ino) -> the path as given, of every file read while a command runs (None: not recording)
+_inputs: dict[tuple[int, int], str] | None = None
+
+
+@contextmanager
+def recording_inputs():
+    """Record the identity of every file read in this block (the CLI wraps each command in one)."""
+    global _inputs
+    previous, _inputs = _inputs, {}
+    try:
+        yield
+    finally:
+        _inputs = previous
+
+
+def _note(st: os.stat_result, path, record: bool) -> None:
+    if record and _inputs is not None:
+        _inputs.setdefault((st.st_dev, st.st_ino), str(path))
+
+
+def input_named(st: os.stat_result) -> str | None:
+    """The path (as given) of the input this command read that ``st`` identifies, or None."""
+    return None if _inputs is None else _inputs.get((st.st_dev, st.st_ino))
+
+
+def last_input() -> str | None:
+    """The input this command read most recently (what a last-resort error message points at)."""
+    return next(reversed(_inputs.values()), None) if _inputs else None
+
+
+def kind_of(mode: int) -> str:
+    """'a FIFO (named pipe)', 'a folder' ... of a non-regular ``st_mode``."""
     if stat.S_ISDIR(mode):
         return "a folder"
     if stat.S_ISFIFO(mode):
@@ -68,7 +109,7 @@ def _kind_of(mode: int) -> str:
     return "not a regular file"
 
 
-def check_regular(path: str | Path, kind: str = "json", what: str = "file") -> os.stat_result:
+def check_regular(path: str | Path, kind: str = "json", what: str = "file", record: bool = True) -> os.stat_result:
     """``stat`` (following symlinks) and refuse anything but a regular file within the size cap."""
     path = Path(path)
     try:
@@ -80,18 +121,19 @@ def check_regular(path: str | Path, kind: str = "json", what: str = "file") -> o
     except OSError as err:
         raise InputError(path, f"cannot read: {err.strerror or err}") from None
     if not stat.S_ISREG(st.st_mode):
-        raise InputError(path, f"is {_kind_of(st.st_mode)}; expected a regular {what}")
+        raise InputError(path, f"is {kind_of(st.st_mode)}; expected a regular {what}")
     cap = limit(kind)
     if st.st_size > cap:
         raise InputError(path, f"is {st.st_size:,} bytes, more than the {cap:,}-byte limit for a {what} "
                                f"(HARNESS_MAX_{kind.upper()}_BYTES raises it)")
+    _note(st, path, record)
     return st
 
 
-def open_regular(path: str | Path, kind: str = "json", what: str = "file") -> BinaryIO:
+def open_regular(path: str | Path, kind: str = "json", what: str = "file", record: bool = True) -> BinaryIO:
     """A binary file object of a checked regular file (see the module docstring)."""
     path = Path(path)
-    check_regular(path, kind, what)
+    check_regular(path, kind, what, record=False)
     try:
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
     except OSError as err:
@@ -99,27 +141,28 @@ def open_regular(path: str | Path, kind: str = "json", what: str = "file") -> Bi
     try:
         st = os.fstat(fd)
         if not stat.S_ISREG(st.st_mode):  # swapped between stat and open
-            raise InputError(path, f"is {_kind_of(st.st_mode)}; expected a regular {what}")
+            raise InputError(path, f"is {kind_of(st.st_mode)}; expected a regular {what}")
         if st.st_size > limit(kind):
             raise InputError(path, f"is {st.st_size:,} bytes, more than the {limit(kind):,}-byte limit")
+        _note(st, path, record)
     except BaseException:
         os.close(fd)
         raise
     return os.fdopen(fd, "rb")
 
 
-def read_bytes(path: str | Path, kind: str = "json", what: str = "file") -> bytes:
+def read_bytes(path: str | Path, kind: str = "json", what: str = "file", record: bool = True) -> bytes:
     """All bytes of a checked regular file (at most its cap, read once)."""
-    with open_regular(path, kind, what) as f:
-        try:
-            return f.read(limit(kind) + 1)
+    with open_regular(path, kind, what, record) as f:
+        try:  # the size on disk (+1, for a file that grew), never the cap: read(n) allocates n bytes
+            return f.read(min(os.fstat(f.fileno()).st_size, limit(kind)) + 1)
         except OSError as err:
             raise InputError(path, f"cannot read: {err.strerror or err}") from None
 
 
-def read_text(path: str | Path, kind: str = "json", what: str = "file") -> str:
+def read_text(path: str | Path, kind: str = "json", what: str = "file", record: bool = True) -> str:
     """UTF-8 text of a checked regular file; other encodings are an error."""
-    data = read_bytes(path, kind, what)
+    data = read_bytes(path, kind, what, record)
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as err:
@@ -141,8 +184,8 @@ def parse_json(text: str | bytes, source) -> object:
         raise InputError(source, "JSON nested too deeply") from None
 
 
-def read_json(path: str | Path, kind: str = "json", what: str = "JSON file") -> object:
-    return parse_json(read_text(path, kind, what), path)
+def read_json(path: str | Path, kind: str = "json", what: str = "JSON file", record: bool = True) -> object:
+    return parse_json(read_text(path, kind, what, record), path)
 
 
 def confined(root: str | Path, name: str, source) -> Path:
@@ -262,7 +305,10 @@ def load_yaml(path: str | Path, what: str = "config"):
 
     path = Path(path)
     text = read_text(path, "config", what)
-    loader = _yaml_loader()(text)
+    try:
+        loader = _yaml_loader()(text)  # the reader refuses control characters and NUL here
+    except yaml.YAMLError as err:
+        raise InputError(path, f"invalid YAML: {_yaml_problem(err)}") from None
     try:
         node = loader.get_single_node()
         if node is None:
@@ -273,8 +319,78 @@ def load_yaml(path: str | Path, what: str = "config"):
     except yaml.YAMLError as err:
         mark = getattr(err, "problem_mark", None)
         at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        raise InputError(path, f"invalid YAML{at}: {getattr(err, 'problem', None) or err}") from None
+        raise InputError(path, f"invalid YAML{at}: {_yaml_problem(err)}") from None
     except RecursionError:
         raise InputError(path, "YAML nested too deeply") from None
     finally:
         loader.dispose()
+
+
+def _yaml_problem(err) -> str:
+    """One line of a YAML error: its ``problem`` text, else a control character the reader refused."""
+    import yaml
+
+    if isinstance(err, yaml.reader.ReaderError):
+        return (f"character {err.character!r} (code {ord(err.character) if isinstance(err.character, str) else err.character})"
+                f" at byte {err.position} is not allowed in YAML (control character or NUL)")
+    return str(getattr(err, "problem", None) or err)
+
+
+# ----------------------------------------------------------------------------- images
+def _pixels_bound(max_pixels: int | None) -> int:
+    from harness.core.cameras import MAX_PIXELS
+
+    return MAX_PIXELS if max_pixels is None else max_pixels
+
+
+def image_size(path: str | Path, what: str = "image") -> tuple[int, int]:
+    """(width, height) from an image file's header, read through :func:`open_regular`; nothing is
+    decoded, and a header beyond the maximum render size is refused."""
+    from PIL import Image, UnidentifiedImageError
+
+    path = Path(path)
+    with open_regular(path, "image", what) as f:
+        try:
+            with Image.open(f) as im:
+                w, h = im.size
+        except Image.DecompressionBombError as err:
+            raise InputError(path, _bomb(err)) from None
+        except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as err:
+            raise InputError(path, f"not a readable image: {' '.join(str(err).split())[:160]}") from None
+    _check_pixels(path, w, h, None)
+    return w, h
+
+
+def _bomb(err) -> str:
+    """Pillow refused a header before we could read its size: it claims even more than its own limit."""
+    from harness.core.cameras import MAX_SIDE
+
+    return f"image is larger than the maximum ({MAX_SIDE} per side): {' '.join(str(err).split())[:120]}"
+
+
+def _check_pixels(path, w: int, h: int, max_pixels: int | None) -> None:
+    from harness.core.cameras import MAX_SIDE
+
+    bound = _pixels_bound(max_pixels)
+    if w > MAX_SIDE or h > MAX_SIDE or w * h > bound:
+        raise InputError(path, f"image is {w}x{h} pixels, larger than the maximum ({MAX_SIDE} per side)")
+
+
+def open_image(path: str | Path, what: str = "image", mode: str | None = "RGB", record: bool = True):
+    """A decoded PIL image of a checked regular file: size-capped bytes, the header's pixel count
+    checked before decoding, truncated or corrupt data an InputError (not a half-decoded image)."""
+    import io
+
+    from PIL import Image, UnidentifiedImageError
+
+    path = Path(path)
+    data = read_bytes(path, "image", what, record)
+    try:
+        with Image.open(io.BytesIO(data)) as im:
+            _check_pixels(path, *im.size, None)
+            im.load()
+            return im.convert(mode) if mode and im.mode != mode else im.copy()
+    except Image.DecompressionBombError as err:
+        raise InputError(path, _bomb(err)) from None
+    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as err:
+        raise InputError(path, f"not a readable image: {' '.join(str(err).split())[:160]}") from None

@@ -71,6 +71,17 @@ def _read(path: Path, kind: str, lod) -> GaussianScene:
     return read_sog(path, lod)
 
 
+def scene_extent(path: Path) -> Path:
+    """What reading the scene at ``path`` depends on: for a SOG scene named by its ``meta.json`` or
+    ``lod-meta.json``, the folder (its textures and LOD files are read only from there:
+    :func:`harness.io.safe.confined`); otherwise ``path`` itself (a file, a SOG folder, a bundle).
+    Cache keys hash this, so editing one texture of such a scene changes its key."""
+    path = Path(path)
+    if path.name.lower().endswith("meta.json") and path.is_file():
+        return path.parent
+    return path
+
+
 def _first_row(mask: np.ndarray) -> int:
     return int(np.flatnonzero(mask)[0])
 

@@ -239,8 +239,10 @@ def _decode(streams: list[bytes], h: SpzHeader) -> tuple[np.ndarray, ...]:
 def read_spz(path: str | Path, axes: str = "auto") -> GaussianScene:
     """Read an spz file. ``axes``: "auto" (the stored coordinate-system record, else PLY axes),
     "ply", or a standard-family system name (e.g. "RUB") the data is stored in."""
+    from harness.io.safe import read_bytes
+
     path = Path(path)
-    data = path.read_bytes()
+    data = read_bytes(path, "scene", ".spz file")
     h = probe(data[:PROBE_BYTES])
     if h is None:
         raise InputError(path, "not an spz file (no NGSP header, plain or gzip-compressed)")

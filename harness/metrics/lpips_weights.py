@@ -164,7 +164,12 @@ def load_backbone(path: Path | None = None) -> dict:
         raise InputError(path, f"LPIPS-VGG backbone weights are missing; {FETCH_HINT}")
     if not _verified(path):
         raise InputError(path, f"LPIPS-VGG backbone weights fail their sha256 check; {FETCH_HINT}")
-    payload = torch.load(path, map_location="cpu", weights_only=True)
+    try:  # weights_only: tensors and plain containers, never code; a tampered file is refused here
+        payload = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as err:  # noqa: BLE001 - torch raises UnpicklingError, RuntimeError, EOFError ...
+        raise InputError(path, f"LPIPS-VGG weights cannot be loaded ({type(err).__name__}: "
+                               f"{' '.join(str(err).split())[:120]}); delete it and its .sha256 and "
+                               "run `harness fetch --weights`") from None
     if not isinstance(payload, dict) or payload.get("format") != FORMAT_VERSION:
         raise InputError(path, f"LPIPS-VGG weights file has an unknown layout; {FETCH_HINT}")
     return payload

@@ -2,7 +2,10 @@
 
 LaTeX: one header line per column level with ``\\multicolumn`` spans over equal neighbours, the
 first row level as ``\\multirow`` (needs ``\\usepackage{multirow}``), ``**x**`` markdown bold
-becomes ``\\textbf{x}``; ↑/↓ become ``$\\uparrow$``/``$\\downarrow$``; %, Δ, ‡, ≥, · and τ are escaped.
+becomes ``\\textbf{x}``; ↑/↓ become ``$\\uparrow$``/``$\\downarrow$``; Δ, ‡, ≥, · and τ become math.
+Every other character LaTeX gives a meaning to (``\\ { } $ & # ^ _ % ~ < >``) is escaped in every
+cell, label, title and note (:func:`tex_escape`), so a scene label such as ``\\input{/etc/passwd}``
+is printed, never executed.
 
 Markdown: one table per section of a :class:`~harness.report.tabledata.Table` (each with one header
 row), or — for a plain display frame with two column levels — a header row of parent labels (once per
@@ -24,8 +27,14 @@ def _names(index) -> list[str]:
     return [str(n) if n is not None else "" for n in index.names]
 
 
+def md_escape(text) -> str:
+    """A markdown table cell: one line, ``|`` escaped (a column break otherwise), ``<`` escaped
+    (raw HTML otherwise); ``**bold**`` and the other inline marks of the cells are kept."""
+    return " ".join(str(text).split()).replace("|", "\\|").replace("<", "\\<")
+
+
 def _md_row(cells) -> str:
-    return "| " + " | ".join(str(c).replace("|", "\\|") for c in cells) + " |"
+    return "| " + " | ".join(md_escape(c) for c in cells) + " |"
 
 
 def _md_table(disp: pd.DataFrame) -> list[str]:
@@ -69,10 +78,22 @@ def to_markdown(table, title: str, notes=()) -> str:
     return "\n".join(lines).rstrip() + "\n"
 
 
+#: LaTeX's special characters, each printed as itself
+_TEX_SPECIAL = {"\\": r"\textbackslash{}", "{": r"\{", "}": r"\}", "$": r"\$", "&": r"\&", "#": r"\#",
+                "^": r"\textasciicircum{}", "_": r"\_", "%": r"\%", "~": r"\textasciitilde{}",
+                "<": r"\textless{}", ">": r"\textgreater{}"}
+_TEX_RE = re.compile("|".join(re.escape(c) for c in _TEX_SPECIAL))
+
+
+def tex_escape(text) -> str:
+    """``text`` as LaTeX that prints it: every special character escaped in one pass (so an escape
+    is never escaped again), line breaks made spaces."""
+    return _TEX_RE.sub(lambda m: _TEX_SPECIAL[m.group()], " ".join(str(text).split()))
+
+
 def _tex(text) -> str:
-    t = str(text)
+    t = tex_escape(text)
     t = re.sub(r"\*\*(.+?)\*\*", r"\\textbf{\1}", t)
-    t = t.replace("%", r"\%").replace("_", r"\_").replace("&", r"\&")
     return (t.replace("↑", r"$\uparrow$").replace("↓", r"$\downarrow$").replace("Δ", r"$\Delta$")
             .replace("–", "--").replace("−", "$-$").replace("×", r"$\times$").replace("‡", r"$^\ddagger$")
             .replace("≥", r"$\geq$").replace("·", r"$\cdot$").replace("τ", r"$\tau$"))
@@ -118,6 +139,6 @@ def to_latex(disp: pd.DataFrame, title: str, notes=(), label: str = "") -> str:
         i += n
     out += [r"\end{tabular}}", rf"\caption{{{_tex(title)}." + "".join(f" {_tex(n)}" for n in notes) + "}"]
     if label:
-        out.append(rf"\label{{{label}}}")
+        out.append(rf"\label{{{re.sub(r'[^A-Za-z0-9:_.-]', '-', label)}}}")
     out.append(r"\end{table}")
     return "\n".join(out) + "\n"

@@ -12,7 +12,9 @@ view (:func:`harness.report.record.image_name`). For each pair this module makes
   rather than three: a third of the bytes, and the page embeds one per pruned render);
 * the PSNR of this 8-bit pair (dB, +inf when identical) and the largest channel difference.
 
-Everything is returned as ``data:`` URIs: the page needs no file beside it and no network.
+Everything is returned as ``data:`` URIs: the page needs no file beside it and no network. The
+images are read through :func:`harness.io.safe.open_image` (a FIFO, a truncated PNG or a header of
+20000×20000 pixels is one line naming the file, not a hang or a traceback).
 """
 
 from __future__ import annotations
@@ -64,8 +66,10 @@ def data_uri(img, fmt: str) -> str:
 
 
 def file_uri(path: Path) -> str:
-    """A PNG file as a data URI, unchanged."""
-    return "data:image/png;base64," + base64.b64encode(Path(path).read_bytes()).decode("ascii")
+    """A PNG file as a data URI, unchanged (read through the bounded reader)."""
+    from harness.io.safe import read_bytes
+
+    return "data:image/png;base64," + base64.b64encode(read_bytes(path, "image", "image")).decode("ascii")
 
 
 def difference(ref: np.ndarray, pruned: np.ndarray) -> tuple[np.ndarray, float, int]:
@@ -101,19 +105,21 @@ def scene_images(images: Path, scenes: list[tuple[str, str]], known: dict) -> li
     the method (a file name carries the slug)."""
     from PIL import Image
 
+    from harness.io.safe import open_image  # regular files, size-capped, pixel count checked first
+
     out = []
     for scene, label in scenes:
         d = _first_frame_dir(images, scene)
         if d is None:
             continue
-        ref_img = Image.open(d / "input.png").convert("RGB")
+        ref_img = open_image(d / "input.png", "run image")
         ref = np.asarray(ref_img)
         found = []
         for f in sorted(d.glob("*__*__r*.png")):
             key = _parse(f.name)
             if key is None:
                 continue
-            img = Image.open(f).convert("RGB")
+            img = open_image(f, "run image")
             if img.size != ref_img.size:
                 continue
             amp, psnr, mx = difference(ref, np.asarray(img))

@@ -157,7 +157,7 @@ def _first_frame_dir(images: Path, scene: str) -> Path | None:
 def _grid(df: pd.DataFrame, images: Path, columns, title: str, path: Path, caption=None) -> list[Path]:
     """Rows = scenes with at least two images; ``columns`` = [(header, method, variant, ratio)];
     ``caption(scene, column)`` -> text under an image (or "")."""
-    from PIL import Image
+    from harness.io.safe import open_image
 
     plt = _plt()
     scenes = [(label, name) for name, label in dict.fromkeys(zip(df["scene"], df["label"]))]
@@ -181,7 +181,7 @@ def _grid(df: pd.DataFrame, images: Path, columns, title: str, path: Path, capti
             ax.set_xticks([])
             ax.set_yticks([])
             if f.exists():
-                ax.imshow(np.asarray(Image.open(f).convert("RGB")))
+                ax.imshow(np.asarray(open_image(f, "run image")))  # bounded read (harness.io.safe)
             else:  # this scene lacks the cell: a blank panel, no frame
                 ax.set_frame_on(False)
             if i == 0:

@@ -20,11 +20,11 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import time
 from pathlib import Path
 
-from harness.io.files import atomic_write_text
+from harness.io.files import atomic_write_bytes, atomic_write_text
+from harness.io.safe import read_bytes
 from harness.report.machine import (
     cpu_seconds,
     describe_machine,
@@ -49,8 +49,7 @@ def copy_images(images: dict, out_dir: Path) -> Path:
         if not src.exists():
             continue
         dst = root / _slug(scene) / (_slug(frame) if frame else "") / image_name(method, variant, ratio)
-        dst.parent.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(src, dst)
+        atomic_write_bytes(dst, read_bytes(src, "image", "cached image", record=False))  # the one write path
     return root
 
 

@@ -300,7 +300,7 @@ def load_baseline(path: str | Path) -> dict:
     from harness.io.safe import read_json
 
     path = Path(path)
-    data = read_json(path, "json", "baseline")
+    data = read_json(path, "json", "baseline", record=False)  # state that --update-baseline rewrites
     if not isinstance(data, dict) or not isinstance(data.get("summary"), dict) \
             or not isinstance(data["summary"].get("groups"), dict) or "calibration_s" not in data["summary"]:
         raise InputError(path, "not a tracking baseline (expected {'tolerances': ..., 'summary': {...}} as "
@@ -344,27 +344,14 @@ def write_baseline(path: str | Path, summary: dict, tolerances: dict | None = No
 
 
 def append_history(history_dir: str | Path, summary: dict) -> Path:
-    """Append ``summary`` as one JSON line to ``<history_dir>/history.jsonl``: a regular file only
-    (a FIFO would hang, a symbolic link would append to another file: both refused)."""
-    import os
-    import stat
+    """Append ``summary`` as one JSON line to ``<history_dir>/history.jsonl``."""
+    from harness.io.files import append_line
 
     d = Path(history_dir)
     path = d / "history.jsonl"
-    line = (json.dumps(summary, sort_keys=True, allow_nan=False) + "\n").encode("utf-8")
+    line = json.dumps(summary, sort_keys=True, allow_nan=False) + "\n"
     try:
         d.mkdir(parents=True, exist_ok=True)
-        if path.is_symlink():
-            raise InputError(path, "is a symbolic link; the history is appended to a regular file only")
-        if path.exists() and not stat.S_ISREG(path.stat().st_mode):
-            raise InputError(path, "is not a regular file; the history is appended to a regular file only")
-        fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK, 0o666)
-        try:
-            if not stat.S_ISREG(os.fstat(fd).st_mode):  # swapped in after the check
-                raise InputError(path, "is not a regular file; the history is appended to a regular file only")
-            os.write(fd, line)  # one write of one line: readers see whole lines
-        finally:
-            os.close(fd)
     except OSError as err:
         raise InputError(path, f"cannot append to the history: {err.strerror or err}") from None
-    return path
+    return append_line(path, line)  # one write of one line (readers see whole lines); no FIFO, no symlink

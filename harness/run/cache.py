@@ -8,13 +8,19 @@ of the camera dicts), renderer / metric / pruner code versions
 (:func:`harness.run.versions.code_digest` of their source files). Values live at
 ``<root>/<stage>/<key[:2]>/<key>.<ext>``.
 
-**Verification.** An entry file is an envelope ``b"HCE1 " + sha256(payload) + b"\n" + payload``
-(payload: JSON text, or ``.npy`` bytes). A read recomputes the checksum; then the caller's schema
-check (:mod:`harness.run.verify`: length = splat count, prune counts ≤ input, finite metrics ...)
-runs on the decoded value. An entry that fails either is **discarded** — a one-line warning,
-the file deleted — and reads as a miss, so the stage recomputes it. Checksums detect corruption
-and careless edits (a byte flipped, a number changed by hand); they are not a defence against a
-user who rewrites an entry *and* its checksum on purpose.
+**Verification.** Every entry is sealed with a checksum bound to its own name
+(:mod:`harness.run.cache_entries`: JSON and ``.npy`` payloads in an envelope, PNG images with a
+private chunk), so a damaged entry and an entry copied under another key both fail; with
+``HARNESS_CACHE_KEY`` set the checksum is an HMAC that cannot be recomputed without the secret. A
+read then runs the caller's schema check (:mod:`harness.run.verify`: length = splat count, prune
+counts ≤ input, finite metrics ...) on the decoded value. An entry that fails either — or that is
+not a regular file at all (a FIFO, a symlink to ``/dev/zero``: :mod:`harness.run.cache_stores`) —
+is **discarded**: a one-line warning, the name deleted, and it reads as a miss, so the stage
+recomputes it. What this can and cannot detect: README, "Bad input, the cache, and kills".
+
+**Scene keys** cover every file a scene reads (:meth:`FileDigests.scene`): a SOG scene named by its
+``meta.json`` or ``lod-meta.json`` is keyed on its whole folder (its textures and LOD files may
+only lie there), so editing one texture changes the key.
 
 **Atomic publish, many writers.** Entries are written to a temporary file in the destination's
 folder (name ``.<name>.<host>.<pid>.<random>.tmp``), fsynced and renamed into place
@@ -22,12 +28,10 @@ folder (name ``.<name>.<host>.<pid>.<random>.tmp``), fsynced and renamed into pl
 the folder — sees the old entry, the complete new one, or none. Two writers of one key write the
 same content (keys are content addresses of deterministic computations) and the last rename wins;
 a reader that races a deletion of a bad entry sees a miss. All storage access goes through a store
-(read / write / delete / exists of a relative path): :class:`LocalStore` for a folder (local, or a
-shared filesystem every node of a cluster mounts: NFS, CephFS, Lustre — rename is atomic there
-too), :class:`FsspecStore` for an fsspec URL (``s3://bucket/prefix``, ``gs://...``,
-``memory://...``), where each entry is published by **one** PUT (``pipe_file``): object stores
-make an object visible only once it is complete, so there is no temporary object and no
-non-atomic copy+delete "rename". ``file://PATH`` is the folder ``PATH`` (a :class:`LocalStore`).
+(:mod:`harness.run.cache_stores`): a folder (local, or a shared filesystem every node of a cluster
+mounts: NFS, CephFS, Lustre — rename is atomic there too), or an fsspec URL (``s3://bucket/prefix``,
+``gs://...``), where each entry is published by **one** PUT. ``memory://`` lives inside one process:
+it serves a one-worker local run only (:func:`harness.run.executors.preflight` refuses it otherwise).
 
 Hit/miss counts per stage are kept so a run can prove that a rerun recomputed nothing.
 """
@@ -46,13 +50,15 @@ from typing import Any
 
 import numpy as np
 
-from harness.io.files import atomic_write_bytes
+from harness.run.cache_entries import Sealer, cache_secret
+from harness.run.cache_stores import BadEntry, FsspecStore, LocalStore, is_url, open_store
+
+__all__ = ["CACHE_FORMAT", "FileDigests", "StageCache", "canonical_json", "digest_bytes", "digest_json",
+           "digest_mask", "is_url", "open_store"]
 
 _HASH_CHUNK = 1 << 20
-#: part of every key: entries written by an older layout (no envelope) are never looked up
-CACHE_FORMAT = 2
-_MAGIC = b"HCE1 "
-_HEADER = len(_MAGIC) + 64 + 1
+#: part of every key: entries of an older layout (checksums not bound to their key) are never looked up
+CACHE_FORMAT = 3
 
 
 def canonical_json(obj: Any) -> str:
@@ -132,117 +138,12 @@ class FileDigests:
             return digest_json([[str(p.relative_to(path)), self._file(p)] for p in items])
         return self._file(path)
 
+    def scene(self, path: str | Path) -> str:
+        """Digest of everything a scene read depends on (:func:`harness.io.scenes.scene_extent`):
+        the file, or the folder of a SOG scene named by one of its JSON files."""
+        from harness.io.scenes import scene_extent
 
-# --------------------------------------------------------------------------- storage
-def is_url(location) -> bool:
-    """Whether a cache location is an fsspec URL (``proto://...``) rather than a folder."""
-    return isinstance(location, str) and "://" in location
-
-
-class LocalStore:
-    """Byte storage of the cache under a local folder (the one place that touches the disk).
-
-    Paths are relative (``stage/ab/key.ext``). ``write`` is atomic (temp + fsync + rename); ``read``
-    returns None when absent. An fsspec-backed store implements the same four methods."""
-
-    def __init__(self, root: str | Path):
-        self.root = Path(root)
-
-    def path(self, rel: str) -> Path:
-        return self.root / rel
-
-    def read(self, rel: str) -> bytes | None:
-        try:
-            with open(self.root / rel, "rb") as f:
-                return f.read()
-        except (FileNotFoundError, NotADirectoryError, IsADirectoryError):
-            return None
-
-    def write(self, rel: str, data: bytes) -> None:
-        atomic_write_bytes(self.root / rel, data)
-
-    def delete(self, rel: str) -> None:
-        try:
-            (self.root / rel).unlink()
-        except FileNotFoundError:
-            pass
-
-    def exists(self, rel: str) -> bool:
-        return (self.root / rel).is_file()
-
-
-class FsspecStore:
-    """Byte storage of the cache under an fsspec URL (object stores: s3://, gs://; memory://).
-
-    ``write`` is a single ``pipe_file`` (one PUT: atomic per object, a reader sees the old object or
-    the complete new one); ``read`` is ``cat_file`` (no listing cache is consulted, so an entry
-    written by another node is seen at once). Files that other code opens by path (the PNG images
-    copied into a run folder) are downloaded into ``mirror`` by :meth:`path`. The backend's own
-    package must be installed on every node (``s3fs`` for s3://) with its credentials."""
-
-    def __init__(self, url: str, mirror: Path):
-        import fsspec
-
-        self.url = url.rstrip("/")
-        self.fs, self.base = fsspec.core.url_to_fs(self.url)
-        self.base = self.base.rstrip("/")
-        self.mirror = Path(mirror)
-
-    def _p(self, rel: str) -> str:
-        return f"{self.base}/{rel}"
-
-    def path(self, rel: str) -> Path:
-        """A local copy of the entry (fetched now; a path that does not exist when it is absent)."""
-        local = self.mirror / rel
-        data = self.read(rel)
-        if data is not None:
-            atomic_write_bytes(local, data)
-        return local
-
-    def read(self, rel: str) -> bytes | None:
-        try:
-            return self.fs.cat_file(self._p(rel))
-        except (FileNotFoundError, IsADirectoryError, NotADirectoryError):
-            return None
-
-    def write(self, rel: str, data: bytes) -> None:
-        self.fs.pipe_file(self._p(rel), bytes(data))
-
-    def delete(self, rel: str) -> None:
-        try:
-            self.fs.rm_file(self._p(rel))
-        except FileNotFoundError:
-            pass
-
-    def exists(self, rel: str) -> bool:
-        self.fs.invalidate_cache(self._p(rel))  # s3fs/gcsfs cache listings: ask the store itself
-        return self.fs.isfile(self._p(rel))
-
-
-def open_store(location: str | Path) -> tuple[LocalStore | FsspecStore, Path]:
-    """(store, local root) of a cache location: a folder, ``file://FOLDER``, or an fsspec URL (its
-    local root is a mirror folder under the harness cache, for the files opened by path)."""
-    if is_url(location) and not str(location).startswith("file://"):
-        from harness.core.paths import cache_dir
-
-        mirror = cache_dir() / "mirror" / hashlib.sha256(str(location).encode()).hexdigest()[:16]
-        return FsspecStore(str(location), mirror), mirror
-    root = Path(str(location)[len("file://"):] if is_url(location) else location)
-    return LocalStore(root), root
-
-
-def envelope(payload: bytes) -> bytes:
-    return _MAGIC + hashlib.sha256(payload).hexdigest().encode() + b"\n" + payload
-
-
-def open_envelope(data: bytes) -> tuple[bytes | None, str | None]:
-    """(payload, None) when the checksum holds, else (None, what is wrong)."""
-    if len(data) < _HEADER or not data.startswith(_MAGIC) or data[_HEADER - 1:_HEADER] != b"\n":
-        return None, "no checksum header (truncated or not written by the cache)"
-    payload = data[_HEADER:]
-    if hashlib.sha256(payload).hexdigest().encode() != data[len(_MAGIC):_HEADER - 1]:
-        return None, "checksum mismatch (the entry was changed or damaged after it was written)"
-    return payload, None
+        return self.digest(scene_extent(Path(path)))
 
 
 def _warn_stderr(message: str) -> None:
@@ -258,14 +159,16 @@ class StageCache:
     ``put_*`` store atomically. ``check`` arguments are schema checks returning a problem or None."""
 
     def __init__(self, root: str | Path, force: bool = False, warn: Callable[[str], None] | None = None,
-                 store: LocalStore | FsspecStore | None = None):
-        """``root``: a folder, ``file://FOLDER`` or an fsspec URL (see :func:`open_store`)."""
+                 store: LocalStore | FsspecStore | None = None, secret: bytes | None = None):
+        """``root``: a folder, ``file://FOLDER`` or an fsspec URL (see :func:`open_store`);
+        ``secret``: the MAC key of a shared cache (default ``HARNESS_CACHE_KEY``, else none)."""
         opened, self.root = open_store(root)
         #: what a worker is given to open the same cache (an absolute folder, or the URL)
         self.location = str(root) if isinstance(opened, FsspecStore) else str(self.root.absolute())
         self.force = force  # every lookup misses (results are recomputed and overwritten)
         self.root.mkdir(parents=True, exist_ok=True)
         self.store = store or opened
+        self.sealer = Sealer(cache_secret() if secret is None else secret)
         self.files = FileDigests()
         self.hits: Counter = Counter()
         self.misses: Counter = Counter()
@@ -281,6 +184,10 @@ class StageCache:
         return f"{stage}/{key[:2]}/{key}.{ext}"
 
     def path(self, stage: str, key: str, ext: str) -> Path:
+        """Where an entry that other code opens by path is (a PNG image): verified first — a bad
+        one is discarded, and the path returned then does not exist."""
+        if ext == "png":
+            self.has(stage, key, ext)
         return self.store.path(self.rel(stage, key, ext))
 
     def _count(self, stage: str, hit: bool) -> None:
@@ -293,10 +200,15 @@ class StageCache:
         self.warn(f"stage cache {stage} entry {key[:12]}.{ext}: {problem}; discarded, it will be recomputed")
 
     def _read(self, stage: str, key: str, ext: str, decode, check: Check | None):
-        data = self.store.read(self.rel(stage, key, ext))
+        rel = self.rel(stage, key, ext)
+        try:
+            data = self.store.read(rel)
+        except BadEntry as err:
+            self.discard(stage, key, ext, str(err))
+            return None
         if data is None:
             return None
-        payload, problem = open_envelope(data)
+        payload, problem = (self.sealer.open_png if ext == "png" else self.sealer.open_envelope)(rel, data)
         value = None
         if problem is None:
             try:
@@ -313,6 +225,11 @@ class StageCache:
             return None
         return value
 
+    def _write(self, stage: str, key: str, ext: str, payload: bytes) -> None:
+        rel = self.rel(stage, key, ext)
+        sealed = self.sealer.sign_png(rel, payload) if ext == "png" else self.sealer.envelope(rel, payload)
+        self.store.write(rel, sealed)
+
     # JSON values ------------------------------------------------------------------
     def get_json(self, stage: str, key: str, count: bool = True, check: Check | None = None):
         value = None if self.force else self._read(stage, key, "json", _decode_json, check)
@@ -321,8 +238,7 @@ class StageCache:
         return value
 
     def put_json(self, stage: str, key: str, value) -> None:
-        payload = json.dumps(value, allow_nan=True, default=float, sort_keys=True).encode()
-        self.store.write(self.rel(stage, key, "json"), envelope(payload))
+        self._write(stage, key, "json", json.dumps(value, allow_nan=True, default=float, sort_keys=True).encode())
 
     # array values -------------------------------------------------------------------
     def get_array(self, stage: str, key: str, count: bool = True, check: Check | None = None) -> np.ndarray | None:
@@ -334,11 +250,13 @@ class StageCache:
     def put_array(self, stage: str, key: str, arr: np.ndarray) -> None:
         buf = io.BytesIO()
         np.save(buf, np.asarray(arr), allow_pickle=False)
-        self.store.write(self.rel(stage, key, "npy"), envelope(buf.getvalue()))
+        self._write(stage, key, "npy", buf.getvalue())
 
     def put_bytes(self, stage: str, key: str, ext: str, data: bytes) -> None:
-        """A file as is, without the checksum envelope (PNG images that are opened by path)."""
-        self.store.write(self.rel(stage, key, ext), data)
+        """A file that other code opens by path: a PNG image, signed in place (module docstring)."""
+        if ext != "png":
+            raise ValueError(f"put_bytes stores PNG images; got .{ext} (use put_json / put_array)")
+        self._write(stage, key, ext, data)
 
     def load_json(self, stage: str, key: str, check: Check | None = None):
         """Read an entry regardless of ``force`` and without counting (results of this run)."""
@@ -348,11 +266,34 @@ class StageCache:
         return self._read(stage, key, "npy", _decode_npy, check)
 
     def has(self, stage: str, key: str, ext: str) -> bool:
-        return self.store.exists(self.rel(stage, key, ext))
+        """Whether a verified entry is there (a bad one is discarded and counts as absent)."""
+        return self._read(stage, key, ext, _decode_raw, None) is not None
+
+    def audit(self) -> dict[str, str | None]:
+        """{rel: problem or None} of every entry of a folder cache (nothing is deleted): which
+        entries a read would accept. Temporary files and probes are not entries."""
+        out: dict[str, str | None] = {}
+        for p in sorted(self.root.rglob("*.*")):
+            rel = str(p.relative_to(self.root))
+            ext = p.suffix[1:]
+            if p.name.startswith(".") or rel.startswith((".", "mirror/")) or ext not in ("json", "npy", "png"):
+                continue
+            try:
+                data = self.store.read(rel)
+            except BadEntry as err:
+                out[rel] = str(err)
+                continue
+            if data is not None:
+                out[rel] = (self.sealer.open_png if ext == "png" else self.sealer.open_envelope)(rel, data)[1]
+        return out
 
     def counts(self) -> dict[str, dict[str, int]]:
         stages = sorted(set(self.hits) | set(self.misses))
         return {s: {"hits": self.hits[s], "misses": self.misses[s]} for s in stages}
+
+
+def _decode_raw(payload: bytes) -> bytes:
+    return payload
 
 
 def _decode_json(payload: bytes):

@@ -286,7 +286,7 @@ def _scene_items(spec, frames, config, cache, toolkit, versions, base) -> list[S
     items, views, shifted = [], None, None
     for frame, path in frames:
         t0 = time.perf_counter()
-        digest = digest_json({"file": cache.files.digest(path), "lod": spec.lod})
+        digest = digest_json({"file": cache.files.scene(path), "lod": spec.lod})
         scene = _LazyScene(toolkit, str(path), spec.lod)
         key = cache.key("load", scene=digest, code=versions.reader)
         info = cache.get_json("load", key, check=load_check())
@@ -297,6 +297,10 @@ def _scene_items(spec, frames, config, cache, toolkit, versions, base) -> list[S
             size = ply_size_model(s)
             info = {"n_splats": len(s), "sh_degree": int(s.sh_degree), "ply_base": size.base, "ply_row": size.row}
             cache.put_json("load", key, info)
+        if not info["n_splats"]:  # an error of this scene (exit 1), not of the run
+            from harness.core.errors import InputError
+
+            raise InputError(path, "holds no splats: there is nothing to prune or render")
         if views is None:  # the first frame's views serve the whole sequence
             views = scene_views(spec, scene, path, config.protocol, cache, toolkit, versions, digest, base)
         rig, train, test = views

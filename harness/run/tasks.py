@@ -77,7 +77,7 @@ def _scene(toolkit: Toolkit, path: str, lod, digest: str):
 
 
 def _renderer(toolkit: Toolkit, name: str, device: str):
-    key = (name, device)
+    key = (toolkit.make_renderer, name, device)  # another toolkit (tests' fakes) never gets this one's renderer
     if _STATE.get("renderer_key") != key:
         old = _STATE.get("renderer")
         if old is not None and hasattr(old, "close"):
@@ -88,7 +88,7 @@ def _renderer(toolkit: Toolkit, name: str, device: str):
 
 
 def _metrics(toolkit: Toolkit, names: tuple[str, ...], device: str):
-    key = (tuple(names), device)
+    key = (toolkit.make_metrics, tuple(names), device)
     if _STATE.get("metrics_key") != key:
         _STATE["metrics"] = toolkit.make_metrics(tuple(names), device)
         _STATE["metrics_key"] = key

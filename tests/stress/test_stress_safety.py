@@ -248,7 +248,7 @@ def test_yaml_alias_bombs_are_refused(tmp_path, capsys, stress_counts):
 
 # ----------------------------------------------------------------------------- cache corruption
 def test_corrupted_cache_entries_are_never_used(tmp_path, stress_counts):
-    from harness.run.cache import StageCache, envelope
+    from harness.run.cache import StageCache
     from harness.run.verify import metrics_check, prune_check, score_array_check
 
     rng = np.random.default_rng(21)
@@ -279,7 +279,7 @@ def test_corrupted_cache_entries_are_never_used(tmp_path, stress_counts):
             if ext == "npy":
                 buf = io.BytesIO()
                 np.save(buf, rng.random(int(rng.integers(1, 4999))))
-                data = bytearray(envelope(buf.getvalue()))
+                data = bytearray(c.sealer.envelope(c.rel(stage, key, ext), buf.getvalue()))
             else:
                 bad = dict(value)
                 if stage == "metrics":  # values outside each metric's range (in-range edits cannot be told)
@@ -289,7 +289,7 @@ def test_corrupted_cache_entries_are_never_used(tmp_path, stress_counts):
                     bad[k] = float(rng.choice(invalid[k]))
                 else:
                     bad["splats_out"] = int(rng.choice([3501, 5734, -1, 0]))
-                data = bytearray(envelope(json.dumps(bad).encode()))
+                data = bytearray(c.sealer.envelope(c.rel(stage, key, ext), json.dumps(bad).encode()))
         p.write_bytes(bytes(data))
         got = c.get_array(stage, key, check=check) if ext == "npy" else c.get_json(stage, key, check=check)
         if got is not None:

@@ -30,15 +30,20 @@ interchangeable: the rows of a run are read from the cache afterwards.
   Worker processes are long-lived (per-process state: the scene last loaded, one GL context, the
   metric suite); each runs :func:`harness.run.tasks.init_worker` once before its first task (thread
   caps, then the ``preload`` modules — torchvision/lpips before any EGL context — then plugins).
+
+Before anything is created, :func:`preflight` checks that the cache location serves this executor
+(``memory://`` only for one local worker) and that a Ray address answers within 10 s.
 """
 
 from __future__ import annotations
 
 from harness.run.executors.base import Bars, Executor, Stage
 from harness.run.executors.local import LocalExecutor
+from harness.run.executors.preflight import preflight
 from harness.run.executors.ray_cluster import LOCAL_ENV, QUIET_ENV, RayExecutor
 
-__all__ = ["LOCAL_ENV", "QUIET_ENV", "Bars", "Executor", "LocalExecutor", "RayExecutor", "Stage", "make_executor"]
+__all__ = ["LOCAL_ENV", "QUIET_ENV", "Bars", "Executor", "LocalExecutor", "RayExecutor", "Stage", "make_executor",
+           "preflight"]
 
 
 def make_executor(spec, workers: int, *, toolkit=None, device: str = "cpu", cache_location: str | None = None,

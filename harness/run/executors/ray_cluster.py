@@ -59,17 +59,24 @@ def _ray_load_scene(setup, toolkit, path, lod):
     return toolkit.load_scene(path, lod)
 
 
-def _ray_probe(location: str, rel: str) -> tuple[str, bytes | None]:
-    """What the cache location holds at ``rel`` as seen from the node this runs on."""
+def _ray_probe(location: str, rel: str) -> tuple[str, bytes | None, str | None]:
+    """(host, payload, problem) of the sealed probe at ``rel`` as this node sees it: unreadable,
+    absent, or failing this node's checksum / cache key (``HARNESS_CACHE_KEY`` unset or different)."""
     import socket
 
-    from harness.run.cache import open_store
+    from harness.run.cache_entries import Sealer, cache_secret
+    from harness.run.cache_stores import open_store
 
+    host = socket.gethostname()
     try:
         store, _ = open_store(location)
-        return socket.gethostname(), store.read(rel)
+        data = store.read(rel)
     except Exception as err:  # an unreachable location: report what the node saw
-        return socket.gethostname(), f"{type(err).__name__}: {err}".encode()
+        return host, None, f"{type(err).__name__}: {err}"
+    if data is None:
+        return host, None, "nothing there"
+    payload, problem = Sealer(cache_secret()).open_envelope(rel, data)
+    return host, payload, problem
 
 
 @dataclass
@@ -152,10 +159,18 @@ class RayExecutor(Executor):
                 # AF_UNIX socket paths (<temp>/session_<date>_<pid>/sockets/plasma_store) must stay
                 # under 108 bytes: a short folder of our own, removed at close
                 self._temp_dir = tempfile.mkdtemp(prefix="ray-", dir="/tmp")
-                ray.init(address="local", num_cpus=self.workers * self.threads, include_dashboard=False,
-                         _temp_dir=self._temp_dir, **kw)
+                kw.update(address="local", num_cpus=self.workers * self.threads, include_dashboard=False,
+                          _temp_dir=self._temp_dir)
             else:
-                ray.init(address=self.address, **kw)
+                kw.update(address=self.address)
+            try:
+                ray.init(**kw)
+            except Exception as err:  # noqa: BLE001 - ConnectionError, RuntimeError, TimeoutError ...
+                from harness.core.errors import InputError
+
+                raise InputError("--executor ray", f"Ray could not {'start' if self.address is None else 'join'} "
+                                                   f"the cluster: {type(err).__name__}: "
+                                                   f"{' '.join(str(err).split())[:200]}") from None
             self._owns = True
             self._ray = ray
             from harness.core.lifecycle import install_signal_handlers
@@ -189,7 +204,8 @@ class RayExecutor(Executor):
         import uuid
 
         from harness.core.errors import InputError
-        from harness.run.cache import open_store
+        from harness.run.cache_entries import Sealer, cache_secret
+        from harness.run.cache_stores import open_store
 
         ray = self._ray
         from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
@@ -197,19 +213,19 @@ class RayExecutor(Executor):
         store, _ = open_store(location)
         rel = f".probe/{uuid.uuid4().hex}"
         token = uuid.uuid4().hex.encode()
-        store.write(rel, token)
+        store.write(rel, Sealer(cache_secret()).envelope(rel, token))
         try:
             probe = ray.remote(_ray_probe)
             nodes = [n for n in ray.nodes() if n.get("Alive") and n.get("Resources", {}).get("CPU", 0) > 0]
             refs = [probe.options(num_cpus=0, max_retries=1, name="probe-cache", scheduling_strategy=
                                   NodeAffinitySchedulingStrategy(n["NodeID"], soft=False)).remote(location, rel)
                     for n in nodes]
-            for n, (host, seen) in zip(nodes, ray.get(refs, timeout=300)):
+            for n, (host, seen, problem) in zip(nodes, ray.get(refs, timeout=300)):
                 if seen != token:
-                    raise InputError(location, f"the stage cache is not reachable from Ray node {host} "
-                                               f"({n.get('NodeManagerAddress')}): it read "
-                                               f"{'nothing' if seen is None else seen[:80]!r} there; give a folder "
-                                               "every node mounts (NFS ...) or an fsspec URL (s3://bucket/prefix)")
+                    raise InputError(location, f"the stage cache is not usable from Ray node {host} "
+                                               f"({n.get('NodeManagerAddress')}): {problem or 'it read another probe'}; "
+                                               "give a folder every node mounts (NFS ...) or an fsspec URL "
+                                               "(s3://bucket/prefix), and the same HARNESS_CACHE_KEY on every node")
         finally:
             store.delete(rel)
 
@@ -339,6 +355,12 @@ class RayExecutor(Executor):
             return job.task.failed(f"{what}: {type(cause).__name__}: {first[-1] if first else ''}")
         except TaskCancelledError:
             return job.task.failed(f"{what}: cancelled")
+        except ray.exceptions.LocalRayletDiedError:  # no task can run any more: stop the run, say why
+            from harness.core.errors import InputError
+
+            raise InputError("--executor ray", "the Ray cluster stopped during the run: the raylet of this node "
+                                               "died (killed, out of memory, or its runtime-env agent died); what "
+                                               "was computed is in the stage cache, a rerun resumes there") from None
         except ray.exceptions.RayError as err:  # the worker (or its node) died on every attempt
             first = _ANSI.sub("", str(err)).strip().splitlines()
             return job.task.failed(f"{what}: the worker died {self.max_retries + 1} times running it (killed, out "
