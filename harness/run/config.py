@@ -36,6 +36,10 @@ A config is a YAML mapping::
         rig: default              # `default` (a named dataset's own rig, else auto), or orbit, room,
                                   # forward, auto (harness.views.rigs; same meaning as `harness render --rig`)
         cameras: {path: cams.json, test: [v08, v10], test_every: 8}   # instead of a rig
+        capture: {cameras: cams.json, images: photos/, split: split.json, transform: t.json}
+                                  # the real capture (harness.io.capture): views and photos of the
+                                  # `real` protocol; named scenes carry theirs (bonsai-7k, bonsai-7k-mini),
+                                  # `capture: false` drops it; split | test: [names] | test_every: k
         lod: 0                    # SOG level of detail
         n_test: 3                 # per-scene override of protocol.n_test / n_train
         label: "plant"            # display name in tables (default: name)
@@ -47,6 +51,8 @@ A config is a YAML mapping::
         sweep: {preset: [baseline, flat]}   # cartesian product -> one variant per combination
         ratios: [0.3]             # overrides the default ratios (keep: likewise)
         scenes: [luigi]           # restrict to these scene names
+    protocols: [rig, shifted, real]   # held-out view protocols (the first: the primary one);
+                                  # {name: real, n_test: 8}: the first 8 captured views by name
     tables: [comparison, ablation, keep, sensitivity, runtime, per_scene]
     plots: [curves, figure1, figure3]
 
@@ -65,7 +71,8 @@ from typing import Any
 from harness.core import ratios
 from harness.core.errors import InputError
 from harness.core.params import Params
-from harness.metrics.registry import METRICS, expand
+from harness.io.capture import CaptureProtocol, CaptureSpec
+from harness.metrics.registry import expand, requestable
 from harness.run.config_checks import choice as _choice
 from harness.run.config_checks import expand_env
 from harness.run.config_checks import fractions as _fractions
@@ -124,6 +131,9 @@ class SceneSpec:
     test_every: int = 0
     width: int | None = None    # image size for header camera lines without one (default 1920x1080)
     height: int | None = None
+    #: the scene's capture (real cameras, split, photos; harness.io.capture) for the `real` protocol;
+    #: None: a named scene's own (SCENE_CAPTURES), if any; False: none (`capture: false`)
+    capture: CaptureSpec | bool | None = None
 
 
 @dataclass(frozen=True)
@@ -186,7 +196,7 @@ def _protocol(d, src) -> Protocol:
     if "metrics" in d:
         if not isinstance(d["metrics"], list) or not d["metrics"]:
             raise InputError(src, "protocol.metrics: expected a non-empty list of metric or metric-set names")
-        known = METRICS.names() + sorted({m.family for m in METRICS})
+        known = requestable()
         kw["metrics"] = expand(_names(d["metrics"], known, "protocol.metrics", src))
     if "seed" in d:
         kw["seed"] = _num(d["seed"], "protocol.seed", src, lo=0, integer=True)
@@ -194,6 +204,28 @@ def _protocol(d, src) -> Protocol:
         if k in d:
             kw[k] = _num(d[k], f"protocol.{k}", src, lo=0 if k == "n_train" else 1, hi=10000, integer=True)
     return Protocol(**{**p.__dict__, **kw})
+
+
+def _capture(d, where, src):
+    """``capture: {cameras, images, split | test | test_every, transform}`` or ``capture: false``."""
+    if d is False:
+        return False
+    d = _mapping(d, where, src)
+    _only(d, {"cameras", "images", "split", "test", "test_every", "transform"}, where, src)
+    for k in ("cameras", "images"):
+        if k not in d:
+            raise InputError(src, f"{where}.{k}: required (the capture's camera file and photo folder)")
+    test = d.get("test", [])
+    if not isinstance(test, list) or not all(isinstance(t, str) for t in test):
+        raise InputError(src, f"{where}.test: expected a list of view names")
+    every = _num(d.get("test_every", 0), f"{where}.test_every", src, lo=0, integer=True)
+    given = [k for k in ("split", "test", "test_every") if d.get(k)]
+    if len(given) != 1:
+        raise InputError(src, f"{where}: give the held-out views once: `split: FILE`, `test: [names]` or `test_every: k`"
+                              + (f" (got {', '.join(given)})" if given else ""))
+    opt = lambda k: expand_env(_str(d[k], f"{where}.{k}", src)) if k in d else None  # noqa: E731
+    return CaptureSpec(cameras=opt("cameras"), images=opt("images"), split=opt("split"), test=tuple(test),
+                       test_every=every, transform=opt("transform"))
 
 
 def _cameras(d, where, src) -> CameraSpec:
@@ -211,7 +243,7 @@ def _cameras(d, where, src) -> CameraSpec:
 
 
 _SCENE_KEYS = {"name", "label", "source", "frames", "kind", "rig", "cameras", "lod", "n_train", "n_test", "suites",
-               "sequence", "test", "test_every", "width", "height"}
+               "sequence", "test", "test_every", "width", "height", "capture"}
 _SEQUENCE_ONLY = ("test", "test_every", "width", "height")
 
 
@@ -249,12 +281,13 @@ def _scene(d, i, protocol: Protocol, src) -> SceneSpec:
         n_train=_num(d.get("n_train", protocol.n_train), f"{where}.n_train", src, lo=0, integer=True),
         n_test=_num(d.get("n_test", protocol.n_test), f"{where}.n_test", src, lo=1, integer=True),
         suites=tuple(suites),
+        capture=_capture(d["capture"], f"{where}.capture", src) if "capture" in d else None,
     )
 
 
 def _sequence_scene(d, where, name, suites, src) -> SceneSpec:
     """A scene given as an MPEG content folder (``sequence: DIR``)."""
-    clash = [k for k in ("source", "frames", "cameras", "rig", "lod") if k in d]
+    clash = [k for k in ("source", "frames", "cameras", "rig", "lod", "capture") if k in d]
     if clash:
         raise InputError(src, f"{where}: `sequence` brings its own frames and cameras; drop {', '.join(clash)}")
     test = d.get("test", [])
@@ -347,15 +380,27 @@ def _anchor(v, src) -> str:
 
 
 def _protocols(v, src) -> tuple:
-    """``protocols: [rig, shifted, {name: steep, rings_above: [20, 40], fov_scale: 0.5, seed_offset: 7}]``."""
+    """``protocols: [rig, shifted, {name: steep, rings_above: [20, 40], fov_scale: 0.5, seed_offset: 7},
+    real]`` — ``real`` (or ``{name: real, n_test: 8}``: the first 8 by name) is the captured held-out
+    views of the scenes that carry a capture (:class:`harness.io.capture.CaptureProtocol`)."""
     if not isinstance(v, list) or not v:
         raise InputError(src, "protocols: expected a non-empty list of view protocols (e.g. [rig, shifted])")
     out = []
+    known = [*rigs.PROTOCOLS, "real"]
     for i, e in enumerate(v):
         where = f"protocols[{i}]"
+        if e == "real" or (isinstance(e, dict) and e.get("name") == "real"):
+            e = _mapping({} if e == "real" else e, where, src)
+            _only(e, {"name", "n_test"}, where, src)
+            n = e.get("n_test")
+            out.append(CaptureProtocol("real", None if n is None else _num(n, f"{where}.n_test", src, lo=1,
+                                                                                integer=True)))
+            continue
         if isinstance(e, str):
-            out.append(rigs.PROTOCOLS.get(e) or _fail(src, f"{where}: {e!r} is not one of "
-                                                           f"{', '.join(rigs.PROTOCOLS)} (or give a mapping)"))
+            from harness.core.suggest import unknown
+
+            out.append(rigs.PROTOCOLS.get(e) or _fail(src, f"{where}: {unknown('view protocol', e, known)} "
+                                                           "(or give a mapping)"))
             continue
         e = _mapping(e, where, src)
         _only(e, {"name", "rings_above", "fov_scale", "seed_offset"}, where, src)
@@ -371,7 +416,8 @@ def _protocols(v, src) -> tuple:
     if len(set(names)) != len(names):
         raise InputError(src, f"protocols: duplicate names in {names}")
     if out[0].shifted:
-        raise InputError(src, "protocols[0]: the first protocol must be the training rig's own views (`rig`)")
+        raise InputError(src, "protocols[0]: the first protocol must be the training rig's own views (`rig`) "
+                              "or the captured views (`real`)")
     return tuple(out)
 
 
