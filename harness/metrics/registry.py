@@ -73,7 +73,7 @@ register_metric(MetricSpec("psnr", "PSNR", True, 2, "3dgs", "dB on [0, 1]-clampe
 register_metric(MetricSpec("ssim", "SSIM", True, 3, "3dgs", "11×11 Gaussian σ 1.5, zero padding, data range 1"))
 register_metric(MetricSpec("lpips", "LPIPS", False, 3, "3dgs", "LPIPS v0.1 VGG, inputs in [-1, 1]"))
 register_metric(MetricSpec("gt_psnr_om", "OM-PSNR vs photo", True, 2, GT_FAMILY,
-                           "PSNR against the photo over the pixels the unpruned render occupies (alpha >= 10/255): "
+                           "PSNR against the photo over the pixels the unpruned render covers (accumulated alpha >= 0.5): "
                            "what the splats model, without a background they do not hold"))
 
 # MPEG mpeg-gsc-metrics v3.0 (harness.metrics.mpeg): 8-bit renders, PSNRs capped at 999.99 dB, SSIM

@@ -35,7 +35,7 @@ def _slug(text: str) -> str:
 
 
 def image_name(method: str, variant: str, ratio: float) -> str:
-    return "input.png" if method == "input" else f"{_slug(method)}__{_slug(variant)}__r{ratio:.2f}.png"
+    return f"{method}.png" if method in ("input", "photo") else f"{_slug(method)}__{_slug(variant)}__r{ratio:.2f}.png"
 
 
 def copy_images(images: dict, out_dir: Path) -> Path:

@@ -185,6 +185,23 @@ def alpha_check(width: int, height: int):
     return check
 
 
+def gt_check(names):
+    """A ``gt`` entry: the unpruned render's photo metrics ``names`` (finite numbers; PSNRs >= 0)."""
+    names = tuple(names)
+
+    def check(rec):
+        if (why := _mapping(rec)) is not None:
+            return why
+        for k in names:
+            v = rec.get(k)
+            if not _real(v) or not math.isfinite(v):
+                return f"{k} {v!r} is not a finite number"
+            if "psnr" in k and v < 0:
+                return f"{k} {v!r} is negative"
+        return _seconds(rec, "seconds")
+    return check
+
+
 def metrics_check(names):
     names = tuple(names)
 
