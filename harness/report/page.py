@@ -139,7 +139,8 @@ def tables_html(built: dict, titles: dict) -> str:
 
 
 def plots_html(plots_dir: Path) -> str:
-    files = sorted(plots_dir.glob("curves_*.png")) + [plots_dir / f for f in ("figure1.png", "figure3.png")]
+    files = sorted(plots_dir.glob("curves_*.png")) + [plots_dir / f for f in ("figure1.png", "figure3.png")] \
+        + sorted(plots_dir.glob("photos-*.png"))  # photo | unpruned | pruned (harness.report.photofigure)
     out = [f"<figure><img alt='{esc(f.stem)}' src='{file_uri(f)}'><figcaption>{esc(f.name)}</figcaption></figure>"
            for f in files if f.is_file()]
     return "<div class='plots'>" + ("\n".join(out) or "<p class='warn'>no plots in this run folder</p>") + "</div>"

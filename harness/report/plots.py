@@ -200,11 +200,18 @@ def write_plots(df: pd.DataFrame, run_dir: str | Path, names) -> Written:
     """The plots of the primary held-out view protocol (the training rig's views)."""
     from harness.report.summary import protocol_subsets
 
-    df = protocol_subsets(df)[0][2]
     run_dir = Path(run_dir)
+    w = Written()
+    if "photos" in names:  # the captured views' figure (harness.report.photofigure): its own protocol's rows
+        from harness.report.photofigure import write_photo_figures
+
+        w.paths += (got := write_photo_figures(df, run_dir))
+        if not got:
+            w.missing.append("plot photos not drawn: no stored render of a view with a captured photo "
+                             "(scenes with a capture, under the `real` protocol)")
+    df = protocol_subsets(df)[0][2]
     out = run_dir / "plots"
     images = run_dir / "images"
-    w = Written()
     if "curves" in names:
         got = plot_curves(df, out)
         w.paths += got

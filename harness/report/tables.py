@@ -34,8 +34,8 @@ import pandas as pd
 
 from harness.core import ratios
 from harness.io.files import atomic_write_text
-from harness.report import bd, catalog, cells
-from harness.report.summary import PROTOCOL_NOTES, protocol_subsets, summarise
+from harness.report import bd, catalog, cells, photos
+from harness.report.summary import PRIMARY_PROTOCOL, PROTOCOL_NOTES, protocol_subsets, summarise
 from harness.report.tabledata import Missing, Table, Written, as_table
 
 KEEPS = cells.KEEPS
@@ -185,7 +185,7 @@ def table_runtime(s: pd.DataFrame):
 
 BUILDERS = {"comparison": cells.table_comparison, "ablation": cells.table_ablation, "keep": table_keep,
             "sensitivity": table_sensitivity, "runtime": table_runtime, "per_scene": cells.table_per_scene,
-            "versus": cells.table_versus, "bd": bd.table_bd, "ctc": bd.table_ctc}
+            "versus": cells.table_versus, "bd": bd.table_bd, "ctc": bd.table_ctc, "photos": photos.table_photos}
 #: builders that read the summary (one row per cell) rather than the per-view results
 _USES_SUMMARY = {"runtime", "bd", "ctc"}
 TITLES = {"comparison": "Comparison at low (10 %), mid (20 %) and high (30 %) pruning (paper Table 1)",
@@ -195,7 +195,8 @@ TITLES = {"comparison": "Comparison at low (10 %), mid (20 %) and high (30 %) pr
           "runtime": "Scoring runtime per scene", "per_scene": "Per-scene descriptor gains",
           "versus": "Every method against the reference, per view",
           "bd": "Bjøntegaard deltas against the anchor (BD-rate on .ply bytes; RGB-PSNR, YUV-PSNR, YUV-SSIM)",
-          "ctc": "Per sequence and rate point (MPEG CTC layout)"}
+          "ctc": "Per sequence and rate point (MPEG CTC layout)",
+          "photos": "Against the captured photos: pruned and unpruned renders, per held-out view"}
 
 
 def _call(fn, data, opts: dict):
@@ -220,12 +221,15 @@ def write_tables(df: pd.DataFrame, out_dir: str | Path, names, **opts) -> Writte
     out_dir = Path(out_dir) / "tables"
     out_dir.mkdir(parents=True, exist_ok=True)
     subsets = protocol_subsets(df)
+    with_photos = {proto for proto, _, sub in subsets if not photos._views(sub).empty}
     summaries = [summarise(sub).assign(protocol=proto) if len(subsets) > 1 else summarise(sub)
                  for proto, _, sub in subsets]
     out = Written([out_dir / "summary.csv"])
     atomic_write_text(out.paths[0], pd.concat(summaries, ignore_index=True).to_csv(index=False))
     for proto, suffix, sub in subsets:
-        for name, t in build_tables(sub, names, **opts).items():
+        # the photos table belongs to the protocols whose views have photos (when any has)
+        here = [n for n in names if n != "photos" or not with_photos or proto in with_photos]
+        for name, t in build_tables(sub, here, **opts).items():
             key = name + suffix
             out.built[key] = t
             if isinstance(t, Missing):
@@ -235,7 +239,7 @@ def write_tables(df: pd.DataFrame, out_dir: str | Path, names, **opts) -> Writte
                 continue
             out.warnings += t.warnings
             title = TITLES.get(name, name)
-            if len(subsets) > 1:
+            if len(subsets) > 1 or proto not in ("", PRIMARY_PROTOCOL):  # every table names a non-rig protocol
                 title += f" — held-out views: {proto} ({PROTOCOL_NOTES.get(proto, 'a named view protocol')})"
             tidy = t.tidy.assign(protocol=proto) if len(subsets) > 1 else t.tidy
             for ext, text in (("md", to_markdown(t, title)), ("csv", tidy.to_csv(index=False)),

@@ -86,8 +86,8 @@ from harness.views import rigs
 from renderers import RENDERERS
 
 KINDS = ("forward-facing", "object-centric")
-TABLES = ("comparison", "ablation", "keep", "sensitivity", "runtime", "per_scene", "versus", "bd", "ctc")
-PLOTS = ("curves", "figure1", "figure3")
+TABLES = ("comparison", "ablation", "keep", "sensitivity", "runtime", "per_scene", "versus", "bd", "ctc", "photos")
+PLOTS = ("curves", "figure1", "figure3", "photos")
 
 @dataclass(frozen=True)
 class Protocol:
