@@ -295,6 +295,18 @@ def _measures_rig(config: RunConfig) -> bool:
     return any(not isinstance(p, CaptureProtocol) for p in config.protocols)
 
 
+def check_captures(config: RunConfig, base: Path, toolkit: Toolkit | None = None) -> None:
+    """Read and verify every capture the run's ``real`` protocol will measure, before any output is
+    written: a bad one is an :class:`InputError` (exit status 2); an absent named one is not."""
+    from harness.io import capture as cap
+
+    if any(isinstance(p, CaptureProtocol) for p in config.protocols):
+        for spec in config.scenes:
+            cs = capture_spec(spec, toolkit or Toolkit())
+            if cs is not None and not (cs.named and cap.capture_root(cs.named) is None):
+                cap.load_capture(cs, base)
+
+
 def capture_spec(spec: SceneSpec, toolkit: Toolkit):
     """The capture a scene carries: its config's, else a named scene's own (``capture: false``: none)."""
     from harness.io.capture import named_spec
