@@ -45,10 +45,10 @@ def register_metric(spec: MetricSpec) -> MetricSpec:
     """Register ``spec`` and its ``gt_`` twin: the same measure of a render against the captured
     photo of its view (:data:`GT_PREFIX`), measured wherever a view has a photo."""
     METRICS.add(spec.name, spec, same=lambda a, b: a == b)
-    if not spec.name.startswith(GT_PREFIX):
-        twin = MetricSpec(GT_PREFIX + spec.name, f"{spec.label} vs photo", spec.higher_is_better, spec.digits,
-                          GT_FAMILY, f"{spec.doc}; the render against the view's captured photo".lstrip("; "))
-        METRICS.add(twin.name, twin, same=lambda a, b: a == b)
+    twin = GT_PREFIX + spec.name
+    if not spec.name.startswith(GT_PREFIX) and twin not in METRICS.names():  # a photo metric of that name stays
+        METRICS.add(twin, MetricSpec(twin, f"{spec.label} vs photo", spec.higher_is_better, spec.digits, GT_FAMILY,
+                                     f"{spec.doc}; the render against the view's captured photo".lstrip("; ")))
     return spec
 
 
