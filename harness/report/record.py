@@ -60,7 +60,7 @@ def contact_sheets(items, cache, ref_key, out_dir: Path, background=(0.0, 0.0, 0
     for item in items:
         if item.spec.name in out:
             continue
-        pairs = [(cam.name, cache.load_array("render_ref", ref_key(item, cam))) for cam in item.test]
+        pairs = [(cam.name, cache.load_array("render_ref", ref_key(item, cam))) for cam in item.primary_views()]
         pairs = [(n, im) for n, im in pairs if im is not None]
         if not pairs:
             continue

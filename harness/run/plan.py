@@ -71,6 +71,10 @@ class SceneItem:
         shifted = [(name, v, c) for name, cams in self.shifted.items() for v, c in enumerate(cams)]
         return (rig + shifted + real) if self.measure_rig else (real + shifted)
 
+    def primary_views(self) -> list[Camera]:
+        """The held-out views of the run's first protocol (contact sheets, figures)."""
+        return self.test if self.measure_rig or self.real is None else self.real.test
+
     def train_set(self, protocol: str) -> str:
         """The training set whose masks a protocol's views measure: ``capture`` or ``rig``."""
         return "capture" if self.real is not None and protocol == self.real.protocol else "rig"
