@@ -28,8 +28,11 @@ LEVELS = (0.3, 0.2, 0.1)
 
 
 def _real_dir(images: Path, scene: str, protocol: str) -> Path | None:
+    """The folder of the scene's first captured view: ``<scene>[/<frame>]/<protocol>``, or the scene's
+    (first frame's) own folder when that protocol was the run's primary one."""
     d = images / _slug(scene)
-    for cand in [d / protocol, *sorted(p / protocol for p in d.glob("*") if p.is_dir())] if d.exists() else []:
+    frames = sorted(p for p in d.glob("*") if p.is_dir() and p.name != protocol) if d.exists() else []
+    for cand in (c for f in (d, *frames) for c in (f / protocol, f)):
         if (cand / "photo.png").is_file() and (cand / "input.png").is_file():
             return cand
     return None

@@ -241,6 +241,8 @@ def write_tables(df: pd.DataFrame, out_dir: str | Path, names, **opts) -> Writte
             title = TITLES.get(name, name)
             if len(subsets) > 1 or proto not in ("", PRIMARY_PROTOCOL):  # every table names a non-rig protocol
                 title += f" — held-out views: {proto} ({PROTOCOL_NOTES.get(proto, 'a named view protocol')})"
+                if not suffix:  # its file name does not say it (the report page shows the notes)
+                    t.notes = [*t.notes, f"held-out views: {proto} ({PROTOCOL_NOTES.get(proto, 'a named view protocol')})"]
             tidy = t.tidy.assign(protocol=proto) if len(subsets) > 1 else t.tidy
             for ext, text in (("md", to_markdown(t, title)), ("csv", tidy.to_csv(index=False)),
                               ("tex", to_latex(t.disp, title, t.notes, label=f"table:{key}"))):

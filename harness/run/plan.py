@@ -283,8 +283,12 @@ def load_items(config: RunConfig, cache: StageCache, toolkit: Toolkit, versions:
             if on_skip:
                 on_skip(spec, missing)
             continue
-        if reason and on_note:
+        if on_note and reason:
             on_note(spec, f"not measured under {real.name}: {reason}")
+        elif on_note and views is not None:
+            cam = views.test[0]
+            on_note(spec, f"{real.name}: {len(views.test)} held-out views and {len(views.train)} training cameras "
+                          f"of {views.source} at {cam.width}x{cam.height}" + "".join(f"; {n}" for n in views.notes))
         try:
             items += _scene_items(spec, frames, config, cache, toolkit, versions, base, views)
         except InputError as err:  # a bad file spoils this scene only; the run goes on and exits 1
@@ -339,7 +343,7 @@ def capture_views(spec: SceneSpec, protocol: CaptureProtocol | None, config: Run
     train, test, side = cap.protocol_views(c, protocol, config.protocol.longest_side)
     photos = {v.name: (str(c.photos[orig.name]), c.digests[orig.name])
               for v, orig in zip(test, c.test)}
-    notes = list(c.notes)
+    notes = []  # (the capture's caveats are the photos table's notes)
     if side < config.protocol.longest_side:
         notes.append(f"rendered at {side} px (the photos' size), not {config.protocol.longest_side} px: "
                      "a photo is never upsampled")
