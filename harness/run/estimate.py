@@ -206,7 +206,7 @@ def _real_views(spec, config, toolkit, base):
     """(held-out sizes, training sizes) of the ``real`` protocol on a scene, or two empty lists
     (no such protocol, no capture, or one not on this machine)."""
     from harness.io import capture as cap
-    from harness.run.plan import capture_spec
+    from harness.run.captured import capture_spec
 
     proto = next((p for p in config.protocols if isinstance(p, cap.CaptureProtocol)), None)
     cs = capture_spec(spec, toolkit) if proto is not None else None
