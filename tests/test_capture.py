@@ -251,3 +251,20 @@ def test_a_good_capture_loads(tmp_path):
     train, test, side = cap.protocol_views(got, cap.CaptureProtocol(n_test=2), 384)
     assert side == 160 and [x.name for x in test] == ["real/img0", "real/img2"]  # capped at the photos' size
     assert (test[0].width, test[0].height) == (160, 120) and len(train) == 2
+
+
+def test_fetching_a_scene_brings_its_capture_and_only_a_named_capture_can_fail_the_command(monkeypatch, capsys):
+    from harness.io import fetch
+
+    calls = []
+    monkeypatch.setattr(fetch, "fetch_scenes", lambda names, **kw: calls.append(("scene", *names)))
+
+    def no_network(name, **kw):
+        calls.append(("capture", name))
+        raise InputError(name, "download failed (no network)")
+
+    monkeypatch.setattr(fetch, "fetch_capture", no_network)
+    assert main(["fetch", "bonsai-7k", "bonsai-7k-mini"]) == 0  # brought along: reported, not fatal
+    assert calls == [("scene", "bonsai-7k"), ("capture", "bonsai-capture"), ("scene", "bonsai-7k-mini")]
+    assert "bonsai-capture: not fetched: bonsai-capture: download failed" in capsys.readouterr().out
+    assert main(["fetch", "bonsai-capture"]) == 1  # asked for by name
