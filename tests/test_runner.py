@@ -286,7 +286,7 @@ def test_protocol_config_errors():
     from harness.core.errors import InputError
 
     base = {"scenes": ["a"], "methods": ["opacity"], "ratios": [0.1]}
-    for protocols, msg in ((["shifted"], "first protocol must be the training rig"), (["rig", "tilted"], "not one of"),
+    for protocols, msg in ((["shifted"], "first protocol must be the training rig"), (["rig", "tilted"], "unknown view protocol .tilted."),
                            ([], "non-empty list"), (["rig", {"name": "x", "fov_scale": 9}], "fov_scale")):
         with pytest.raises(InputError, match=msg):
             parse_config({**base, "protocols": protocols}, "c.yaml")

@@ -55,10 +55,10 @@ def metric_names(text: str, qmiv: bool = False) -> tuple[str, ...]:
     """Metric names from a comma-separated list of metric and family names (InputError if unknown);
     with ``qmiv`` the mpeg family and MPEG names become their QMIV-mode counterparts."""
     from harness.core.errors import InputError
-    from harness.metrics.registry import METRICS, expand
+    from harness.metrics.registry import METRICS, expand, requestable
 
     words = [w.strip() for w in text.split(",") if w.strip()]
-    known = METRICS.names() + sorted({m.family for m in METRICS})
+    known = requestable()
     bad = [w for w in words if w not in known]
     if bad or not words:
         raise InputError("--metrics", f"unknown metric or family {', '.join(bad) or repr(text)}; known: {', '.join(known)}")

@@ -64,6 +64,9 @@ def run(args) -> int:
     from harness.run.runner import Runner
 
     config = load_config(args.config)
+    from harness.run.captured import check_captures
+
+    check_captures(config, Path.cwd())  # a bad capture: one line, exit 2, before any output
     workers = args.workers if args.workers is not None else config.workers
     if not 1 <= workers <= 256:
         raise InputError("--workers", f"must be 1..256, got {workers}")

@@ -169,3 +169,45 @@ def fetch_scenes(names=None, *, log=print, base_url: str | None = None, mirror: 
         if isinstance(SCENES[name], PublicScene):
             _fetch_public(name, status, log, base_url, mirror)
     return status
+
+
+# --------------------------------------------------------------------------- captures (harness.io.capture)
+def fetch_capture(name: str, *, log=print, base_url: str | None = None, mirror: Path | None = None) -> str:
+    """Make a named capture present and verified: every manifest file copied from the mirror folder
+    when it holds it with the right sha256, else downloaded from the pinned origin (the manifest maps
+    each local path to its path there); assembled in a temporary folder and renamed into place.
+    Returns 'present' or 'fetched'; the log line shows the licence."""
+    from harness.io import capture as cap
+
+    if name not in cap.CAPTURES:
+        raise InputError(name, f"unknown capture name; known names: {', '.join(cap.CAPTURES)}")
+    m = cap.manifest(name)
+    files = [(rel, origin, int(size), sha) for rel, (origin, size, sha) in m["files"].items()]
+    target = cap.fetched_root(name)
+
+    def ok(path: Path, size: int, sha: str) -> bool:
+        return path.is_file() and path.stat().st_size == size and sha256_file(path) == sha
+
+    terms = f"licence: {m['license']}"
+    if target.is_dir() and all(ok(target / rel, size, sha) for rel, _, size, sha in files):
+        log(f"{name}: present, sha256 verified ({target}; {terms})")
+        return "present"
+    source = (mirror / m["disk_name"]) if mirror is not None else cap.mirror_root(name)
+    base = base_url or m["base_url"]
+    with tempfile.TemporaryDirectory(dir=paths.data_dir(), prefix=".fetch-") as tmp:
+        staged = Path(tmp) / m["disk_name"]
+        copied = 0
+        for rel, origin, size, sha in files:
+            dest = staged / rel
+            dest.parent.mkdir(parents=True, exist_ok=True)
+            if ok(source / rel, size, sha):
+                shutil.copyfile(source / rel, dest)
+                copied += 1
+            else:
+                download(base + origin, dest, size, sha, name)
+        if target.exists():
+            shutil.rmtree(target)
+        os.replace(staged, target)
+    how = "copied from the mirror" if copied == len(files) else f"downloaded from {base}"
+    log(f"{name}: {how}, sha256 verified ({target}; {len(files)} files; {terms}; {m['credit']})")
+    return "fetched"

@@ -145,23 +145,41 @@ class LpipsVGG:
 
     def distances(self, ref: LpipsFeatures, images, source: str = "image") -> np.ndarray:
         """LPIPS between the reference behind ``ref`` and each image of ``images``: float64 ``(n,)``."""
+        return self.distances_to([ref], images, source)[:, 0]
+
+    def distances_to(self, refs, images, source: str = "image") -> np.ndarray:
+        """LPIPS of each image against each of several references (e.g. the unpruned render and the
+        photo of a view): float64 ``(n_images, n_refs)``, one trunk pass per image."""
         imgs = [self._check(im, f"{source} {i}") for i, im in enumerate(images)]
-        for i, img in enumerate(imgs):
-            if tuple(img.shape[:2]) != tuple(ref.size):
-                raise InputError(f"{source} {i}", f"size {img.shape[1]}x{img.shape[0]} differs from the "
-                                                  f"reference's {ref.size[1]}x{ref.size[0]}")
-        ref = ref.to(self.device)
-        out = np.empty(len(imgs), dtype=np.float64)
+        for ref in refs:
+            for i, img in enumerate(imgs):
+                if tuple(img.shape[:2]) != tuple(ref.size):
+                    raise InputError(f"{source} {i}", f"size {img.shape[1]}x{img.shape[0]} differs from the "
+                                                      f"reference's {ref.size[1]}x{ref.size[0]}")
+        refs = [ref.to(self.device) for ref in refs]
+        out = np.empty((len(imgs), len(refs)), dtype=np.float64)
         step = self.batch_size or self._auto_batch(imgs[0].shape[:2] if imgs else (1, 1))
         with torch.inference_mode():
             for start in range(0, len(imgs), step):
                 layers = self._normalised_layers(imgs[start:start + step])
-                total = 0.0
-                for f1, f0, w in zip(layers, ref.layers, self._lin):
-                    d = (f1 - f0).square_()
-                    total = total + torch.einsum("bchw,c->b", d, w) / (d.shape[2] * d.shape[3])
-                out[start:start + step] = total.double().cpu().numpy()
+                for j, ref in enumerate(refs):
+                    out[start:start + step, j] = self._combine(layers, ref.layers).double().cpu().numpy()
         return out
+
+    def feature_distance(self, a: LpipsFeatures, b: LpipsFeatures) -> float:
+        """LPIPS of two images from their stored features (no trunk pass)."""
+        if tuple(a.size) != tuple(b.size):
+            raise InputError("features", f"sizes differ: {a.size} vs {b.size}")
+        with torch.inference_mode():
+            return float(self._combine(a.to(self.device).layers, b.to(self.device).layers)[0])
+
+    def _combine(self, layers, ref_layers) -> torch.Tensor:
+        """Σ_l mean_hw Σ_c w_lc (f − f_ref)² per image of the batch ``layers``."""
+        total = 0.0
+        for f1, f0, w in zip(layers, ref_layers, self._lin):
+            d = (f1 - f0).square_()
+            total = total + torch.einsum("bchw,c->b", d, w) / (d.shape[2] * d.shape[3])
+        return total
 
     def distance(self, ref: LpipsFeatures, image, source: str = "image") -> float:
         """LPIPS between the reference behind ``ref`` and ``image`` (one trunk pass)."""

@@ -34,10 +34,21 @@ class MetricSpec:
 
 #: every metric :class:`harness.metrics.suite.MetricSuite` computes
 METRICS: Registry[MetricSpec] = Registry("metric")
+#: metrics against a view's captured photo (the paper's "against captured ground-truth images"):
+#: ``gt_<name>`` for every registered ``<name>``, measured automatically where a view has a photo,
+#: never asked for in a config; the others compare a pruned render with the unpruned render
+GT_PREFIX = "gt_"
+GT_FAMILY = "gt"
 
 
 def register_metric(spec: MetricSpec) -> MetricSpec:
+    """Register ``spec`` and its ``gt_`` twin: the same measure of a render against the captured
+    photo of its view (:data:`GT_PREFIX`), measured wherever a view has a photo."""
     METRICS.add(spec.name, spec, same=lambda a, b: a == b)
+    twin = GT_PREFIX + spec.name
+    if not spec.name.startswith(GT_PREFIX) and twin not in METRICS.names():  # a photo metric of that name stays
+        METRICS.add(twin, MetricSpec(twin, f"{spec.label} vs photo", spec.higher_is_better, spec.digits, GT_FAMILY,
+                                     f"{spec.doc}; the render against the view's captured photo".lstrip("; ")))
     return spec
 
 
@@ -61,6 +72,9 @@ def expand(names) -> tuple[str, ...]:
 register_metric(MetricSpec("psnr", "PSNR", True, 2, "3dgs", "dB on [0, 1]-clamped float images; +inf if identical"))
 register_metric(MetricSpec("ssim", "SSIM", True, 3, "3dgs", "11×11 Gaussian σ 1.5, zero padding, data range 1"))
 register_metric(MetricSpec("lpips", "LPIPS", False, 3, "3dgs", "LPIPS v0.1 VGG, inputs in [-1, 1]"))
+register_metric(MetricSpec("gt_psnr_om", "OM-PSNR vs photo", True, 2, GT_FAMILY,
+                           "PSNR against the photo over the pixels the unpruned render covers (accumulated alpha >= 0.5): "
+                           "what the splats model, without a background they do not hold"))
 
 # MPEG mpeg-gsc-metrics v3.0 (harness.metrics.mpeg): 8-bit renders, PSNRs capped at 999.99 dB, SSIM
 # per Y/U/V plane; "_om": over the pixels either render occupies. Family `mpeg` is the tool's default
@@ -86,6 +100,25 @@ register_metric(MetricSpec("yuv_ivssim", "YUV-IVSSIM", True, 4, "mpeg",
 def mpeg_names(qmiv: bool = False) -> tuple[str, ...]:
     """The metric names of the mpeg (``qmiv=False``) or mpeg-qmiv family, registry order."""
     return tuple(m.name for m in METRICS if m.family == ("mpeg-qmiv" if qmiv else "mpeg"))
+
+
+def requestable() -> list[str]:
+    """Metric and family names a config or ``harness compare`` may ask for (photo metrics are not
+    asked for: they come with the photos)."""
+    own = [m for m in METRICS if m.family != GT_FAMILY]
+    return [m.name for m in own] + sorted({m.family for m in own})
+
+
+def is_gt(name: str) -> bool:
+    """Is ``name`` a metric against the captured photo?"""
+    return str(name).startswith(GT_PREFIX)
+
+
+def gt_names(names) -> tuple[str, ...]:
+    """The photo metrics measured beside ``names``: each one's ``gt_`` twin, and ``gt_psnr_om`` (PSNR
+    over the pixels the unpruned render occupies) when PSNR is among them."""
+    out = [GT_PREFIX + n for n in names if not is_gt(n)]
+    return tuple(dict.fromkeys(out + (["gt_psnr_om"] if "psnr" in names else [])))
 
 
 def needs_alpha(names) -> bool:

@@ -140,7 +140,8 @@ def tables_html(built: dict[str, Built]) -> str:
 
 # --------------------------------------------------------------------------- plots, images
 def plots_html(plots_dir: Path, protocol: str = "") -> str:
-    files = sorted(plots_dir.glob("curves_*.png")) + [plots_dir / f for f in ("figure1.png", "figure3.png")]
+    files = sorted(plots_dir.glob("curves_*.png")) + [plots_dir / f for f in ("figure1.png", "figure3.png")] \
+        + sorted(plots_dir.glob("photos-*.png"))  # photo | unpruned | pruned (harness.report.photofigure)
     out = [f"<details><summary>{esc(f.name)}</summary><figure><img alt='{esc(f.stem)}' src='{file_uri(f)}'>"
            f"</figure></details>" for f in files if f.is_file()]
     if not out:

@@ -35,7 +35,7 @@ from harness.report.record import _slug, image_name
 from harness.report.tabledata import Written
 
 #: the plots a config or ``harness tables --plots`` can name
-PLOTS = ("curves", "figure1", "figure3")
+PLOTS = ("curves", "figure1", "figure3", "photos")
 FIG1_RATIOS = (0.1, 0.3, 0.5, 0.7)
 FIG3_RATIO = 0.2
 
@@ -209,12 +209,19 @@ def write_plots(df: pd.DataFrame, run_dir: str | Path, names) -> Written:
     titles name."""
     from harness.report.summary import protocol_subsets
 
+    run_dir = Path(run_dir)
+    w = Written()
+    if "photos" in names:  # the captured views' figure (harness.report.photofigure): its own protocol's rows
+        from harness.report.photofigure import write_photo_figures
+
+        w.paths += (got := write_photo_figures(df, run_dir))
+        if not got:
+            w.missing.append("plot photos not drawn: no stored render of a view with a captured photo "
+                             "(scenes with a capture, under the `real` protocol)")
     protocol, _, df = protocol_subsets(df)[0]
     first_view = f" — first held-out view ({protocol})" if protocol else ""
-    run_dir = Path(run_dir)
     out = run_dir / "plots"
     images = run_dir / "images"
-    w = Written()
     if "curves" in names:
         got = plot_curves(df, out, protocol)
         w.paths += got

@@ -38,7 +38,7 @@ def _slug(text: str) -> str:
 
 
 def image_name(method: str, variant: str, ratio: float) -> str:
-    return "input.png" if method == "input" else f"{_slug(method)}__{_slug(variant)}__r{ratio:.2f}.png"
+    return f"{method}.png" if method in ("input", "photo") else f"{_slug(method)}__{_slug(variant)}__r{ratio:.2f}.png"
 
 
 def copy_images(images: dict, out_dir: Path) -> Path:
@@ -63,8 +63,8 @@ def contact_sheets(items, cache, ref_key, out_dir: Path, background=(0.0, 0.0, 0
     for item in items:
         if item.spec.name in out or not item.test:
             continue
-        sheet = ContactSheet(len(item.test), background=background)
-        for cam in item.test:
+        sheet = ContactSheet(len(item.primary_views()), background=background)
+        for cam in item.primary_views():
             image = cache.load_array("render_ref", ref_key(item, cam))
             if image is not None:
                 sheet.add(image, cam.name)

@@ -24,12 +24,16 @@ import pandas as pd
 
 from harness.io.files import atomic_write_with
 from harness.metrics.registry import METRICS as _METRICS
+from harness.metrics.registry import is_gt
 
 #: metrics beyond the 3DGS set (the MPEG families, :mod:`harness.metrics.registry`), then occupancy (%)
 EXTRA_METRICS = [m.name for m in _METRICS if m.name not in ("psnr", "ssim", "lpips")] + ["occupancy"]
+#: on a view with a photo: the unpruned render's photo metrics (``gt_`` names) and the share of the
+#: frame its splats occupy (%), repeated on every row of the view (the pruned render's are ``gt_*``)
+UNPRUNED_GT = [f"unpruned_{m.name}" for m in _METRICS if is_gt(m.name)] + ["unpruned_gt_occupancy"]
 COLUMNS = [
     "run", "scene", "label", "kind", "frame", "method", "variant", "params", "ratio", "keep", "protocol", "view",
-    "status", "reason", "psnr", "ssim", "lpips", *EXTRA_METRICS, "splats_in", "splats_out", "bytes", "tau",
+    "status", "reason", "psnr", "ssim", "lpips", *EXTRA_METRICS, *UNPRUNED_GT, "splats_in", "splats_out", "bytes", "tau",
     "tau_quantile", "score_s", "prune_s", "render_ref_s", "render_s", "metrics_s", "renderer", "width", "height",
 ]
 _TEXT = {"run", "scene", "label", "kind", "frame", "method", "variant", "params", "protocol", "view", "status", "reason",

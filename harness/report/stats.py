@@ -31,6 +31,8 @@ cap. Such a view says "pruning changed (almost) nothing here" and its dB value i
 would dominate any mean, so dB means and dB differences exclude it (a pair is excluded when either
 side is near-identical); every cell counts them (``n_near_identical``) and the tables mark the cell.
 Bounded metrics (SSIM, LPIPS) keep every view. Medians are over every view (inf included).
+Metrics against a captured photo (``gt_*``) neither flag nor drop a view: a pruned render equal
+to the unpruned one is ~20 dB from the photo, an ordinary value (:func:`drops_near`).
 """
 
 from __future__ import annotations
@@ -57,11 +59,20 @@ def is_db(metric: str) -> bool:
     return "psnr" in metric.lower()
 
 
+def drops_near(metric: str) -> bool:
+    """Are near-identical views left out of ``metric``'s means and differences (dB metrics
+    comparing pruned and unpruned renders; not those against a photo)?"""
+    from harness.metrics.registry import is_gt
+
+    return is_db(metric) and not is_gt(metric)
+
+
 def near_identical(df: pd.DataFrame, metrics) -> np.ndarray:
-    """Per row: is any dB metric among ``metrics`` ≥ :data:`NEAR_IDENTICAL_DB` (inf included)?"""
+    """Per row: is any pruned-vs-unpruned dB metric among ``metrics`` ≥ :data:`NEAR_IDENTICAL_DB`
+    (inf included)?"""
     flag = np.zeros(len(df), dtype=bool)
     for m in metrics:
-        if is_db(m) and m in df:
+        if drops_near(m) and m in df:
             v = pd.to_numeric(df[m], errors="coerce").to_numpy(dtype=np.float64)
             flag |= np.nan_to_num(v, nan=-np.inf) >= NEAR_IDENTICAL_DB
     return flag
@@ -128,7 +139,7 @@ def summary(values, near, metric: str) -> dict:
     near = np.asarray(near, dtype=bool)
     ok = ~np.isnan(v)
     v, near = v[ok], near[ok]
-    used = v[~near] if is_db(metric) else v
+    used = v[~near] if drops_near(metric) else v
     used = used[np.isfinite(used)]
     return {"mean": float(used.mean()) if used.size else np.nan,
             "std": float(used.std(ddof=1)) if used.size > 1 else np.nan,
@@ -159,7 +170,7 @@ def paired_diffs(cur: pd.DataFrame, ref: pd.DataFrame, metric: str, keys=("frame
         return np.empty(0, np.float64), 0
     ci, ri = np.array(pairs, dtype=np.intp).T
     d = cv[ci] - rv[ri]
-    excluded = (cn[ci] | rn[ri]) if is_db(metric) else np.zeros(len(ci), bool)
+    excluded = (cn[ci] | rn[ri]) if drops_near(metric) else np.zeros(len(ci), bool)
     return d[~excluded & np.isfinite(d)].astype(np.float64), int(excluded.sum())
 
 

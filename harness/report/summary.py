@@ -46,7 +46,9 @@ def summarise(df: pd.DataFrame) -> pd.DataFrame:
 PRIMARY_PROTOCOL = "rig"
 PROTOCOL_NOTES = {"rig": "held-out views of the rig the camera-aware methods train on",
                   "shifted": "held-out views from another camera distribution (higher rings, narrower field of "
-                             "view, other azimuths) than the camera-aware methods' training views"}
+                             "view, other azimuths) than the camera-aware methods' training views",
+                  "real": "the real capture's held-out cameras; camera-aware methods train on its training cameras; "
+                          "'vs photo' metrics compare with the captured photos, the others with the unpruned render"}
 
 
 def protocol_subsets(df: pd.DataFrame) -> list[tuple[str, str, pd.DataFrame]]:

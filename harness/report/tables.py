@@ -33,7 +33,7 @@ import numpy as np
 import pandas as pd
 
 from harness.io.files import atomic_write_text
-from harness.report import bd, catalog, cells, claims, sensitivity
+from harness.report import bd, catalog, cells, claims, photos, sensitivity
 from harness.report.summary import PROTOCOL_NOTES, protocol_subsets, summarise
 from harness.report.tabledata import Built, Missing, Table, Written, as_table
 
@@ -84,7 +84,8 @@ def table_runtime(s: pd.DataFrame):
 
 BUILDERS = {"comparison": cells.table_comparison, "ablation": cells.table_ablation, "keep": sensitivity.table_keep,
             "sensitivity": sensitivity.table_sensitivity, "runtime": table_runtime, "per_scene": cells.table_per_scene,
-            "versus": cells.table_versus, "bd": bd.table_bd, "ctc": bd.table_ctc, "claims": claims.table_claims}
+            "versus": cells.table_versus, "bd": bd.table_bd, "ctc": bd.table_ctc, "claims": claims.table_claims,
+            "photos": photos.table_photos}
 #: builders that read the summary (one row per cell) rather than the per-view results
 _USES_SUMMARY = {"runtime", "bd", "ctc"}
 TITLES = {"comparison": "Comparison at low (10 %), mid (20 %) and high (30 %) pruning (paper Table 1)",
@@ -95,7 +96,8 @@ TITLES = {"comparison": "Comparison at low (10 %), mid (20 %) and high (30 %) pr
           "versus": "Every method against the reference, per view",
           "bd": "Bjøntegaard deltas against the anchor (BD-rate on .ply bytes; RGB-PSNR, YUV-PSNR, YUV-SSIM)",
           "ctc": "Per sequence and rate point (MPEG CTC layout)",
-          "claims": "The paper's claims, each tested as the paper states it, with a verdict"}
+          "claims": "The paper's claims, each tested as the paper states it, with a verdict",
+          "photos": "Against the captured photos: pruned and unpruned renders, per held-out view"}
 
 
 def _call(fn, data, opts: dict):
@@ -150,11 +152,14 @@ def write_tables(df: pd.DataFrame, out_dir: str | Path, names, **opts) -> Writte
     out_dir = Path(out_dir) / "tables"
     out_dir.mkdir(parents=True, exist_ok=True)
     subsets = protocol_subsets(df)
+    with_photos = {proto for proto, _, sub in subsets if not photos._views(sub).empty}
     summaries = [summarise(sub).assign(protocol=proto) for proto, _, sub in subsets]
     out = Written([out_dir / "summary.csv"])
     atomic_write_text(out.paths[0], pd.concat(summaries, ignore_index=True).to_csv(index=False))
     for proto, suffix, sub in subsets:
-        for name, t in build_tables(sub, names, **opts).items():
+        # the photos table belongs to the protocols whose views have photos (when any has)
+        here = [n for n in names if n != "photos" or not with_photos or proto in with_photos]
+        for name, t in build_tables(sub, here, **opts).items():
             t = with_caption(t)
             key = name + suffix
             out.built[key] = Built(key, name, proto, title(name, proto), t)

@@ -36,6 +36,10 @@ A config is a YAML mapping::
         rig: default              # `default` (a named dataset's own rig, else auto), or orbit, room,
                                   # forward, auto (harness.views.rigs; same meaning as `harness render --rig`)
         cameras: {path: cams.json, test: [v08, v10], test_every: 8}   # instead of a rig
+        capture: {cameras: cams.json, images: photos/, split: split.json, transform: t.json}
+                                  # the real capture (harness.io.capture): views and photos of the
+                                  # `real` protocol; named scenes carry theirs (bonsai-7k, bonsai-7k-mini),
+                                  # `capture: false` drops it; split | test: [names] | test_every: k
         lod: 0                    # SOG level of detail
         n_test: 3                 # per-scene override of protocol.n_test / n_train
         label: "plant"            # display name in tables (default: name)
@@ -49,6 +53,8 @@ A config is a YAML mapping::
         sweep: {preset: [baseline, flat]}   # cartesian product -> one variant per combination
         ratios: [0.3]             # overrides the default ratios (keep: likewise)
         scenes: [luigi]           # restrict to these scene names
+    protocols: [rig, shifted, real]   # held-out view protocols (the first: the primary one);
+                                  # {name: real, n_test: 8}: the first 8 captured views by name
     tables: [comparison, ablation, keep, sensitivity, runtime, per_scene]
     plots: [curves, figure1, figure3]
 
@@ -68,7 +74,8 @@ from harness.core import ratios
 from harness.core.errors import InputError
 from harness.core.suggest import unknown
 from harness.core.params import Params
-from harness.metrics.registry import METRICS, expand
+from harness.io.capture import CaptureSpec
+from harness.metrics.registry import expand, requestable
 from harness.report.plots import PLOTS
 from harness.report.tables import TABLES
 from harness.run.config_checks import boolean as _bool
@@ -80,6 +87,8 @@ from harness.run.config_checks import names as _names
 from harness.run.config_checks import num as _num
 from harness.run.config_checks import only as _only
 from harness.run.config_checks import string as _str
+from harness.run.config_views import capture as _capture
+from harness.run.config_views import protocols as _protocols
 from harness.run.executor_spec import ExecutorSpec, parse_executor
 from harness.views import rigs
 from renderers import RENDERERS
@@ -131,6 +140,9 @@ class SceneSpec:
     #: absent files are skipped with a message (MPEG content not everyone has); otherwise a scene
     #: that cannot be found is an error before any work (:func:`harness.run.plan.check_sources`)
     optional: bool = False
+    #: the scene's capture (real cameras, split, photos; harness.io.capture) for the `real` protocol;
+    #: None: a named scene's own (SCENE_CAPTURES), if any; False: none (`capture: false`)
+    capture: CaptureSpec | bool | None = None
 
 
 @dataclass(frozen=True)
@@ -193,8 +205,7 @@ def _protocol(d, src) -> Protocol:
     if "metrics" in d:
         if not isinstance(d["metrics"], list) or not d["metrics"]:
             raise InputError(src, "protocol.metrics: expected a non-empty list of metric or metric-set names")
-        known = METRICS.names() + sorted({m.family for m in METRICS})
-        kw["metrics"] = expand(_names(d["metrics"], known, "protocol.metrics", src, "metric or metric set"))
+        kw["metrics"] = expand(_names(d["metrics"], requestable(), "protocol.metrics", src, "metric or metric set"))
     if "seed" in d:
         kw["seed"] = _num(d["seed"], "protocol.seed", src, lo=0, integer=True)
     for k in ("n_train", "n_test"):
@@ -218,7 +229,7 @@ def _cameras(d, where, src) -> CameraSpec:
 
 
 _SCENE_KEYS = {"name", "label", "source", "frames", "kind", "rig", "cameras", "lod", "n_train", "n_test", "suites",
-               "sequence", "test", "test_every", "width", "height", "optional"}
+               "sequence", "test", "test_every", "width", "height", "optional", "capture"}
 
 _SEQUENCE_ONLY = ("test", "test_every", "width", "height")
 
@@ -258,12 +269,13 @@ def _scene(d, i, protocol: Protocol, src) -> SceneSpec:
         n_test=_num(d.get("n_test", protocol.n_test), f"{where}.n_test", src, lo=1, hi=rigs.MAX_VIEWS, integer=True),
         suites=tuple(suites),
         optional=_bool(d.get("optional", False), f"{where}.optional", src),
+        capture=_capture(d["capture"], f"{where}.capture", src) if "capture" in d else None,
     )
 
 
 def _sequence_scene(d, where, name, suites, src, optional: bool) -> SceneSpec:
     """A scene given as an MPEG content folder (``sequence: DIR``)."""
-    clash = [k for k in ("source", "frames", "cameras", "rig", "lod") if k in d]
+    clash = [k for k in ("source", "frames", "cameras", "rig", "lod", "capture") if k in d]
     if clash:
         raise InputError(src, f"{where}: `sequence` brings its own frames and cameras; drop {', '.join(clash)}")
     test = d.get("test", [])
@@ -354,39 +366,6 @@ def _pruner(name: str, where: str, src):
         return get_pruner(name)
     except KeyError:
         raise InputError(src, f"{where}: {unknown('method', name, [p.name for p in list_pruners()])}") from None
-
-
-def _protocols(v, src) -> tuple:
-    """``protocols: [rig, shifted, {name: steep, rings_above: [20, 40], fov_scale: 0.5, seed_offset: 7}]``."""
-    if not isinstance(v, list) or not v:
-        raise InputError(src, "protocols: expected a non-empty list of view protocols (e.g. [rig, shifted])")
-    out = []
-    for i, e in enumerate(v):
-        where = f"protocols[{i}]"
-        if isinstance(e, str):
-            out.append(rigs.PROTOCOLS.get(e) or _fail(src, f"{where}: {e!r} is not one of "
-                                                           f"{', '.join(rigs.PROTOCOLS)} (or give a mapping)"))
-            continue
-        e = _mapping(e, where, src)
-        _only(e, {"name", "rings_above", "fov_scale", "seed_offset"}, where, src)
-        above = e.get("rings_above", [])
-        if not isinstance(above, list):
-            raise InputError(src, f"{where}.rings_above: expected a list of degrees")
-        out.append(rigs.ViewProtocol(
-            _str(e.get("name"), f"{where}.name", src),
-            tuple(float(_num(a, f"{where}.rings_above[{j}]", src, lo=-80, hi=80)) for j, a in enumerate(above)),
-            float(_num(e.get("fov_scale", 1.0), f"{where}.fov_scale", src, lo=0.1, hi=2.5)),
-            _num(e.get("seed_offset", 0), f"{where}.seed_offset", src, lo=0, integer=True)))
-    names = [p.name for p in out]
-    if len(set(names)) != len(names):
-        raise InputError(src, f"protocols: duplicate names in {names}")
-    if out[0].shifted:
-        raise InputError(src, "protocols[0]: the first protocol must be the training rig's own views (`rig`)")
-    return tuple(out)
-
-
-def _fail(src, problem):
-    raise InputError(src, problem)
 
 
 def parse_config(data: Any, source: str = "<config>") -> RunConfig:

@@ -12,6 +12,12 @@ Counting follows the runner's stages (:mod:`harness.run.runner`) and reads no mo
   pruners cost ``score_splat[m] · N``.
 * **prune** — one selection per distinct (score task, ratio): ``select_splat · N`` (serial, driver).
 * **render_ref** — one per (scene, frame, protocol, held-out view): ``render(N, W·H)``.
+* **real** protocol (a scene's capture, :mod:`harness.io.capture`): its held-out cameras at the
+  capture's size (capped at the photos'), measured with the masks of a second training set — a
+  camera-aware pruner scores again on the capture's training cameras (an extra score task and
+  pruned sets), a camera-free one shares its scores — and each image also against the photo:
+  the metric passes again except the LPIPS trunk (its pass is shared), plus once per view for the
+  unpruned render.
 * **render+metrics** — one image per pruned set × held-out view: ``render(N·keep, W·H)`` plus the
   metric passes of the config's metrics (:func:`metric_passes`: 3dgs = PSNR + SSIM + LPIPS; mpeg =
   4 PSNR-like passes on 8-bit images + 2 SSIM passes, YUV and occupancy-masked) plus
@@ -78,6 +84,9 @@ class SceneInfo:
     splats: list[int]              # per frame
     views: list[tuple[int, int]]   # (W, H) of every held-out view, all protocols
     train: list[tuple[int, int]]   # (W, H) of the views handed to camera-aware pruners
+    #: the ``real`` protocol's held-out views and training cameras (W, H): measured against photos too
+    real_views: list[tuple[int, int]] = field(default_factory=list)
+    real_train: list[tuple[int, int]] = field(default_factory=list)
 
 
 @dataclass
@@ -187,7 +196,24 @@ def _present_views(spec, config, toolkit, base, dataset):
         train, test = _select_test(cams, spec.cameras)
         return _sizes(test), _sizes(train)
     size = _rig_size(spec, config, dataset)
-    return [size] * (spec.n_test * len(config.protocols)), [size] * spec.n_train
+    from harness.io.capture import CaptureProtocol
+
+    rig = [p for p in config.protocols if not isinstance(p, CaptureProtocol)]
+    return [size] * (spec.n_test * len(rig)), [size] * spec.n_train * bool(rig)
+
+
+def _real_views(spec, config, toolkit, base):
+    """(held-out sizes, training sizes) of the ``real`` protocol on a scene, or two empty lists
+    (no such protocol, no capture, or one not on this machine)."""
+    from harness.io import capture as cap
+    from harness.run.captured import capture_spec
+
+    proto = next((p for p in config.protocols if isinstance(p, cap.CaptureProtocol)), None)
+    cs = capture_spec(spec, toolkit) if proto is not None else None
+    if cs is None or (cs.named and cap.capture_root(cs.named) is None):
+        return [], []
+    train, test, _ = cap.protocol_views(cap.load_capture(cs, base), proto, config.protocol.longest_side)
+    return _sizes(test), _sizes(train)
 
 
 def _assumed(spec, config, assume: Assumptions, dataset, reason: str) -> SceneInfo:
@@ -220,10 +246,11 @@ def scene_info(spec: SceneSpec, config: RunConfig, assume: Assumptions, toolkit=
     frames, reason = resolve_paths(spec, toolkit, base)
     reason = reason or _cameras_missing(spec, base)
     if not reason:
+        real = _real_views(spec, config, toolkit, base)  # a bad capture is an error, not an assumption
         try:
             splats = [splat_count(Path(p), spec.lod) for _, p in frames]
             views, train = _present_views(spec, config, toolkit, base, dataset)
-            return SceneInfo(spec.name, "read", f"{len(frames)} frame(s) read", splats, views, train)
+            return SceneInfo(spec.name, "read", f"{len(frames)} frame(s) read", splats, views, train, *real)
         except InputError as err:
             reason = f"cannot read it ({err})"
     return _assumed(spec, config, assume, dataset, reason)
@@ -278,12 +305,13 @@ def estimate(config: RunConfig, infos: list[SceneInfo], units: UnitCosts | None)
     notes: set[str] = set()
     rows = []
     specs = {s.name: s for s in config.scenes}
+    gt_px = passes["ssim"] * u.ssim_px + (passes["psnr"] + 1) * u.psnr_px  # against the photo (+ OM-PSNR)
     for info in infos:
         spec = specs[info.name]
         tasks: dict[str, tuple] = {}  # distinct score tasks: (method, params) -> (variant, pruner, ratios)
         for mv in (m for m in config.methods if m.scenes is None or spec.name in m.scenes):
             pruner = get_pruner(mv.method)
-            if "cameras" in pruner.needs and not info.train:
+            if "cameras" in pruner.needs and not (info.train or info.real_train):
                 notes.add(f"{spec.name}: {mv.method} needs training cameras and is skipped")
                 continue
             key = f"{mv.method}|{sorted(mv.params.to_dict().items())!r}"
@@ -291,33 +319,45 @@ def estimate(config: RunConfig, infos: list[SceneInfo], units: UnitCosts | None)
             tasks[key] = (prev[0], pruner, tuple(dict.fromkeys(prev[2] + tuple(mv.ratios))))
         keeps = [1.0 - r for _, _, rs in tasks.values() for r in rs]
         n_sets = len(keeps)
+        # training sets (harness.run.plan): the rig's, and the capture's for the real protocol
+        sets = [(train, views, False) for train, views in ((info.train, info.views),) if views] \
+            + [(info.real_train, info.real_views, True)] * bool(info.real_views)
         before = {k: (s.units, s.core_s) for k, s in st.items()}
         for n in info.splats:
             st["load"].add(1, u.read_splat * n)
-            for mv, pruner, _ in tasks.values():
-                cost, renders = _score_cost(mv, pruner, n, info.train, u, notes)
-                st["score"].add(1, cost, cost)
-                st["score"].detail["training_renders"] += renders
-                st["score"].detail["camera_aware_tasks"] += bool("cameras" in pruner.needs)
-            st["prune"].add(n_sets, u.select_splat * n * n_sets, u.select_splat * n)
-            for w, h in info.views:
-                px = w * h
-                st["render_ref"].add(1, u.render(n, px), u.render(n, px))
-                if not n_sets:
-                    continue
-                image = [u.render(n * k, px) + per_px * px + IMAGE_OVERHEAD_S for k in keeps]
-                tasks_v = math.ceil(n_sets / chunk)
-                longest = ref_px * px + sum(sorted(image, reverse=True)[:chunk])
-                st["render+metrics"].add(n_sets, sum(image) + tasks_v * ref_px * px, longest)
-                st["render+metrics"].detail["view_tasks"] += tasks_v
+            for j, (train, views, photos) in enumerate(sets):
+                for mv, pruner, rs in tasks.values():
+                    aware = "cameras" in pruner.needs
+                    if j and not aware:
+                        continue  # a camera-free pruner's scores serve every training set
+                    if aware and not train:
+                        continue
+                    cost, renders = _score_cost(mv, pruner, n, train, u, notes)
+                    st["score"].add(1, cost, cost)
+                    st["score"].detail["training_renders"] += renders
+                    st["score"].detail["camera_aware_tasks"] += aware
+                    st["prune"].add(len(rs), u.select_splat * n * len(rs), u.select_splat * n)
+                for w, h in views:
+                    px = w * h
+                    st["render_ref"].add(1, u.render(n, px), u.render(n, px))
+                    if not n_sets:
+                        continue
+                    extra = gt_px * px if photos else 0.0
+                    image = [u.render(n * k, px) + per_px * px + extra + IMAGE_OVERHEAD_S for k in keeps]
+                    tasks_v = math.ceil(n_sets / chunk)
+                    ref_cost = tasks_v * ref_px * px + (extra + 2 * ref_px * px) * photos  # + photo features, gt
+                    longest = ref_px * px + sum(sorted(image, reverse=True)[:chunk])
+                    st["render+metrics"].add(n_sets, sum(image) + ref_cost, longest)
+                    st["render+metrics"].detail["view_tasks"] += tasks_v
         for k, v in passes.items():
             st["render+metrics"].detail[f"{k}_passes"] = v * st["render+metrics"].units
         images = st["render+metrics"].units - before["render+metrics"][0]
-        sizes = sorted(set(info.views))
+        sizes = sorted(set(info.views + info.real_views))
         rows.append({"scene": info.name, "status": info.status, "note": info.note, "frames": len(info.splats),
                      "splats": round(sum(info.splats) / max(1, len(info.splats))),
-                     "views": len(info.views), "train_views": len(info.train),
+                     "views": len(info.views) + len(info.real_views),
+                     "train_views": len(info.train) + len(info.real_train),
                      "size": "/".join(f"{w}×{h}" for w, h in sizes[:3]) + ("/…" if len(sizes) > 3 else ""),
-                     "score_tasks": len(tasks) * len(info.splats), "sets": n_sets, "images": images,
+                     "score_tasks": st["score"].units - before["score"][0], "sets": n_sets, "images": images,
                      "core_s": sum(s.core_s - before[k][1] for k, s in st.items())})
     return Estimate(st, rows, passes, sorted(notes))

@@ -11,7 +11,16 @@ Stages and their cache keys (every key also holds the code digest of what comput
 * **prune** — per (score key, ratio): keep mask (stored by its own digest), τ, counts.
 * **render_ref** — per (scene, frame, test view): the unpruned render.
 * **metrics** — per (reference render, keep-mask digest): PSNR/SSIM/LPIPS of the pruned render.
-  Two methods that keep the same splats share the entry, so the set is rendered once.
+  Two methods that keep the same splats share the entry, so the set is rendered once. A view with
+  a photo (the ``real`` protocol) also keys on the photo's sha256 and holds the ``gt_`` metrics.
+* **gt** — per (reference render, photo digest): the unpruned render against the photo.
+
+**Protocols and training sets.** Every protocol measures its held-out views with the masks of one
+*training set*: ``rig`` (the synthetic rig's training views; protocols ``rig``, ``shifted`` and the
+other :class:`harness.views.rigs.ViewProtocol` s) or ``capture`` (the capture's training cameras;
+the ``real`` protocol, :class:`harness.io.capture.CaptureProtocol`). Camera-aware pruners score
+once per training set (their score keys hold the cameras); the others score once — their keys do
+not depend on the training set, so the second set's entry is the first's.
 
 Scenes are resolved before any work (:func:`check_sources`): a scene the config does not mark
 ``optional: true`` whose files are absent is an error naming it (a misspelt name gets "did you
@@ -26,7 +35,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from harness.core.cameras import Camera
+from harness.io.capture import CaptureProtocol
 from harness.run.cache import StageCache, digest_json
+from harness.run.captured import RealViews, capture_views
 from harness.run.config import MethodVariant, RunConfig, SceneSpec
 from harness.run.toolkit import Toolkit
 from harness.run.versions import Versions
@@ -48,13 +59,37 @@ class SceneItem:
     load_s: float = 0.0
     ply_base: int = 0  # size model of the pruned .ply (harness.io.plysize): base + digits + N·row
     ply_row: int = 0
-    #: held-out views of the other protocols (the primary protocol's are ``test``)
+    #: held-out views of the other rig protocols (the rig protocol's are ``test``)
     shifted: dict[str, list[Camera]] = field(default_factory=dict)
+    #: the ``real`` protocol's views of the scene's capture (None: not measured)
+    real: RealViews | None = None
+    #: False when the run measures no rig protocol's own views (``protocols: [real, ...]``)
+    measure_rig: bool = True
 
     def views(self, primary: str = "rig") -> list[tuple[str, int, Camera]]:
-        """(protocol, index within it, camera) of every held-out view, the primary protocol first."""
-        return ([(primary, v, c) for v, c in enumerate(self.test)]
-                + [(name, v, c) for name, cams in self.shifted.items() for v, c in enumerate(cams)])
+        """(protocol, index within it, camera) of every held-out view, the primary protocol first.
+        ``primary``: the name of the rig protocol (the config's first protocol when it is a rig one)."""
+        rig = [(primary, v, c) for v, c in enumerate(self.test)] if self.measure_rig else []
+        real = [(self.real.protocol, v, c) for v, c in enumerate(self.real.test)] if self.real else []
+        shifted = [(name, v, c) for name, cams in self.shifted.items() for v, c in enumerate(cams)]
+        return (rig + shifted + real) if self.measure_rig else (real + shifted)
+
+    def primary_views(self) -> list[Camera]:
+        """The held-out views of the run's first protocol (contact sheets, figures)."""
+        return self.test if self.measure_rig or self.real is None else self.real.test
+
+    def train_set(self, protocol: str) -> str:
+        """The training set whose masks a protocol's views measure: ``capture`` or ``rig``."""
+        return "capture" if self.real is not None and protocol == self.real.protocol else "rig"
+
+    def train_sets(self) -> dict[str, list[Camera]]:
+        """The training sets of the protocols measured on this item, rig first."""
+        out = {"rig": self.train} if self.measure_rig or self.shifted else {}
+        return {**out, "capture": self.real.train} if self.real is not None else out
+
+    def photo(self, view: str) -> tuple[str, str] | None:
+        """(photo path, sha256) of a held-out view that has one."""
+        return self.real.photos.get(view) if self.real is not None else None
 
     def ply_bytes(self, count: int) -> int | None:
         """Bytes of the .ply the harness writes for ``count`` of this frame's splats (None: unknown)."""
@@ -253,26 +288,39 @@ class _LazyScene:
 
 
 def load_items(config: RunConfig, cache: StageCache, toolkit: Toolkit, versions: Versions,
-               base: Path, on_skip=None) -> tuple[list[SceneItem], list[Skip]]:
+               base: Path, on_skip=None, on_note=None) -> tuple[list[SceneItem], list[Skip]]:
     """Resolve every scene's files, splat counts and cameras; absent optional scenes become skips,
     absent required ones (gone since :func:`check_sources` passed) errors.
 
     Scenes are loaded only when a stage needs them (a miss of ``load`` or ``views``), so a rerun
-    with everything cached never reads a scene file.
+    with everything cached never reads a scene file. Captures are read and verified first, for
+    every scene, so a bad capture stops the run before any work (an :class:`InputError`).
+    ``on_note(spec, text)`` hears about a scene the ``real`` protocol does not measure.
     """
     from harness.core.errors import InputError
 
+    real = next((p for p in config.protocols if isinstance(p, CaptureProtocol)), None)
+    captures = {spec.name: capture_views(spec, real, config, cache, toolkit, base) for spec in config.scenes}
     items, skips = [], []
     for spec in config.scenes:
-        frames, reason = resolve_paths(spec, toolkit, base)
-        reason = reason or _cameras_missing(spec, base)
-        if reason:
-            skips.append(Skip(spec.name, "", "*", "*", reason, status="skipped" if spec.optional else "error"))
+        views, reason = captures[spec.name]
+        frames, missing = resolve_paths(spec, toolkit, base)
+        missing = missing or _cameras_missing(spec, base)
+        if not missing and real is not None and views is None and not _measures_rig(config):
+            missing = f"the {real.name} protocol measures it only, and {reason}"
+        if missing:
+            skips.append(Skip(spec.name, "", "*", "*", missing, status="skipped" if spec.optional else "error"))
             if on_skip:
-                on_skip(spec, reason)
+                on_skip(spec, missing)
             continue
+        if on_note and reason:
+            on_note(spec, f"not measured under {real.name}: {reason}")
+        elif on_note and views is not None:
+            cam = views.test[0]
+            on_note(spec, f"{real.name}: {len(views.test)} held-out views and {len(views.train)} training cameras "
+                          f"of {views.source} at {cam.width}x{cam.height}" + "".join(f"; {n}" for n in views.notes))
         try:
-            items += _scene_items(spec, frames, config, cache, toolkit, versions, base)
+            items += _scene_items(spec, frames, config, cache, toolkit, versions, base, views)
         except InputError as err:  # a bad file spoils this scene only; the run goes on and exits 1
             skips.append(Skip(spec.name, "", "*", "*", f"cannot use it: {err}", status="error"))
             if on_skip:
@@ -280,7 +328,12 @@ def load_items(config: RunConfig, cache: StageCache, toolkit: Toolkit, versions:
     return items, skips
 
 
-def _scene_items(spec, frames, config, cache, toolkit, versions, base) -> list[SceneItem]:
+def _measures_rig(config: RunConfig) -> bool:
+    """Does the run measure any rig protocol (its first protocol is not ``real``, or it lists others)?"""
+    return any(not isinstance(p, CaptureProtocol) for p in config.protocols)
+
+
+def _scene_items(spec, frames, config, cache, toolkit, versions, base, real=None) -> list[SceneItem]:
     from harness.run.verify import load_check
 
     items, views, shifted = [], None, None
@@ -307,13 +360,20 @@ def _scene_items(spec, frames, config, cache, toolkit, versions, base) -> list[S
         if shifted is None:
             shifted = shifted_views(spec, scene, config, cache, toolkit, versions, digest, rig)
         items.append(SceneItem(spec, frame, str(path), digest, info["n_splats"], info["sh_degree"], rig,
-                               train, test, time.perf_counter() - t0, info["ply_base"], info["ply_row"], shifted))
+                               train, test, time.perf_counter() - t0, info["ply_base"], info["ply_row"], shifted,
+                               real, measure_rig=not isinstance(config.protocols[0], CaptureProtocol)))
     return items
+
+
+def rig_protocols(config: RunConfig) -> list:
+    """The rig protocols other than the primary one: their views are built from the scene's rig."""
+    rest = [p for p in config.protocols if not isinstance(p, CaptureProtocol)]
+    return rest[1:] if not isinstance(config.protocols[0], CaptureProtocol) else rest
 
 
 def shifted_views(spec: SceneSpec, scene, config: RunConfig, cache: StageCache, toolkit: Toolkit,
                   versions: Versions, scene_digest: str, rig: str) -> dict[str, list[Camera]]:
-    """Held-out views of every protocol but the primary one (cached like the rig's views): the same
+    """Held-out views of every rig protocol but the primary one (cached like the rig's views): the same
     rig kind with the protocol's camera distribution (:class:`harness.views.rigs.ViewProtocol`).
     Scenes whose views come from camera files or MPEG content have no shifted protocol."""
     out: dict[str, list[Camera]] = {}
@@ -321,7 +381,7 @@ def shifted_views(spec: SceneSpec, scene, config: RunConfig, cache: StageCache, 
         return out
     p = config.protocol
     dataset = spec.source if spec.source and toolkit.resolve_dataset(spec.source) else None
-    for proto in config.protocols[1:]:
+    for proto in rig_protocols(config):
         source = {"rig": spec.rig, "scene": scene_digest, "dataset": dataset, "kind": spec.kind,
                   "n_test": spec.n_test, "aspect": p.aspect, "seed": p.seed, "protocol": proto.__dict__}
         key = cache.key("views", source=source, longest_side=p.longest_side, code=versions.rigs)

@@ -24,9 +24,10 @@ from pathlib import Path
 import numpy as np
 
 from harness.core import ratios
-from harness.run.cache import StageCache, digest_mask
+from harness.run.cache import StageCache, digest_json, digest_mask
 from harness.run.config import RunConfig
 from harness.run.executors import Bars, Executor, LocalExecutor, Stage
+from harness.metrics.registry import gt_names
 from harness.run.plan import SceneItem, Skip, Versions, load_items, variants_for
 from harness.run.tasks import (
     MaskJob,
@@ -37,6 +38,7 @@ from harness.run.tasks import (
 )
 from harness.run.toolkit import Toolkit
 from harness.run.verify import (
+    gt_check,
     mask_check,
     metrics_check,
     prune_check,
@@ -126,8 +128,11 @@ class Runner:
         def skipped(spec, reason):
             self.log(f"skip {spec.name}: {reason}")
 
+        def noted(spec, text):
+            self.log(f"note {spec.name}: {text}")
+
         items, skips = self._timed("load", load_items, self.config, self.cache, self.toolkit, versions,
-                                   self.base, skipped)
+                                   self.base, skipped, noted)
         self.errors += [f"scene {s.scene}: {s.reason}" for s in skips if s.status == "error"]
         self.items = items
         scores, skips2 = self._timed("score", self._score_stage, items, get_pruner)
@@ -142,39 +147,46 @@ class Runner:
         return RunResult(self.out_dir, rows, skips, self.errors, self.stage_s, self.cache.counts(), images,
                          executor=self.executor.describe())
 
-    def _score_key(self, item: SceneItem, mv, spec) -> str:
+    def _score_key(self, item: SceneItem, mv, spec, train=None) -> str:
+        """Camera-aware pruners key on their training cameras (``train``: the item's rig views)."""
         aware = spec.wants_cameras(mv.params)
+        cams = item.train_digest if train is None else digest_json([c.to_dict() for c in train])
         return self.cache.key(
             "score", scene=item.digest, method=mv.method, params=mv.params.to_dict(),
             seed=self.config.protocol.seed, code=self.versions.pruner(mv.method),
-            cameras=item.train_digest if aware else None,
+            cameras=cams if aware else None,
             device=self.config.protocol.device if aware else None,
         )
 
     def _score_stage(self, items, get_pruner):
-        """{(item index, method key): (score key, record)}; camera-aware without cameras -> skip."""
+        """{(item index, method key, training set): (score key, record)}, one per training set of the
+        item's protocols (:meth:`SceneItem.train_sets`; a method that ignores cameras has one key for
+        all of them, computed once); camera-aware without cameras -> skip."""
         p = self.config.protocol
-        out, skips, tasks, pending = {}, [], [], {}
+        out, skips, tasks, pending, hits = {}, [], [], {}, {}
         for i, item in enumerate(items):
             for mv in variants_for(item, self.config.methods):
                 spec = get_pruner(mv.method)
-                if "cameras" in spec.needs and not item.train:
-                    skips.append(Skip(item.spec.name, item.frame, mv.method, mv.variant,
-                                      f"{mv.method} needs {', '.join(sorted(spec.needs))}: the scene has no "
-                                      "training cameras (give a rig or a cameras file with training views)"))
-                    continue
-                key = self._score_key(item, mv, spec)
-                rec = self._cached_scores(key, item.n_splats) if key not in pending else None
-                if rec is not None:
-                    out[(i, mv.key)] = (key, rec)
-                    continue
-                if key not in pending:
-                    pending[key] = []
-                    tasks.append(ScoreTask(
-                        self.cache.location, key, item.path, item.spec.lod, item.digest, mv.method,
-                        mv.params, p.seed, [c.to_dict() for c in item.train] if spec.wants_cameras(mv.params) else None,
-                        p.device, self.toolkit, label=f"{_where(item)} {mv.key}"))
-                pending[key].append((i, mv.key))
+                for ts, train in item.train_sets().items():
+                    if "cameras" in spec.needs and not train:
+                        skips.append(Skip(item.spec.name, item.frame, mv.method, mv.variant,
+                                          f"{mv.method} needs {', '.join(sorted(spec.needs))}: the scene has no "
+                                          f"{ts} training cameras (give a rig or a cameras file with training views)"))
+                        continue
+                    key = self._score_key(item, mv, spec, train)
+                    if key not in pending and key not in hits:
+                        hits[key] = self._cached_scores(key, item.n_splats)
+                    if hits.get(key) is not None:
+                        out[(i, mv.key, ts)] = (key, hits[key])
+                        continue
+                    if key not in pending:
+                        pending[key] = []
+                        tasks.append(ScoreTask(
+                            self.cache.location, key, item.path, item.spec.lod, item.digest, mv.method,
+                            mv.params, p.seed, [c.to_dict() for c in train] if spec.wants_cameras(mv.params) else None,
+                            p.device, self.toolkit, label=f"{_where(item)} {mv.key}" + (f" ({ts} cameras)" if
+                                                                                        ts != "rig" else "")))
+                    pending[key].append((i, mv.key, ts))
         if self.executor.parallel:  # camera-aware (rendering) and big scenes first, so the pool ends together
             cost = {k: items[ik[0][0]].n_splats * (10 if t.train else 1) for t, (k, ik) in zip(tasks, pending.items())}
             tasks.sort(key=lambda t: -cost[t.key])
@@ -182,7 +194,7 @@ class Runner:
         def who(key: str) -> str:  # every (scene, method, ratios) that a score entry serves
             mvs = {m.key: m for m in self.config.methods}
             return "; ".join(f"{_where(items[i])} {mk} (ratios {', '.join(format(r, 'g') for r in mvs[mk].ratios)})"
-                             for i, mk in pending[key])
+                             for i, mk in dict.fromkeys((i, mk) for i, mk, _ in pending[key]))
 
         for res in self._map("score", run_score, tasks):
             if res["error"]:
@@ -214,39 +226,40 @@ class Runner:
         from methods.targeting import select_by_ratio
 
         code = module_versions(("methods.targeting",))
-        out = {}
-        for i, item in enumerate(items):
-            for mv in variants_for(item, self.config.methods):
-                if (i, mv.key) not in scores:
+        out, done = {}, {}
+        for (i, mk, ts), (skey, srec) in scores.items():
+            item = items[i]
+            mv = next(m for m in self.config.methods if m.key == mk)
+            if "error" in srec:
+                continue
+            arr = None
+            n = item.n_splats
+            for r in mv.ratios:
+                if (skey, r) in done:  # the same scores under another training set
+                    out[(i, mk, ts, r)] = done[(skey, r)]
                     continue
-                skey, srec = scores[(i, mv.key)]
-                if "error" in srec:
-                    continue
-                arr = None
-                n = item.n_splats
-                for r in mv.ratios:
-                    key = self.cache.key("prune", score=skey, ratio=r, code=code)
-                    rec = self.cache.get_json("prune", key, count=False, check=prune_check(n, r))
-                    if rec is not None and self.cache.load_array(
-                            "masks", rec["mask"], check=mask_check(n, rec["splats_out"], rec["mask"])) is None:
-                        rec = None  # its mask was missing or bad (discarded): recompute both
-                    self.cache._count("prune", rec is not None)
-                    if rec is None:
+                key = self.cache.key("prune", score=skey, ratio=r, code=code)
+                rec = self.cache.get_json("prune", key, count=False, check=prune_check(n, r))
+                if rec is not None and self.cache.load_array(
+                        "masks", rec["mask"], check=mask_check(n, rec["splats_out"], rec["mask"])) is None:
+                    rec = None  # its mask was missing or bad (discarded): recompute both
+                self.cache._count("prune", rec is not None)
+                if rec is None:
+                    if arr is None:
+                        arr = self.cache.load_array("score", skey, check=score_array_check(n))
                         if arr is None:
-                            arr = self.cache.load_array("score", skey, check=score_array_check(n))
-                            if arr is None:
-                                self.errors.append(f"prune {_where(item)} {mv.key} ratio {r:g} [{key[:12]}]: "
-                                                   f"scores {skey[:12]} failed verification")
-                                break
-                        t0 = time.perf_counter()
-                        sel = select_by_ratio(arr, r)
-                        mask = digest_mask(sel.keep)
-                        if self.cache.load_array("masks", mask, check=mask_check(n, sel.kept, mask)) is None:
-                            self.cache.put_array("masks", mask, np.packbits(sel.keep))
-                        rec = {"mask": mask, "tau": sel.tau, "tau_quantile": sel.tau_quantile,
-                               "splats_out": sel.kept, "seconds": time.perf_counter() - t0}
-                        self.cache.put_json("prune", key, rec)
-                    out[(i, mv.key, r)] = rec
+                            self.errors.append(f"prune {_where(item)} {mv.key} ratio {r:g} [{key[:12]}]: "
+                                               f"scores {skey[:12]} failed verification")
+                            break
+                    t0 = time.perf_counter()
+                    sel = select_by_ratio(arr, r)
+                    mask = digest_mask(sel.keep)
+                    if self.cache.load_array("masks", mask, check=mask_check(n, sel.kept, mask)) is None:
+                        self.cache.put_array("masks", mask, np.packbits(sel.keep))
+                    rec = {"mask": mask, "tau": sel.tau, "tau_quantile": sel.tau_quantile,
+                           "splats_out": sel.kept, "seconds": time.perf_counter() - t0}
+                    self.cache.put_json("prune", key, rec)
+                out[(i, mk, ts, r)] = done[(skey, r)] = rec
         return out
 
     def _ref_key(self, item: SceneItem, cam) -> str:
@@ -254,51 +267,80 @@ class Runner:
         return self.cache.key("render_ref", scene=item.digest, camera=cam.to_dict(), renderer=p.renderer,
                               code=self.versions.renderer, background=list(p.background))
 
-    def _metrics_key(self, ref_key: str, mask: str) -> str:
+    def _metrics_key(self, ref_key: str, mask: str, photo: str | None = None) -> str:
+        """A view with a photo keys on its sha256 too (its entry holds the ``gt_`` metrics)."""
+        extra = {"photo": photo} if photo else {}  # keys of views without a photo are unchanged
         return self.cache.key("metrics", ref=ref_key, mask=mask, metrics=list(self.config.protocol.metrics),
+                              code=self.versions.metrics, **extra)
+
+    def _gt_key(self, ref_key: str, photo: str) -> str:
+        """The unpruned render of a view against its photo (and the photo's PNG at the render size)."""
+        return self.cache.key("gt", ref=ref_key, photo=photo, metrics=list(self.config.protocol.metrics),
                               code=self.versions.metrics)
+
+    def _measured_names(self, photo) -> tuple[str, ...]:
+        p = self.config.protocol
+        return tuple(p.metrics) + (gt_names(p.metrics) if photo else ())
+
+    def _masks(self, i: int, item: SceneItem, prunes) -> dict[str, dict[str, list[str]]]:
+        """Per training set: mask digest -> the methods and ratios that keep those splats."""
+        out: dict[str, dict[str, list[str]]] = {}
+        for ts in item.train_sets():
+            kept_by = out.setdefault(ts, {})
+            for mv in variants_for(item, self.config.methods):
+                for r in mv.ratios:
+                    if (rec := prunes.get((i, mv.key, ts, r))) is not None:
+                        kept_by.setdefault(rec["mask"], []).append(f"{mv.key} ratio {r:g}")
+        return out
 
     def _view_stage(self, items, prunes):
         """Reference renders first (one task per view), then the pruned sets in chunks of
         :data:`CHUNK` masks, biggest scenes first, so two workers finish together. A chunk recomputes
-        its view's reference features unless its worker measured the same view just before."""
+        its view's reference features unless its worker measured the same view just before. A view
+        with a photo also measures its unpruned render against the photo (first chunk, or a task of
+        its own when every pruned set is measured)."""
         p = self.config.protocol
         refs, chunks = [], []
         views: dict[str, str] = {}  # ref key -> "scene[/frame] view NAME" (error messages)
         users: dict[str, str] = {}  # metrics key -> the methods and ratios that keep those splats
         for i, item in enumerate(items):
-            masks = list(dict.fromkeys(rec["mask"] for mv in variants_for(item, self.config.methods)
-                                       for r in mv.ratios if (rec := prunes.get((i, mv.key, r))) is not None))
-            kept_by: dict[str, list[str]] = {}
-            for mv in variants_for(item, self.config.methods):
-                for r in mv.ratios:
-                    if (rec := prunes.get((i, mv.key, r))) is not None:
-                        kept_by.setdefault(rec["mask"], []).append(f"{mv.key} ratio {r:g}")
+            masks = self._masks(i, item, prunes)
             for proto, v, cam in item.views(self.primary):
                 ref_key = self._ref_key(item, cam)
                 views[ref_key] = f"{_where(item)} {proto} view {cam.name or f'view{v:02d}'}"
-                first = proto == self.primary and v == 0  # its pruned renders are kept as images (figures, report)
+                photo = item.photo(cam.name)
+                digest = photo[1] if photo else None
+                # the first view of the primary protocol and of the real one keep their renders as images
+                first = v == 0 and (proto == self.primary or photo is not None)
+                names = self._measured_names(photo)
                 jobs = []
-                for mask in masks:
-                    mkey = self._metrics_key(ref_key, mask)
-                    users[mkey] = ", ".join(kept_by.get(mask, ()))
-                    measured = self.cache.get_json("metrics", mkey, check=metrics_check(p.metrics)) is not None
+                for mask, kept in masks.get(item.train_set(proto), {}).items():
+                    mkey = self._metrics_key(ref_key, mask, digest)
+                    users[mkey] = ", ".join(kept)
+                    measured = self.cache.get_json("metrics", mkey, check=metrics_check(names)) is not None
                     if not measured or (first and not self.cache.has("images", mkey, "png")):
                         jobs.append(MaskJob(mkey, mask, first))
                 have_ref = self.cache.get_json("render_ref", ref_key,
                                                check=render_ref_record_check(cam.width, cam.height)) is not None
+                gt_key = self._gt_key(ref_key, digest) if photo else None
+                if gt_key and self.cache.get_json("gt", gt_key, check=gt_check(gt_names(p.metrics))) is not None \
+                        and (v or self.cache.has("images", gt_key, "png")):
+                    gt_key = None  # measured (and the figure's photo kept)
 
-                def task(jobs_, render_ref=False, ref_png=False, ref_key=ref_key, item=item, cam=cam):
+                def task(jobs_, render_ref=False, ref_png=False, ref_key=ref_key, item=item, cam=cam, gt=None,
+                         photo=photo):
                     return ViewTask(self.cache.location, ref_key, item.path, item.spec.lod, item.digest,
                                     item.n_splats, cam.to_dict(), p.renderer, p.device, p.background, p.metrics,
                                     jobs_, render_ref=render_ref, ref_png=ref_png, toolkit=self.toolkit,
-                                    label=views[ref_key])
+                                    label=views[ref_key], photo=photo[0] if photo else None,
+                                    gt=gt_names(p.metrics) if photo else (), gt_key=gt)
 
                 ref_png = not self.cache.has("images", ref_key, "png")  # contact sheets and figures
                 if not have_ref or ref_png:
                     refs.append(task([], render_ref=not have_ref, ref_png=ref_png))
-                cost = len(jobs) * (1.0 + item.n_splats / 5e5)  # LPIPS pass + a render growing with N
-                chunks += [(cost, task(jobs[c:c + CHUNK])) for c in range(0, len(jobs), CHUNK)]
+                cost = len(jobs) * (1.0 + item.n_splats / 5e5) * (1.6 if photo else 1.0)  # LPIPS + render (N)
+                parts = [jobs[c:c + CHUNK] for c in range(0, len(jobs), CHUNK)] or ([[]] if gt_key else [])
+                chunks += [(max(cost, 1.0), task(part, gt=gt_key if c == 0 else None)) for c, part in enumerate(parts)]
         if self.executor.parallel:  # longest first; in-process order keeps a view's chunks together
             refs.sort(key=lambda t: -t.n_splats)
             chunks.sort(key=lambda ct: -ct[0])
@@ -314,10 +356,14 @@ class Runner:
 
     # ------------------------------------------------------------------ aggregate
     def _rows(self, items, scores, prunes, skips):
+        """Tidy rows (one per scene, frame, method, variant, ratio, view); a view measures the masks
+        of its protocol's training set, and a view with a photo carries the ``gt_`` metrics of the
+        pruned render and (``unpruned_gt_*``) of the unpruned one. Also the images the figures show:
+        the first view of the primary protocol, and of the ``real`` one (with its photo)."""
         from harness.run.cache import canonical_json
 
         p = self.config.protocol
-        rows, images = [], {}
+        rows, images, failed = [], {}, set()
         base = {"run": self.config.name, "renderer": p.renderer}
         for sk in skips:
             spec = next((s for s in self.config.scenes if s.name == sk.scene), None)
@@ -325,44 +371,60 @@ class Runner:
                          "kind": spec.kind if spec else "", "frame": sk.frame, "method": sk.method,
                          "variant": sk.variant, "status": sk.status, "reason": sk.reason})
         for i, item in enumerate(items):
-            views = item.views(self.primary)
-            ref_keys = [self._ref_key(item, cam) for _, _, cam in views]
-            ref_recs = [self.cache.load_json("render_ref", k, check=render_ref_record_check(c.width, c.height)) or {}
-                        for k, (_, _, c) in zip(ref_keys, views)]
-            if ref_keys:
-                images[(item.spec.name, item.frame, "input", "", 0.0)] = self.cache.path("images", ref_keys[0], "png")
+            views = [(proto, v, cam, self._ref_key(item, cam), item.photo(cam.name))
+                     for proto, v, cam in item.views(self.primary)]
+            ref_recs = {rk: self.cache.load_json("render_ref", rk, check=render_ref_record_check(c.width, c.height))
+                        or {} for _, _, c, rk, _ in views}
+            gt_ok = gt_check(gt_names(p.metrics))
+            unpruned = {rk: {f"unpruned_{k}": v for k, v in (self.cache.load_json(
+                "gt", self._gt_key(rk, ph[1]), check=gt_ok) or {}).items() if k != "seconds"}
+                for _, _, _, rk, ph in views if ph}
+            for proto, v, cam, rk, ph in views:
+                if v == 0 and (proto == self.primary or ph):
+                    frame = item.frame if proto == self.primary else "/".join(x for x in (item.frame, proto) if x)
+                    images[(item.spec.name, frame, "input", "", 0.0)] = self.cache.path("images", rk, "png")
+                    if ph:
+                        images[(item.spec.name, frame, "photo", "", 0.0)] = \
+                            self.cache.path("images", self._gt_key(rk, ph[1]), "png")
             for mv in variants_for(item, self.config.methods):
-                if (i, mv.key) not in scores:
-                    continue  # recorded as a skip
-                srec = scores[(i, mv.key)][1]
                 ident = {**base, "scene": item.spec.name, "label": item.spec.label, "kind": item.spec.kind,
                          "frame": item.frame, "method": mv.method, "variant": mv.variant,
-                         "params": canonical_json(mv.params.to_dict()),
-                         "splats_in": item.n_splats}
-                for r in mv.ratios:
-                    row0 = {**ident, "ratio": r, "keep": ratios.to_keep(r)}
-                    if "error" in srec:
-                        rows.append({**row0, "status": "error", "reason": srec["error"]})
-                        continue
-                    prec = prunes.get((i, mv.key, r))
-                    if prec is None:  # its scores failed verification after they were computed
-                        rows.append({**row0, "status": "error", "reason": "pruning failed (see run.json errors)"})
-                        continue
-                    row0.update(splats_out=prec["splats_out"], bytes=item.ply_bytes(prec["splats_out"]),
-                                tau=prec["tau"], tau_quantile=prec["tau_quantile"],
-                                score_s=srec["seconds"], prune_s=prec["seconds"])
-                    for (proto, v, cam), rk, rrec in zip(views, ref_keys, ref_recs):
-                        mkey = self._metrics_key(rk, prec["mask"])
-                        m = self.cache.load_json("metrics", mkey, check=metrics_check(p.metrics))
-                        row = {**row0, "protocol": proto, "view": cam.name or f"view{v:02d}", "width": cam.width,
-                               "height": cam.height, "render_ref_s": rrec.get("seconds")}
-                        if m is None:
-                            row.update(status="error", reason="render or metrics failed (see run.json errors)")
-                        else:
-                            row.update(status="ok", render_s=m["render_s"], metrics_s=m["metrics_s"],
-                                       **{k: m[k] for k in (*p.metrics, "occupancy") if k in m})
-                            if proto == self.primary and v == 0:
-                                images[(item.spec.name, item.frame, mv.method, mv.variant, r)] = \
-                                    self.cache.path("images", mkey, "png")
-                        rows.append(row)
+                         "params": canonical_json(mv.params.to_dict()), "splats_in": item.n_splats}
+                for ts in item.train_sets():
+                    if (i, mv.key, ts) not in scores:
+                        continue  # recorded as a skip
+                    skey, srec = scores[(i, mv.key, ts)]
+                    for r in mv.ratios:
+                        row0 = {**ident, "ratio": r, "keep": ratios.to_keep(r)}
+                        prec = prunes.get((i, mv.key, ts, r))
+                        if "error" in srec or prec is None:  # one row per failed (scores, ratio)
+                            if (skey, r) not in failed:
+                                failed.add((skey, r))
+                                rows.append({**row0, "status": "error", "reason": srec.get(
+                                    "error", "pruning failed (see run.json errors)")})
+                            continue
+                        row0.update(splats_out=prec["splats_out"], bytes=item.ply_bytes(prec["splats_out"]),
+                                    tau=prec["tau"], tau_quantile=prec["tau_quantile"],
+                                    score_s=srec["seconds"], prune_s=prec["seconds"])
+                        for proto, v, cam, rk, ph in views:
+                            if item.train_set(proto) != ts:
+                                continue
+                            mkey = self._metrics_key(rk, prec["mask"], ph[1] if ph else None)
+                            names = self._measured_names(ph)
+                            m = self.cache.load_json("metrics", mkey, check=metrics_check(names))
+                            row = {**row0, "protocol": proto, "view": cam.name or f"view{v:02d}",
+                                   "width": cam.width, "height": cam.height,
+                                   "render_ref_s": ref_recs[rk].get("seconds")}
+                            if m is None:
+                                row.update(status="error", reason="render or metrics failed (see run.json errors)")
+                            else:
+                                row.update(status="ok", render_s=m["render_s"], metrics_s=m["metrics_s"],
+                                           **{k: m[k] for k in (*names, "occupancy") if k in m},
+                                           **unpruned.get(rk, {}))
+                                if v == 0 and (proto == self.primary or ph):
+                                    frame = item.frame if proto == self.primary else \
+                                        "/".join(x for x in (item.frame, proto) if x)
+                                    images[(item.spec.name, frame, mv.method, mv.variant, r)] = \
+                                        self.cache.path("images", mkey, "png")
+                            rows.append(row)
         return rows, images

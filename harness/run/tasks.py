@@ -180,6 +180,12 @@ class ViewTask:
     ref_png: bool = False
     toolkit: Toolkit = field(default_factory=Toolkit)
     label: str = ""  # what it computes, for task names and messages (scene, frame, view)
+    #: the view's captured photo (the ``real`` protocol): every pruned render is also measured against
+    #: it (``gt`` names), and with ``gt_key`` the unpruned render too (stored in the ``gt`` stage, the
+    #: photo at the render size as its PNG)
+    photo: str | None = None
+    gt: tuple[str, ...] = ()
+    gt_key: str | None = None
 
     def failed(self, message: str) -> dict:
         return {"ref_key": self.ref_key, "errors": [(None, message)], "done": 0}
@@ -209,6 +215,7 @@ def run_view(task: ViewTask, progress=None, scene=None, ref=None, keep_ref: bool
     out = {"ref_key": task.ref_key, "errors": [], "done": 0}
     cam = Camera.from_dict(task.camera)
     todo = task.masks
+    measure = bool(todo) or task.gt_key is not None
     try:
         if scene is None:
             scene = _scene(task.toolkit, task.path, task.lod, task.scene_digest)
@@ -216,17 +223,18 @@ def run_view(task: ViewTask, progress=None, scene=None, ref=None, keep_ref: bool
         from harness.metrics.registry import needs_alpha
         from harness.run.verify import alpha_check, image_check, mask_check
 
-        alpha = needs_alpha(task.metrics)  # OM metrics: occupancy from both renders (stored with the reference)
+        om = needs_alpha(task.metrics)  # OM metrics: occupancy from both renders (stored with the reference)
+        alpha = om or task.photo is not None  # a photo's OM metrics: the reference's occupancy
         given = ref if ref is not None and not task.render_ref and image_check(cam.width, cam.height)(ref[0]) is None \
             else None
         # a cached reference that fails its checksum or shape is discarded and rendered again
         ref = None if task.render_ref else given[0] if given is not None else \
             cache.get_array("render_ref", task.ref_key, count=False, check=image_check(cam.width, cam.height))
         ref_alpha = None
-        if alpha and todo and ref is not None:
+        if alpha and measure and ref is not None:
             ref_alpha = given[1] if given is not None and given[1] is not None else \
                 cache.get_array("render_alpha", task.ref_key, count=False, check=alpha_check(cam.width, cam.height))
-        if ref is None or (alpha and todo and ref_alpha is None):
+        if ref is None or (alpha and measure and ref_alpha is None):
             t0 = time.perf_counter()
             if alpha:
                 ref, ref_alpha = render_alpha(renderer, scene, cam, task.background)
@@ -240,11 +248,21 @@ def run_view(task: ViewTask, progress=None, scene=None, ref=None, keep_ref: bool
             put_png(cache, task.ref_key, ref)
         if keep_ref:
             out["ref_images"] = (ref, ref_alpha)
-        if todo:
+        if measure:
             suite = _metrics(task.toolkit, task.metrics, task.device)
             t0 = time.perf_counter()
-            suite.reference(task.ref_key, ref, alpha=ref_alpha) if alpha else suite.reference(task.ref_key, ref)
+            extra = {"alpha": ref_alpha} if alpha else {}
+            if task.photo is not None:
+                from pathlib import Path
+
+                from harness.io.photos import read_photo
+
+                extra["photo"] = photo = read_photo(Path(task.photo), cam.width, cam.height)
+            suite.reference(task.ref_key, ref, **extra)
             feat_s = time.perf_counter() - t0
+            if task.gt_key is not None:
+                put_png(cache, task.gt_key, photo)
+                cache.put_json("gt", task.gt_key, {**suite.photo_scores(task.ref_key), "seconds": feat_s})
             for job in todo:
                 try:
                     packed = cache.get_array("masks", job.mask_key, count=False,
@@ -253,17 +271,17 @@ def run_view(task: ViewTask, progress=None, scene=None, ref=None, keep_ref: bool
                         raise RuntimeError(f"mask {job.mask_key[:12]} is missing or failed verification")
                     keep = np.unpackbits(packed, count=task.n_splats).astype(bool)
                     t0 = time.perf_counter()
-                    if alpha:
+                    if om:
                         img, img_alpha = render_alpha(renderer, scene.subset(keep), cam, task.background)
                     else:
                         img = np.asarray(renderer.render(scene.subset(keep), cam, background=task.background),
                                          dtype=np.float32)
                     t1 = time.perf_counter()
-                    values = suite.score(task.ref_key, img, alpha=img_alpha) if alpha else suite.score(task.ref_key, img)
+                    values = suite.score(task.ref_key, img, alpha=img_alpha) if om else suite.score(task.ref_key, img)
                     t2 = time.perf_counter()
                     if job.png:
                         put_png(cache, job.metrics_key, img)
-                    rec = {k: float(values[k]) for k in (*task.metrics, "occupancy") if k in values}
+                    rec = {k: float(values[k]) for k in (*task.metrics, *task.gt, "occupancy") if k in values}
                     rec.update(render_s=t1 - t0, metrics_s=t2 - t1, ref_features_s=feat_s)
                     cache.put_json("metrics", job.metrics_key, rec)
                     out["done"] += 1

@@ -185,24 +185,39 @@ def alpha_check(width: int, height: int):
     return check
 
 
+def _metric_problem(rec: dict, names) -> str | None:
+    """Why the values ``names`` of a metrics record are unusable: numbers; PSNR (and its photo twin)
+    +inf for identical images, else >= 0; everything else finite, SSIM in [-1, 1], LPIPS and the MPEG
+    PSNRs >= 0 (their photo twins alike)."""
+    for k in names:
+        v = rec.get(k)
+        if not _real(v) or math.isnan(v):
+            return f"{k} {v!r} is not a number"
+        base = k.removeprefix("gt_")
+        if base.startswith("psnr"):  # psnr and its per-channel variants: +inf for identical images
+            if v < 0:
+                return f"{k} {v!r} is negative (images in [0, 1] give PSNR >= 0)"
+        elif not math.isfinite(v):
+            return f"{k} {v!r} is not finite"
+        elif base == "ssim" and not -1.0 <= v <= 1.0:
+            return f"{k} {v!r} is outside [-1, 1]"
+        elif (base == "lpips" or "psnr" in base) and v < 0:
+            return f"{k} {v!r} is negative"
+    return None
+
+
+def gt_check(names):
+    """A ``gt`` entry: the unpruned render's photo metrics ``names``."""
+    names = tuple(names)
+
+    def check(rec):
+        return _mapping(rec) or _metric_problem(rec, names) or _seconds(rec, "seconds")
+    return check
+
+
 def metrics_check(names):
     names = tuple(names)
 
     def check(rec):
-        if (why := _mapping(rec)) is not None:
-            return why
-        for k in names:
-            v = rec.get(k)
-            if not _real(v) or math.isnan(v):
-                return f"{k} {v!r} is not a number"
-            if k.startswith("psnr"):  # psnr and its per-channel variants: +inf for identical images
-                if v < 0:
-                    return f"{k} {v!r} is negative (images in [0, 1] give PSNR >= 0)"
-            elif not math.isfinite(v):
-                return f"{k} {v!r} is not finite"
-            elif k == "ssim" and not -1.0 <= v <= 1.0:
-                return f"ssim {v!r} is outside [-1, 1]"
-            elif k == "lpips" and v < 0:
-                return f"lpips {v!r} is negative"
-        return _seconds(rec, "render_s", "metrics_s", "ref_features_s")
+        return _mapping(rec) or _metric_problem(rec, names) or _seconds(rec, "render_s", "metrics_s", "ref_features_s")
     return check
