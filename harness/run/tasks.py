@@ -37,8 +37,8 @@ def init_worker(threads: int, imports: tuple[str, ...] = (), preload: tuple[str,
     """Pool initializer: cap threads (torch, BLAS, numba, llvmpipe), import ``preload`` modules, then
     plugin modules (they register pruners).
 
-    ``preload`` exists because importing triton (pulled in by torchvision/lpips) *after* an EGL
-    llvmpipe context was created segfaults (two LLVMs in one process); importing it first is safe.
+    ``preload`` exists for modules that must come first: importing triton *after* an EGL llvmpipe
+    context was created segfaults (two LLVMs in one process); importing it first is safe.
     """
     import importlib
 
