@@ -46,9 +46,21 @@ from harness.run.verify import (
 )
 from harness.run.versions import module_versions
 
-#: pruned sets per view task: small enough to balance two workers, large enough that the per-task
-#: reference LPIPS features (one VGG pass) stay a small overhead
-CHUNK = 8
+#: tasks per worker below which views are split (see :meth:`Runner._view_stage`)
+BALANCE = 4
+#: fewest pruned sets in a split-off task: a task pays one reference feature pass (LPIPS-VGG) and one
+#: projection of the view, as much as measuring about one pruned set
+MIN_CHUNK = 8
+
+
+def view_parts(jobs: list, views: int, slots: int) -> list[list]:
+    """A view's pruned sets as one task, or, when ``views`` tasks cannot fill ``slots`` (the tasks
+    wanted in flight), as near-equal chunks of at least :data:`MIN_CHUNK` sets, in order."""
+    if views >= slots:
+        return [jobs]
+    parts = max(1, min(-(-slots // views), len(jobs) // MIN_CHUNK))
+    size = -(-len(jobs) // parts)
+    return [jobs[c:c + size] for c in range(0, len(jobs), size)]
 
 
 @dataclass
@@ -259,9 +271,11 @@ class Runner:
                               code=self.versions.metrics)
 
     def _view_stage(self, items, prunes):
-        """Reference renders first (one task per view), then the pruned sets in chunks of
-        :data:`CHUNK` masks, biggest scenes first, so two workers finish together. A chunk recomputes
-        its view's reference features unless its worker measured the same view just before."""
+        """Reference renders first (one task per view), then the pruned sets: one task per view, so
+        the view's reference features and projection are computed once for all of them, biggest
+        scenes first so the workers finish together. Only when there are fewer views than
+        :data:`BALANCE` tasks per worker are views split, into chunks of at least :data:`MIN_CHUNK`
+        pruned sets (each chunk computes its view's reference features and projection again)."""
         p = self.config.protocol
         refs, chunks = [], []
         views: dict[str, str] = {}  # ref key -> "scene[/frame] view NAME" (error messages)
@@ -297,8 +311,11 @@ class Runner:
                 ref_png = not self.cache.has("images", ref_key, "png")  # contact sheets and figures
                 if not have_ref or ref_png:
                     refs.append(task([], render_ref=not have_ref, ref_png=ref_png))
-                cost = len(jobs) * (1.0 + item.n_splats / 5e5)  # LPIPS pass + a render growing with N
-                chunks += [(cost, task(jobs[c:c + CHUNK])) for c in range(0, len(jobs), CHUNK)]
+                if jobs:
+                    chunks.append((len(jobs) * (1.0 + item.n_splats / 5e5), jobs, task))  # LPIPS pass + render
+        slots = BALANCE * self.workers if self.executor.parallel else 1
+        chunks = [(cost * len(part) / len(jobs), task(part)) for cost, jobs, task in chunks
+                  for part in view_parts(jobs, len(chunks), slots)]
         if self.executor.parallel:  # longest first; in-process order keeps a view's chunks together
             refs.sort(key=lambda t: -t.n_splats)
             chunks.sort(key=lambda ct: -ct[0])
