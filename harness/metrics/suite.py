@@ -4,7 +4,8 @@ mpeg-gsc-metrics set (:mod:`.mpeg`: RGB-/YUV-PSNR, YUV-SSIM and their occupancy-
 * :func:`compare_images` scores one pair.
 * :class:`MetricSuite` scores many images of the same view against that view's reference, computing
   the reference's LPIPS features once (kept in memory, least recently used views evicted, and
-  optionally on disk so an evicted view is reloaded instead of recomputed).
+  optionally on disk so an evicted view is reloaded instead of recomputed), and its side of SSIM and
+  of the MPEG set (8-bit/YUV planes, SSIM window moments) once (:func:`reference_sides`).
 
 Every function takes float images ``(H, W, 3)`` nominally in [0, 1] and clamps them to [0, 1]
 (the MPEG metrics quantise them to 8 bit as the tool does). Conventions are documented in
@@ -62,9 +63,10 @@ METRICS = tuple(m.name for m in _registry.METRICS)
 MPEG_NAMES = set(_registry.mpeg_names(False) + _registry.mpeg_names(True))
 
 
-def mpeg_values(ref, img, names, mask=None) -> dict:
+def mpeg_values(ref, img, names, mask=None, prepared=None) -> dict:
     """The requested names of the mpeg / mpeg-qmiv families for one pair (8-bit, as the tool), plus
-    ``occupancy`` (%) when an OM metric was asked for."""
+    ``occupancy`` (%) when an OM metric was asked for. ``prepared``: ``{qmiv: ToolReference}`` of
+    ``ref`` (:func:`reference_sides`), when the reference is measured against many images."""
     from harness.metrics.mpeg import tool_metrics
 
     out = {}
@@ -74,20 +76,38 @@ def mpeg_values(ref, img, names, mask=None) -> dict:
             continue
         om = any("_om" in n for n in wanted)
         ssim_on = any("ssim" in n for n in wanted)
-        r = tool_metrics(ref, img, mask, qmiv=qmiv, ssim=ssim_on, om=om)
+        r = tool_metrics((prepared or {}).get(qmiv, ref), img, mask, qmiv=qmiv, ssim=ssim_on, om=om)
         out.update({n: float(r[n[: -len(sfx)] if sfx else n]) for n in wanted})
         if om:
             out["occupancy"] = float(r["occupancy"])
     return out
 
 
+def reference_sides(ref: np.ndarray, names, device) -> dict:
+    """What the SSIM and MPEG metrics compute from a reference alone (:class:`.ssim.SsimReference`;
+    :class:`.mpeg.ToolReference` per mode), once for every image it is compared with; the values
+    are those of scoring each pair from scratch, bit for bit."""
+    from harness.metrics.mpeg import ToolReference
+    from harness.metrics.ssim import SsimReference
+
+    sides: dict = {"mpeg": {}}
+    if "ssim" in names:
+        sides["ssim"] = SsimReference(ref[None], device=device)
+    for qmiv in (False, True):
+        if set(_registry.mpeg_names(qmiv)) & set(names):
+            sides["mpeg"][qmiv] = ToolReference(ref, qmiv=qmiv)
+    return sides
+
+
 def _pair_metrics(ref: np.ndarray, img: np.ndarray, yuv: bool, ssim_border: str, device,
-                  names=METRICS, mask=None) -> dict:
-    out = mpeg_values(ref, img, names, mask) if MPEG_NAMES & set(names) else {}
+                  names=METRICS, mask=None, sides=None) -> dict:
+    sides = sides or {}
+    out = mpeg_values(ref, img, names, mask, sides.get("mpeg")) if MPEG_NAMES & set(names) else {}
     if "psnr" in names:
         out["psnr"] = psnr_from_mse(mse(ref, img))
     if "ssim" in names:
-        out["ssim"] = float(ssim_batch(ref[None], img[None], border=ssim_border, device=device)[0])
+        first = sides.get("ssim", ref[None])
+        out["ssim"] = float(ssim_batch(first, img[None], border=ssim_border, device=device)[0])
     if yuv:
         out.update(yuv_psnr(ref, img))
     return out
@@ -152,6 +172,7 @@ class MetricSuite:
         self.ssim_border = ssim_border
         self._cache: OrderedDict[str, tuple[np.ndarray, LpipsFeatures]] = OrderedDict()
         self._alpha: dict[str, np.ndarray] = {}  # reference alphas (OM metrics), evicted with _cache
+        self._sides: dict[str, dict] = {}  # reference_sides of the views in _cache, evicted with it
         self.wants_alpha = any("_om" in n for n in self.names if n in MPEG_NAMES)
 
     def _stem(self, key: str) -> Path:
@@ -163,12 +184,14 @@ class MetricSuite:
         while len(self._cache) > self.max_in_memory:
             gone, _ = self._cache.popitem(last=False)
             self._alpha.pop(gone, None)
+            self._sides.pop(gone, None)
 
     def reference(self, view_key: str, image, alpha=None) -> None:
         """Register (or replace) the reference image of ``view_key`` and cache its features
         (``alpha``: the render's (H, W) alpha, for the OM metrics' occupancy)."""
         key = str(view_key)
         self._alpha.pop(key, None)
+        self._sides.pop(key, None)
         if alpha is not None:
             self._alpha[key] = np.asarray(alpha, np.float32)
         img = as_image(image, f"reference of {key}")
@@ -220,7 +243,9 @@ class MetricSuite:
                 from harness.metrics.mpeg import occupancy_mask
 
                 mask = occupancy_mask(*(x for x in (ref_alpha, alpha) if x is not None))
-            row = _pair_metrics(ref, img, self.yuv, self.ssim_border, self.device, self.names, mask)
+            if key not in self._sides:  # also after a reload from feature_dir
+                self._sides[key] = reference_sides(ref, self.names, self.device)
+            row = _pair_metrics(ref, img, self.yuv, self.ssim_border, self.device, self.names, mask, self._sides[key])
             if d is not None:
                 row["lpips"] = float(d)
             rows.append(row)
