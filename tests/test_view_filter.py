@@ -18,9 +18,10 @@ from hypothesis import strategies as st
 
 from harness.core.cameras import Camera
 from harness.core.scene import GaussianScene
-from renderers.gl import GLRenderer, GLUnavailable, pack_instances
+from renderers.gl import pack_instances
 from renderers.projection import project_gaussians, sigmoid
 from tests.scene_factory import random_scene
+from tests.test_gl_renderer import gl  # noqa: F401  (fixture: the GL renderer, one context, or a skip)
 
 FIELDS = ("means2d", "conics", "depths", "radii", "colors", "opacities")
 
@@ -97,16 +98,6 @@ def test_sigmoid_values_do_not_depend_on_position():
 
 
 # ------------------------------------------------------------------------------------------ GL images
-@pytest.fixture(scope="module")
-def gl():
-    renderer = GLRenderer()
-    try:
-        renderer._ensure_context()
-    except GLUnavailable as err:
-        pytest.skip(f"no EGL OpenGL context on this machine: {err}")
-    yield renderer
-    renderer.close()
-
 
 def _assert_renders_equal(gl, scene, cam, keeps, background=(0.1, 0.2, 0.3)) -> None:
     view = gl.pack(scene, cam)

@@ -51,9 +51,10 @@ def median_time(fn, repeats: int = 3) -> tuple[float, list[float]]:
     return statistics.median(samples), samples
 
 
-def write_result(name: str, payload: dict, markdown: str | None = None) -> Path:
-    """Write ``results/bench/<name>.json`` (with the machine description) and optional ``.md``."""
-    out = results_dir() / "bench"
+def write_result(name: str, payload: dict, markdown: str | None = None, folder: Path | None = None) -> Path:
+    """Write ``<folder>/<name>.json`` (with the machine description) and optional ``.md``; ``folder``
+    defaults to ``results/bench``."""
+    out = Path(folder) if folder is not None else results_dir() / "bench"
     out.mkdir(parents=True, exist_ok=True)
     payload = {"benchmark": name, "when": time.strftime("%Y-%m-%dT%H:%M:%S"), "machine": describe_machine(), **payload}
     path = out / f"{name}.json"
