@@ -18,7 +18,8 @@ CALLS: Counter = Counter()
 
 @pytest.mark.parametrize("n, views, slots, sizes", [
     (23, 80, 8, [23]),            # the default study on 2 workers: one task per view
-    (23, 1, 8, [12, 11]),         # one view: split, but never below MIN_CHUNK sets per task
+    (23, 1, 8, [11, 12]),         # one view: split, but never below MIN_CHUNK sets per task
+    (25, 1, 8, [8, 8, 9]),
     (100, 2, 8, [25, 25, 25, 25]),
     (5, 1, 8, [5]),               # too few sets to be worth a second reference pass
     (40, 3, 1, [40]),             # in-process: never split
@@ -27,7 +28,7 @@ def test_view_parts(n, views, slots, sizes):
     parts = view_parts(list(range(n)), views, slots)
     assert [len(p) for p in parts] == sizes
     assert sum(parts, []) == list(range(n))
-    assert len(parts) == 1 or min(sizes) >= MIN_CHUNK - 1
+    assert len(parts) == 1 or min(sizes) >= MIN_CHUNK
 
 
 class _Packed:

@@ -59,8 +59,8 @@ def view_parts(jobs: list, views: int, slots: int) -> list[list]:
     if views >= slots:
         return [jobs]
     parts = max(1, min(-(-slots // views), len(jobs) // MIN_CHUNK))
-    size = -(-len(jobs) // parts)
-    return [jobs[c:c + size] for c in range(0, len(jobs), size)]
+    cuts = [len(jobs) * k // parts for k in range(parts + 1)]  # sizes differ by at most one
+    return [jobs[a:b] for a, b in zip(cuts, cuts[1:])]
 
 
 @dataclass
