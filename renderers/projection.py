@@ -20,7 +20,14 @@ rotation W, translation t, focal lengths fx, fy, principal point cx, cy and size
   convention (pixel i covers [i, i+1) in ``u = fx·x/z + cx``) shifted by half a pixel. Both renderers
   evaluate the Gaussian at d = (i, j) − means2d.
 * colour = max(SH(dir) + 0.5, 0) with dir = normalise(μ − camera centre) (:mod:`renderers.sh`);
-  opacity = sigmoid(logit) unless activated opacities are given.
+  opacity = sigmoid(logit) (:func:`sigmoid`) unless activated opacities are given.
+
+**Each splat's values depend on that splat alone**, not on where it sits among the others, so the
+splats of a pruned scene project to exactly (bit for bit) their values in the full scene: a renderer
+may project a view once and filter it per keep mask (:meth:`renderers.gl.PackedView.kept`). Every
+operation here is elementwise or a per-splat product of 3×3 matrices except torch's CPU sigmoid,
+which is made so by :func:`sigmoid`; ``tests/test_view_filter.py`` checks the property on real and
+generated scenes.
 
 Image-overlap cull: a splat is kept when its ±radius box contains a pixel centre, or graphdeco's tile
 rectangle (``getRect``, 16-px tiles) is non-empty — the union, so that either footprint convention of
@@ -114,9 +121,41 @@ class Projected:
         return int(self.ids.shape[0])
 
 
+def sigmoid(x: torch.Tensor) -> torch.Tensor:
+    """σ(x) = 1 / (1 + e^(−x)) from elementwise operations: each element's value depends on it alone.
+
+    torch.sigmoid's CPU kernel computes the last ``n mod 2·lanes`` elements of each parallel chunk
+    with a scalar formula that differs in the last bit from its vectorised one for about 1 input in
+    15 (measured, AVX-512), so a splat's opacity would depend on how many splats precede it.
+    """
+    return 1.0 / (1.0 + torch.exp(-x))
+
+
+def rowwise_matmul(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """``a @ b`` for small matrices (broadcast stacks ``(..., r, k) @ (..., k, c)``), entry by entry:
+    ``(a₀b₀ + a₁b₁) + a₂b₂ …`` from elementwise products and sums in that order.
+
+    One splat's result then depends on its own matrices alone. torch's matmul picks its kernel by
+    the stack's size (BLAS with fused multiply-adds for some, a plain loop for others), so the same
+    splat rounded differently alone than among thousands.
+    """
+    out = a[..., :, 0:1] * b[..., 0:1, :]
+    for k in range(1, a.shape[-1]):
+        out = out + a[..., :, k:k + 1] * b[..., k:k + 1, :]
+    return out
+
+
+def row_norms(v: torch.Tensor) -> torch.Tensor:
+    """Euclidean norms of the rows of ``v`` (..., d), keepdim: ``√((v₀² + v₁²) + …)`` in that order."""
+    sq = v[..., 0:1] * v[..., 0:1]
+    for k in range(1, v.shape[-1]):
+        sq = sq + v[..., k:k + 1] * v[..., k:k + 1]
+    return torch.sqrt(sq)
+
+
 def quats_to_rotmats(quats: torch.Tensor) -> torch.Tensor:
     """(N, 3, 3) rotation matrices from (w, x, y, z) quaternions normalised on use; zero norm → identity."""
-    norm = torch.linalg.vector_norm(quats, dim=-1, keepdim=True)
+    norm = row_norms(quats)
     ident = torch.zeros_like(quats)
     ident[:, 0] = 1.0
     q = torch.where(norm > 0, quats / torch.where(norm > 0, norm, torch.ones_like(norm)), ident)
@@ -168,18 +207,17 @@ def project_gaussians(scene_or_tensors, camera: Camera, *, device=None, opacitie
     fx, fy, cx, cy = float(camera.fx), float(camera.fy), float(camera.cx), float(camera.cy)
     rot, trans, centre = _camera_tensors(camera, dev, dtype)
 
-    # near cull first (cheap), on detached values
+    # near cull first (cheap), on detached values; z is the same sum as p's below
     with torch.no_grad():
-        z_all = st.means.detach() @ rot[2] + trans[2]
+        means_d = st.means.detach()
+        z_all = (means_d[:, 0] * rot[2, 0] + means_d[:, 1] * rot[2, 1]) + means_d[:, 2] * rot[2, 2] + trans[2]
         ids = torch.nonzero(z_all > NEAR_Z).squeeze(1)
     means = st.means[ids]
-    p = means @ rot.T + trans
+    p = rowwise_matmul(means[:, None, :], rot.T)[:, 0] + trans
     x, y, z = p.unbind(-1)
 
-    # Σ = R S Sᵀ Rᵀ, then rotate into the camera: V = W Σ Wᵀ
+    # Σ = R S Sᵀ Rᵀ = m mᵀ with m = R S (per splat)
     m = quats_to_rotmats(st.quats[ids]) * torch.exp(st.scales_log[ids])[:, None, :]
-    cov_world = m @ m.transpose(1, 2)
-    cov_cam = rot @ cov_world @ rot.T
 
     tan_x, tan_y = 0.5 * w / fx, 0.5 * h / fy
     lim_xp, lim_xn = (w - cx) / fx + 0.3 * tan_x, cx / fx + 0.3 * tan_x
@@ -194,7 +232,9 @@ def project_gaussians(scene_or_tensors, camera: Camera, *, device=None, opacitie
         ],
         -2,
     )  # (M, 2, 3)
-    cov2d = jac @ cov_cam @ jac.transpose(1, 2)
+    # cov2d = J W Σ Wᵀ Jᵀ = T Tᵀ with T = J W m (2 × 3 per splat)
+    t = rowwise_matmul(rowwise_matmul(jac, rot), m)
+    cov2d = rowwise_matmul(t, t.transpose(1, 2))
     a = cov2d[:, 0, 0] + DILATION
     b = cov2d[:, 0, 1]
     c = cov2d[:, 1, 1] + DILATION
@@ -222,10 +262,10 @@ def project_gaussians(scene_or_tensors, camera: Camera, *, device=None, opacitie
     det_k = det[keep]
     conics = torch.stack([c[keep] / det_k, -b[keep] / det_k, a[keep] / det_k], -1)
     dirs = means[keep] - centre
-    dirs = dirs / torch.linalg.vector_norm(dirs, dim=-1, keepdim=True)
+    dirs = dirs / row_norms(dirs)
     colors = sh_to_color(st.sh[ids], dirs, st.sh_degree)
     if opacities is None:
-        opac = torch.sigmoid(st.opacity_logit[ids])
+        opac = sigmoid(st.opacity_logit[ids])
     else:
         opac = torch.as_tensor(opacities, device=dev, dtype=dtype).reshape(-1)[ids]
     return Projected(

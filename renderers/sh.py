@@ -73,7 +73,12 @@ def eval_sh(sh: torch.Tensor, dirs: torch.Tensor, degree: int) -> torch.Tensor:
     if sh.shape[1] < n:
         raise ValueError(f"degree {degree} needs {n} SH coefficients, got {sh.shape[1]}")
     basis = sh_basis(dirs, degree)  # (M, n)
-    return torch.einsum("mk,mkc->mc", basis, sh[:, :n])
+    # summed in coefficient order from elementwise products: a splat's colour depends on its own
+    # values alone (an einsum's kernel, and so its rounding, depends on how many splats there are)
+    out = basis[:, 0:1] * sh[:, 0]
+    for k in range(1, n):
+        out = out + basis[:, k:k + 1] * sh[:, k]
+    return out
 
 
 def sh_to_color(sh: torch.Tensor, dirs: torch.Tensor, degree: int) -> torch.Tensor:

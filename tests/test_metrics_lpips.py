@@ -87,3 +87,47 @@ def test_bad_images(model):
     bad[0, 0, 0] = np.nan
     with pytest.raises(InputError, match="NaN"):
         model.distance(feats, bad)
+
+
+class _PackageLpips(LpipsVGG):
+    """LpipsVGG computed by the lpips package's own modules (torchvision VGG16 randomly initialised,
+    then loaded with the same converted weights; the package's ScalingLayer and v0.1 linear layers):
+    what LpipsVGG ran before it built its trunk itself."""
+
+    def __init__(self):
+        super().__init__(device="cpu")
+        module = lw.new_lpips_module(pretrained_lin=True)
+        module.net.load_state_dict(lw.load_backbone()["net"], strict=True)
+        self._package_scale = module.scaling_layer
+        self._trunk = module.net.to(memory_format=torch.channels_last).eval()
+        self._lin = [lin.model[-1].weight.detach().reshape(-1) for lin in module.lins]
+
+    def _to_input(self, images):
+        x = torch.from_numpy(np.stack(images)).permute(0, 3, 1, 2)
+        x = self._package_scale(x.clamp(0.0, 1.0) * 2.0 - 1.0)
+        return x.contiguous(memory_format=torch.channels_last)
+
+
+def test_trunk_built_from_weights_is_bit_identical_to_the_package_modules(model):
+    package = _PackageLpips()
+    rng = np.random.default_rng(5)
+    a = data.astronaut()[100:196, 150:278].astype(np.float32) / 255
+    images = [np.clip(a + rng.normal(0, s, a.shape), 0, 1).astype(np.float32) for s in (0.01, 0.1)]
+    images.append(rng.random((48, 80, 3), dtype=np.float32))
+    for img in images:
+        ours, theirs = model.features(img), package.features(img)
+        assert all(torch.equal(x, y) for x, y in zip(ours.layers, theirs.layers))
+    feats = model.features(a)
+    assert np.array_equal(model.distances(feats, images[:2]), package.distances(feats, images[:2]))
+    assert model(images[2], images[2][::-1].copy()) == package(images[2], images[2][::-1].copy())
+
+
+def test_scoring_imports_neither_torchvision_nor_lpips():
+    import subprocess
+    import sys
+
+    script = ("import sys, numpy as np\nfrom harness.metrics.lpips_vgg import LpipsVGG\n"
+              "m = LpipsVGG(device='cpu')\nm(np.zeros((32, 32, 3), np.float32), np.ones((32, 32, 3), np.float32))\n"
+              "print(sorted(k for k in ('torchvision', 'lpips') if k in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True)
+    assert out.stdout.strip().splitlines()[-1] == "[]"

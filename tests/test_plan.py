@@ -54,7 +54,7 @@ def test_counts_of_a_tiny_config_are_exact(tmp_path):
         ("read", [100], 6, 4, (64, 48)), ("read", [200], 6, 4, (64, 48))]  # 3 views × 2 protocols
     est = estimate(config, infos, None)
     # load 2 frames; score 2 scenes × 2 methods; prune 4 tasks × 2 ratios; refs 2 scenes × 2 protocols
-    # × 3 views; images 12 views × 4 sets, one view task each (4 sets ≤ CHUNK)
+    # × 3 views; images 12 views × 4 sets, one view task each
     assert _units_of(est) == {"load": 2, "score": 4, "prune": 8, "render_ref": 12, "render+metrics": 48}
     assert est.stages["score"].detail == {"training_renders": 8, "camera_aware_tasks": 2}
     d = est.stages["render+metrics"].detail

@@ -87,9 +87,10 @@ def _markdown(rows: list[dict]) -> str:
 
 
 def run(args) -> int:
-    from harness.benchmarks._common import write_result
+    from harness.benchmarks._common import out_dir, write_result
     from harness.core.errors import InputError
 
+    folder = out_dir(args)  # created and probed before any work
     try:
         ns = [int(v) for v in args.n.split(",") if v.strip()]
     except ValueError:
@@ -103,7 +104,7 @@ def run(args) -> int:
             print(f"{dist} n={n}: " + ", ".join(f"{k} {v['coverage']:.3f}" for k, v in rows[-1].items()
                                                  if isinstance(v, dict)), flush=True)
     md = _markdown(rows)
-    path = write_result(NAME, {"mu": MU, "seed": args.seed, "rows": rows}, md)
+    path = write_result(NAME, {"mu": MU, "seed": args.seed, "rows": rows}, md, out=folder)
     print(md)
     print(f"written {path}")
     return 0

@@ -4,7 +4,9 @@ LPIPS(x0, x1) = sum_l mean_{h,w} sum_c w_lc (f0_lchw - f1_lchw)^2, where f_l are
 relu3_3, relu4_3, relu5_3 activations of VGG16 on ``(2x - 1 - shift) / scale``, each unit-normalised
 over channels (``f / (||f||_2 + 1e-10)``), and w_l the package's v0.1 linear weights. This is exactly
 ``lpips.LPIPS(net='vgg', version='0.1')`` (the 1x1 "lin" conv commutes with the spatial mean); the
-trunk weights come from :mod:`harness.metrics.lpips_weights`, never from a download.
+trunk weights come from :mod:`harness.metrics.lpips_weights`, never from a download, and are assigned
+to the uninitialised trunk of :mod:`harness.metrics.vgg16` (no random initialisation; neither
+torchvision nor lpips is imported: the tests compare with the lpips package's own module).
 
 Inputs are images ``(H, W, 3)`` in [0, 1] (clamped first, like PSNR), at least 16 px on each side
 (relu5_3 is at 1/16 resolution). A pruned image against a cached reference costs one trunk pass, not
@@ -27,7 +29,8 @@ import torch
 
 from harness.core.errors import InputError
 from harness.metrics.images import as_image
-from harness.metrics.lpips_weights import load_backbone, new_lpips_module
+from harness.metrics.lpips_weights import N_LIN, load_backbone
+from harness.metrics.vgg16 import scale_input, vgg16_trunk
 
 MIN_SIDE = 16
 EPS = 1e-10
@@ -96,23 +99,20 @@ class LpipsVGG:
         payload = load_backbone(weights)
         self.device = torch.device(device) if device is not None else default_device()
         self.threads = use_all_cores()
-        module = new_lpips_module(pretrained_lin=True)
-        module.net.load_state_dict(payload["net"], strict=True)
         self.precision = precision
         self.channels_last = channels_last
         self.batch_size = batch_size
-        self._scale = module.scaling_layer
-        self._trunk = module.net
-        self._lin = [lin.model[-1].weight.detach().reshape(-1) for lin in module.lins]  # (C_l,) each
         memory_format = torch.channels_last if channels_last else torch.contiguous_format
-        self._trunk.to(self.device, memory_format=memory_format).eval()
-        self._scale.to(self.device)
-        self._lin = [w.to(self.device) for w in self._lin]
+        # the converted trunk assigned to an uninitialised VGG16 (harness.metrics.vgg16); the v0.1 linear
+        # layers are the package's own (equal to its vgg.pth, checked when the weights were converted)
+        self._trunk = vgg16_trunk(payload["net"]).to(self.device, memory_format=memory_format)
+        self._lin = [payload["lin"][f"lin{k}.model.1.weight"].reshape(-1).to(self.device)  # (C_l,) each
+                     for k in range(N_LIN)]
 
     # -- passes -------------------------------------------------------------------------------
     def _to_input(self, images: list[np.ndarray]) -> torch.Tensor:
         x = torch.from_numpy(np.stack(images)).to(self.device).permute(0, 3, 1, 2)
-        x = self._scale(x.clamp(0.0, 1.0) * 2.0 - 1.0)
+        x = scale_input(x.clamp(0.0, 1.0) * 2.0 - 1.0)
         return x.contiguous(memory_format=torch.channels_last if self.channels_last else torch.contiguous_format)
 
     def _normalised_layers(self, images: list[np.ndarray]) -> list[torch.Tensor]:

@@ -9,8 +9,8 @@ arrays laid out as ``VGG16_0/Conv_0..12/{kernel (HWIO), bias}`` and ``NetLinLaye
   needs to rebuild an array (``_reconstruct``, ``ndarray``, ``dtype``); anything else (``os.system``,
   ``builtins.eval``, ...) raises :class:`pickle.UnpicklingError` before it can run.
 * Flax kernels are cross-correlation kernels like torch's, so conversion is a pure axis permutation
-  HWIO -> OIHW (``transpose(3, 2, 0, 1)``); Conv_k maps onto the k-th ``Conv2d`` of
-  ``lpips.LPIPS(net='vgg', pnet_rand=True).net`` in module order.
+  HWIO -> OIHW (``transpose(3, 2, 0, 1)``); Conv_k maps onto the k-th ``Conv2d`` of the trunk
+  (:class:`harness.metrics.vgg16.VGG16Trunk`, named as ``lpips.LPIPS(net='vgg').net``) in module order.
 * The converted trunk is saved as ``<weights_dir>/lpips_vgg16_v0.1.pt`` with its sha256 in
   ``lpips_vgg16_v0.1.pt.sha256``; :func:`load_backbone` verifies the hash on every load. The file also
   keeps the ckpt's own linear layers (``lin``) so a test can check them against the package's.
@@ -96,15 +96,20 @@ def _array(tree: dict, *keys: str, ndim: int) -> np.ndarray:
     return np.ascontiguousarray(node, dtype=np.float32)
 
 
-def convert_ckpt(tree: dict, net) -> tuple[dict, dict]:
+def convert_ckpt(tree: dict, net=None) -> tuple[dict, dict]:
     """Map the flax tree onto torch: ``(trunk_state, lin_state)``.
 
-    ``net`` is ``lpips.LPIPS(net='vgg', pnet_rand=True).net``; ``trunk_state`` has exactly its
+    ``net`` is the trunk (default :func:`harness.metrics.vgg16.vgg16_trunk`'s, shapes only; or
+    ``lpips.LPIPS(net='vgg', pnet_rand=True).net``, the same names); ``trunk_state`` has exactly its
     ``state_dict()`` keys (``slice1.0.weight`` ...), ``lin_state`` the keys ``lin{k}.model.1.weight``
     of the LPIPS module. Shapes are checked against ``net``.
     """
     import torch
 
+    if net is None:
+        from harness.metrics.vgg16 import vgg16_trunk
+
+        net = vgg16_trunk()
     convs = [(name, m) for name, m in net.named_modules() if isinstance(m, torch.nn.Conv2d)]
     if len(convs) != N_CONV:
         raise ValueError(f"expected {N_CONV} conv layers in the lpips VGG trunk, found {len(convs)}")
@@ -177,6 +182,8 @@ def load_backbone(path: Path | None = None) -> dict:
 
 def new_lpips_module(pretrained_lin: bool = True):
     """``lpips.LPIPS(net='vgg', version='0.1', pnet_rand=True)``: random trunk, nothing downloaded.
+    The package's own module, the independent truth that the tests and ``harness bench metrics``
+    compare :class:`harness.metrics.lpips_vgg.LpipsVGG` with (scoring never builds it).
 
     ``pretrained_lin`` loads the package's own v0.1 linear layers from its installed ``vgg.pth``
     (a local file). torchvision's deprecation warning about ``pretrained=`` is silenced.
@@ -237,8 +244,7 @@ def _build_payload(data: bytes, source: str) -> dict:
 
     try:
         tree = load_numpy_pickle(data)
-        model = new_lpips_module(pretrained_lin=False)
-        trunk, lin = convert_ckpt(tree, model.net)
+        trunk, lin = convert_ckpt(tree)
     except (pickle.UnpicklingError, ValueError) as err:
         raise InputError(source, f"cannot convert vgg16.ckpt: {err}") from None
     package_lin = _package_lin_state()

@@ -141,34 +141,74 @@ def _combine(values, qmiv: bool, kind: str) -> float:
     return (4.0 * a + b + c) / 6.0
 
 
+class ToolReference:
+    """The reference render's side of :func:`tool_metrics` for one mode, prepared once and reused
+    for every image compared with it: 8-bit RGB and YUV planes in tool row order, and each YUV
+    plane's padded SSIM moments (:func:`harness.metrics.mpeg_ssim.plane_stats`, on first use)."""
+
+    def __init__(self, ref, *, qmiv: bool = False, rows_top_down: bool = True, yuv_rounding: str = "float32"):
+        a = quantize(ref)
+        self.shape = a.shape[:2]
+        self.qmiv, self.rows_top_down, self.yuv_rounding = qmiv, rows_top_down, yuv_rounding
+        self.rgb = a[::-1] if rows_top_down else a  # tool buffers are bottom-up (OpenGL)
+        rnd = YUV_ROUNDING[yuv_rounding]
+        self.yuv = yuv_qmiv(self.rgb) if qmiv else yuv_default(self.rgb)
+        self.yuv_diff = self.yuv if qmiv or rnd == (True,) * 3 else yuv_default(self.rgb, rnd)  # MSE operand
+        self._ssim = None
+        self._qmiv = None
+
+    def yuv_of(self, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(planes for SSIM, planes for the MSE) of another 8-bit image in tool row order, as the reference's."""
+        if self.qmiv:
+            yb = yuv_qmiv(b)
+            return yb, yb
+        rnd = YUV_ROUNDING[self.yuv_rounding]
+        yb = yuv_default(b)
+        return yb, yb if rnd == (True,) * 3 else yuv_default(b, rnd)
+
+    @property
+    def qmiv_planes(self) -> np.ndarray:
+        """The reference's integer (QMIV) YCbCr planes, which IV-SSIM reads in every mode (computed once)."""
+        if self.qmiv:
+            return self.yuv
+        if self._qmiv is None:
+            self._qmiv = yuv_qmiv(self.rgb)
+        return self._qmiv
+
+    @property
+    def ssim_planes(self) -> list:
+        if self._ssim is None:
+            self._ssim = [mpeg_ssim.plane_stats(self.yuv[..., c]) for c in range(3)]
+        return self._ssim
+
+
 def tool_metrics(ref, test, mask=None, *, qmiv: bool = False, ssim: bool = True, om: bool = True,
                  iv: bool = True, rows_top_down: bool = True, yuv_rounding: str = "float32") -> dict:
     """Every per-view value the tool prints, for two renders (float or uint8, ``(H, W, 3)``).
 
-    ``mask``: None → the tool's maskless overload (all ones: OM = full frame, occupancy 100 %);
-    else a boolean/0-1 array, non-zero = occupied (:func:`occupancy_mask`). Keys: ``mse_rgb,
-    psnr_rgb, mse_yuv, psnr_yuv`` (3-lists), ``rgb_psnr, yuv_psnr`` (combined), the same with
-    ``_om``, ``occupancy`` (%), ``ssim_yuv, ssim_yuv_om`` (3-lists), ``yuv_ssim, yuv_ssim_om``,
+    ``ref`` may be a :class:`ToolReference` (its mode wins over ``qmiv``, ``rows_top_down`` and
+    ``yuv_rounding``). ``mask``: None → the tool's maskless overload (all ones: OM = full frame,
+    occupancy 100 %); else a boolean/0-1 array, non-zero = occupied (:func:`occupancy_mask`). Keys:
+    ``mse_rgb, psnr_rgb, mse_yuv, psnr_yuv`` (3-lists), ``rgb_psnr, yuv_psnr`` (combined), the same
+    with ``_om``, ``occupancy`` (%), ``ssim_yuv, ssim_yuv_om`` (3-lists), ``yuv_ssim, yuv_ssim_om``,
     ``rgb_ivssim, yuv_ivssim`` (``iv=False``, the tool's ``--computeIvssim=0``: left at 0.0).
     """
-    a, b = quantize(ref), quantize(test)
-    if a.shape != b.shape:
-        raise ValueError(f"image sizes differ: {a.shape[:2]} vs {b.shape[:2]}")
-    h, w, _ = a.shape
+    prep = ref if isinstance(ref, ToolReference) else \
+        ToolReference(ref, qmiv=qmiv, rows_top_down=rows_top_down, yuv_rounding=yuv_rounding)
+    qmiv = prep.qmiv
+    b = quantize(test)
+    if prep.shape != b.shape[:2]:
+        raise ValueError(f"image sizes differ: {prep.shape} vs {b.shape[:2]}")
+    h, w = prep.shape
     m = np.ones((h, w), bool) if mask is None else (np.asarray(mask) != 0)
     if m.shape != (h, w):
         raise ValueError(f"mask is {m.shape}, images are {(h, w)}")
-    if rows_top_down:  # tool buffers are bottom-up (OpenGL); order matters for sums and SSIM padding
-        a, b, m = a[::-1], b[::-1], m[::-1]
+    if prep.rows_top_down:  # tool buffers are bottom-up (OpenGL); order matters for sums and SSIM padding
+        b, m = b[::-1], m[::-1]
+    a = prep.rgb
     size = h * w
-    if qmiv:
-        ya, yb = yuv_qmiv(a), yuv_qmiv(b)
-        dyuv = (ya - yb).reshape(-1, 3)
-    else:
-        ya, yb = yuv_default(a), yuv_default(b)
-        rnd = YUV_ROUNDING[yuv_rounding]
-        dyuv = (yuv_default(a, rnd) - yuv_default(b, rnd)).reshape(-1, 3) if rnd != (True,) * 3 else \
-            (ya - yb).reshape(-1, 3)
+    yb, yb_diff = prep.yuv_of(b)
+    dyuv = (prep.yuv_diff - yb_diff).reshape(-1, 3)
     drgb = (a.astype(np.int64) - b.astype(np.int64)).reshape(-1, 3)
     r: dict = {}
     for space, d in (("rgb", drgb), ("yuv", dyuv)):
@@ -192,13 +232,13 @@ def tool_metrics(ref, test, mask=None, *, qmiv: bool = False, ssim: bool = True,
         r["occupancy"] = 100.0 * n_valid / size
     r["ssim_yuv"], r["yuv_ssim"], r["ssim_yuv_om"], r["yuv_ssim_om"] = [0.0] * 3, 0.0, [0.0] * 3, 0.0
     if ssim:  # OM-SSIM is computed even for an empty mask (then 1.0 per plane), as the tool does
-        full, masked = mpeg_ssim.ssim_yuv(ya, yb, m if om else None)
+        full, masked = mpeg_ssim.ssim_yuv(prep.ssim_planes, yb, m if om else None)
         r["ssim_yuv"], r["yuv_ssim"] = full, _combine(full, qmiv, "ssim")
         if om:
             r["ssim_yuv_om"], r["yuv_ssim_om"] = masked, _combine(masked, qmiv, "ssim")
     r["rgb_ivssim"] = r["yuv_ivssim"] = 0.0
     if iv:  # PMBB's integer YCbCr whatever the mode: the QMIV planes when they are at hand
-        ia, ib = (ya, yb) if qmiv else (yuv_qmiv(a), yuv_qmiv(b))
+        ia, ib = prep.qmiv_planes, (yb if qmiv else yuv_qmiv(b))
         r["rgb_ivssim"] = ivssim.iv_ssim_planes(a, b, ivssim.EQUAL_WEIGHTS)
         r["yuv_ivssim"] = ivssim.iv_ssim_planes(ia, ib, ivssim.DEFAULT_WEIGHTS)
     return r

@@ -37,11 +37,14 @@ flipped first (the padding is not up/down symmetric; the flip changes SSIM by ~1
 Implementation: numba, row by row; for each output row the 121 taps are applied as whole-row
 vector operations, so every pixel still sees the tool's sequence of roundings (same taps, same
 order, no fused multiply-add, no reassociation) — bit-identical to a per-pixel loop, ~50× faster.
+A reference's own moments (μa, σa²) are computed once (:func:`plane_stats`) and reused for every
+image compared with it: each accumulator is a separate sum, so this changes no bit.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numba as nb
 import numpy as np
@@ -97,27 +100,49 @@ def pad_like_tool(plane: np.ndarray, half: int = HALF) -> np.ndarray:
 
 
 @nb.njit(cache=True, fastmath=False)
-def _ssim_sum(pa, pb, w, h, width):
-    """(Σ SSIM over pixels in row-major tool order, count) of two padded planes."""
+def _moments(pa, w, h, width):
+    """Per pixel of a padded plane: window mean μ and ``Σ (w·(P − μ))·(P − μ)`` (tool order), (h, width) each."""
+    mu = np.zeros((h, width))
+    s = np.zeros((h, width))
+    for y in range(h):
+        mu_y = mu[y]
+        s_y = s[y]
+        for j in range(WINDOW):
+            ra = pa[y + j]
+            for i in range(WINDOW):
+                wt = w[i, j]
+                for x in range(width):
+                    mu_y[x] += wt * ra[x + i]
+        for j in range(WINDOW):
+            ra = pa[y + j]
+            for i in range(WINDOW):
+                wt = w[i, j]
+                for x in range(width):
+                    da = ra[x + i] - mu_y[x]
+                    s_y[x] += wt * da * da
+    return mu, s
+
+
+@nb.njit(cache=True, fastmath=False)
+def _ssim_sum(pa, mu_a_all, s_aa_all, pb, w, h, width):
+    """(Σ SSIM over pixels in row-major tool order, count) of two padded planes, the first one's
+    moments given (:func:`_moments`: each accumulator sums its taps in the same order as if both
+    planes were filtered together, so the split changes no bit)."""
     total = 0.0
     count = 0
-    mu_a = np.empty(width)
     mu_b = np.empty(width)
-    s_aa = np.empty(width)
     s_bb = np.empty(width)
     s_ab = np.empty(width)
     for y in range(h):
-        mu_a[:] = 0.0
+        mu_a = mu_a_all[y]
+        s_aa = s_aa_all[y]
         mu_b[:] = 0.0
         for j in range(WINDOW):
-            ra = pa[y + j]
             rb = pb[y + j]
             for i in range(WINDOW):
                 wt = w[i, j]
                 for x in range(width):
-                    mu_a[x] += wt * ra[x + i]
                     mu_b[x] += wt * rb[x + i]
-        s_aa[:] = 0.0
         s_bb[:] = 0.0
         s_ab[:] = 0.0
         for j in range(WINDOW):
@@ -128,7 +153,6 @@ def _ssim_sum(pa, pb, w, h, width):
                 for x in range(width):
                     da = ra[x + i] - mu_a[x]
                     db = rb[x + i] - mu_b[x]
-                    s_aa[x] += wt * da * da
                     s_bb[x] += wt * db * db
                     s_ab[x] += wt * da * db
         for x in range(width):
@@ -199,28 +223,48 @@ def _masked_ssim_sum(pa, pb, pm, w, h, width):
     return total, count
 
 
-def ssim_yuv(a: np.ndarray, b: np.ndarray, mask: np.ndarray | None = None) -> tuple[list[float], list[float] | None]:
+@dataclass(frozen=True)
+class PlaneStats:
+    """One plane's side of its SSIM with any other plane: padded as the tool pads it, and its window
+    moments (:func:`_moments`). Computed once per reference plane (:func:`plane_stats`)."""
+
+    padded: np.ndarray
+    mu: np.ndarray
+    var: np.ndarray
+
+
+def plane_stats(plane: np.ndarray) -> PlaneStats:
+    """:class:`PlaneStats` of a (H, W) plane in tool row order (float64 values)."""
+    h, w = plane.shape
+    padded = pad_like_tool(np.ascontiguousarray(plane, np.float64))
+    mu, var = _moments(padded, _W, h, w)
+    return PlaneStats(padded, mu, var)
+
+
+def ssim_yuv(a, b: np.ndarray, mask: np.ndarray | None = None) -> tuple[list[float], list[float] | None]:
     """Per-plane SSIM (and OM-SSIM with ``mask``) of two (H, W, 3) float64 images in tool row
-    order; each plane and the mask are padded once for both."""
-    h, w, _ = a.shape
+    order; each plane and the mask are padded once for both. ``a`` may be given as its three planes'
+    :class:`PlaneStats` (a reference measured against many images)."""
+    stats = a if isinstance(a, (list, tuple)) else [plane_stats(a[..., c]) for c in range(3)]
+    h, w = stats[0].mu.shape
     pm = None if mask is None else pad_like_tool((np.asarray(mask) != 0).astype(np.float64))
     full, om = [], ([] if mask is not None else None)
     for c in range(3):
-        pa = pad_like_tool(np.ascontiguousarray(a[..., c], np.float64))
+        sa = stats[c]
         pb = pad_like_tool(np.ascontiguousarray(b[..., c], np.float64))
-        total, count = _ssim_sum(pa, pb, _W, h, w)
+        total, count = _ssim_sum(sa.padded, sa.mu, sa.var, pb, _W, h, w)
         full.append(total / count if count > 0 else 1.0)
         if pm is not None:
-            total, count = _masked_ssim_sum(pa, pb, pm, _W, h, w)
+            total, count = _masked_ssim_sum(sa.padded, pb, pm, _W, h, w)
             om.append(total / count if count > 0 else 1.0)
     return full, om
 
 
 def ssim_plane(a: np.ndarray, b: np.ndarray) -> float:
     """Tool SSIM of two planes given in *tool* row order (already flipped), float64 values."""
+    sa = plane_stats(a)
     h, w = a.shape
-    total, count = _ssim_sum(pad_like_tool(np.asarray(a, np.float64)), pad_like_tool(np.asarray(b, np.float64)),
-                             _W, h, w)
+    total, count = _ssim_sum(sa.padded, sa.mu, sa.var, pad_like_tool(np.asarray(b, np.float64)), _W, h, w)
     return total / count if count > 0 else 1.0
 
 

@@ -64,15 +64,24 @@ def _blur(x: torch.Tensor, taps: np.ndarray) -> torch.Tensor:
     return blur_scipy(x, taps) if x.device.type == "cpu" else blur_torch(x, taps)
 
 
-def ssim_map(x: torch.Tensor, y: torch.Tensor, data_range: float = 1.0, blur=None) -> torch.Tensor:
+def moments(x: torch.Tensor, blur=None) -> torch.Tensor:
+    """``g*x`` and ``g*(x x)`` of batched images, stacked: the first image's side of :func:`ssim_map`
+    (a reference scored against many images needs them once)."""
+    return (blur or _blur)(torch.stack([x, x * x]), gaussian_taps())
+
+
+def ssim_map(x: torch.Tensor, y: torch.Tensor, data_range: float = 1.0, blur=None,
+             x_moments: torch.Tensor | None = None) -> torch.Tensor:
     """Per-pixel SSIM of batched images ``(B, C, H, W)`` (zero-padded 'same' map, same shape).
 
-    ``blur`` overrides the Gaussian implementation (:func:`blur_scipy` / :func:`blur_torch`).
+    ``blur`` overrides the Gaussian implementation (:func:`blur_scipy` / :func:`blur_torch`);
+    ``x_moments`` are :func:`moments` of ``x`` when already computed (the blur filters every plane on
+    its own, so they are the values a joint filtering gives).
     """
     taps = gaussian_taps()
     c1, c2 = (K1 * data_range) ** 2, (K2 * data_range) ** 2
-    stats = (blur or _blur)(torch.stack([x, y, x * x, y * y, x * y]), taps)
-    mu_x, mu_y, e_xx, e_yy, e_xy = stats
+    (mu_x, e_xx) = x_moments if x_moments is not None else moments(x, blur)
+    mu_y, e_yy, e_xy = (blur or _blur)(torch.stack([y, y * y, x * y]), taps)
     mu_xy = mu_x * mu_y
     mu_xx, mu_yy = mu_x * mu_x, mu_y * mu_y
     num = (2 * mu_xy + c1) * (2 * (e_xy - mu_xy) + c2)
@@ -80,15 +89,36 @@ def ssim_map(x: torch.Tensor, y: torch.Tensor, data_range: float = 1.0, blur=Non
     return num / den
 
 
+class SsimReference:
+    """The first image's side of :func:`ssim_batch` (its tensor and :func:`moments`), computed once
+    for a reference scored against many images: ``ssim_batch(ref, b)`` with ``ref`` one of these."""
+
+    def __init__(self, a, *, device=None, dtype=torch.float64):
+        self.device = _device(device)
+        self.x = _tensor(a, self.device, dtype)
+        with torch.inference_mode():
+            self.moments = moments(self.x)
+
+
+def _device(device) -> torch.device:
+    return torch.device(device) if device is not None else torch.device("cuda" if torch.cuda.is_available() else "cpu")
+
+
+def _tensor(a, device, dtype) -> torch.Tensor:
+    return torch.as_tensor(np.asarray(a), device=device).to(dtype).clamp(0, 1).permute(0, 3, 1, 2)
+
+
 def ssim_batch(a, b, *, border: str = "zero", device=None, dtype=torch.float64) -> np.ndarray:
-    """SSIM of image pairs: ``a``, ``b`` arrays ``(B, H, W, 3)`` (or tensors) -> float64 ``(B,)``."""
+    """SSIM of image pairs: ``a``, ``b`` arrays ``(B, H, W, 3)`` (or tensors) -> float64 ``(B,)``;
+    ``a`` may be an :class:`SsimReference` (its device and dtype win)."""
     if border not in ("zero", "valid"):
         raise ValueError(f"border must be 'zero' or 'valid', not {border!r}")
-    device = torch.device(device) if device is not None else torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    x = torch.as_tensor(np.asarray(a), device=device).to(dtype).clamp(0, 1).permute(0, 3, 1, 2)
-    y = torch.as_tensor(np.asarray(b), device=device).to(dtype).clamp(0, 1).permute(0, 3, 1, 2)
+    ref = a if isinstance(a, SsimReference) else None
+    device = ref.device if ref is not None else _device(device)
+    x = ref.x if ref is not None else _tensor(a, device, dtype)
+    y = _tensor(b, device, x.dtype)
     with torch.inference_mode():
-        s = ssim_map(x, y)
+        s = ssim_map(x, y, x_moments=ref.moments if ref is not None else None)
         if border == "valid":
             r = WINDOW // 2
             if min(s.shape[-2:]) <= 2 * r:

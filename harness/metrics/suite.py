@@ -5,7 +5,8 @@ RGB-/YUV-IV-SSIM).
 * :func:`compare_images` scores one pair.
 * :class:`MetricSuite` scores many images of the same view against that view's reference, computing
   the reference's LPIPS features once (kept in memory, least recently used views evicted, and
-  optionally on disk so an evicted view is reloaded instead of recomputed).
+  optionally on disk so an evicted view is reloaded instead of recomputed), and its side of SSIM and
+  of the MPEG set (8-bit/YUV planes, SSIM window moments) once (:func:`reference_sides`).
 
 Every function takes float images ``(H, W, 3)`` nominally in [0, 1] and clamps them to [0, 1]
 (the MPEG metrics quantise them to 8 bit as the tool does). Conventions are documented in
@@ -79,9 +80,10 @@ GT_OCCUPANCY_ALPHA = 0.5
 MPEG_NAMES = set(_registry.mpeg_names(False) + _registry.mpeg_names(True))
 
 
-def mpeg_values(ref, img, names, mask=None) -> dict:
+def mpeg_values(ref, img, names, mask=None, prepared=None) -> dict:
     """The requested names of the mpeg / mpeg-qmiv families for one pair (8-bit, as the tool), plus
-    ``occupancy`` (%) when an OM metric was asked for."""
+    ``occupancy`` (%) when an OM metric was asked for. ``prepared``: ``{qmiv: ToolReference}`` of
+    ``ref`` (:func:`reference_sides`), when the reference is measured against many images."""
     from harness.metrics.mpeg import tool_metrics
 
     out = {}
@@ -92,20 +94,38 @@ def mpeg_values(ref, img, names, mask=None) -> dict:
         om = any("_om" in n for n in wanted)
         ssim_on = any(n.startswith("yuv_ssim") for n in wanted)
         iv = any("ivssim" in n for n in wanted)
-        r = tool_metrics(ref, img, mask, qmiv=qmiv, ssim=ssim_on, om=om, iv=iv)
+        r = tool_metrics((prepared or {}).get(qmiv, ref), img, mask, qmiv=qmiv, ssim=ssim_on, om=om, iv=iv)
         out.update({n: float(r[n[: -len(sfx)] if sfx else n]) for n in wanted})
         if om:
             out["occupancy"] = float(r["occupancy"])
     return out
 
 
+def reference_sides(ref: np.ndarray, names, device) -> dict:
+    """What the SSIM and MPEG metrics compute from a reference alone (:class:`.ssim.SsimReference`;
+    :class:`.mpeg.ToolReference` per mode), once for every image it is compared with; the values
+    are those of scoring each pair from scratch, bit for bit."""
+    from harness.metrics.mpeg import ToolReference
+    from harness.metrics.ssim import SsimReference
+
+    sides: dict = {"mpeg": {}}
+    if "ssim" in names:
+        sides["ssim"] = SsimReference(ref[None], device=device)
+    for qmiv in (False, True):
+        if set(_registry.mpeg_names(qmiv)) & set(names):
+            sides["mpeg"][qmiv] = ToolReference(ref, qmiv=qmiv)
+    return sides
+
+
 def _pair_metrics(ref: np.ndarray, img: np.ndarray, yuv: bool, ssim_border: str, device,
-                  names=METRICS, mask=None) -> dict:
-    out = mpeg_values(ref, img, names, mask) if MPEG_NAMES & set(names) else {}
+                  names=METRICS, mask=None, sides=None) -> dict:
+    sides = sides or {}
+    out = mpeg_values(ref, img, names, mask, sides.get("mpeg")) if MPEG_NAMES & set(names) else {}
     if "psnr" in names:
         out["psnr"] = psnr_from_mse(mse(ref, img))
     if "ssim" in names:
-        out["ssim"] = float(ssim_batch(ref[None], img[None], border=ssim_border, device=device)[0])
+        first = sides.get("ssim", ref[None])
+        out["ssim"] = float(ssim_batch(first, img[None], border=ssim_border, device=device)[0])
     if yuv:
         out.update(yuv_psnr(ref, img))
     return out
@@ -172,6 +192,7 @@ class MetricSuite:
         self._alpha: dict[str, np.ndarray] = {}  # reference alphas (OM metrics), evicted with _cache
         self._photo: dict[str, tuple] = {}  # view -> (photo, its LPIPS features, reference occupancy mask)
         self._photo_ref: dict[str, dict] = {}  # view -> gt_ metrics of its reference
+        self._sides: dict[str, dict] = {}  # reference_sides of the views in _cache, evicted with it
         self.wants_alpha = any("_om" in n for n in self.names if n in MPEG_NAMES)
 
     # -- photos (gt_ metrics) ------------------------------------------------------------------
@@ -217,6 +238,7 @@ class MetricSuite:
             self._alpha.pop(gone, None)
             self._photo.pop(gone, None)
             self._photo_ref.pop(gone, None)
+            self._sides.pop(gone, None)
 
     def reference(self, view_key: str, image, alpha=None, photo=None) -> None:
         """Register (or replace) the reference image of ``view_key`` and cache its features
@@ -226,6 +248,7 @@ class MetricSuite:
         self._alpha.pop(key, None)
         self._photo.pop(key, None)
         self._photo_ref.pop(key, None)
+        self._sides.pop(key, None)
         if alpha is not None:
             self._alpha[key] = np.asarray(alpha, np.float32)
         img = as_image(image, f"reference of {key}")
@@ -282,7 +305,9 @@ class MetricSuite:
                 from harness.metrics.mpeg import occupancy_mask
 
                 mask = occupancy_mask(*(x for x in (ref_alpha, alpha) if x is not None))
-            row = _pair_metrics(ref, img, self.yuv, self.ssim_border, self.device, self.names, mask)
+            if key not in self._sides:  # also after a reload from feature_dir
+                self._sides[key] = reference_sides(ref, self.names, self.device)
+            row = _pair_metrics(ref, img, self.yuv, self.ssim_border, self.device, self.names, mask, self._sides[key])
             if d is not None:
                 row["lpips"] = float(d)
             if photo is not None:

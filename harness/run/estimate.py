@@ -21,8 +21,9 @@ Counting follows the runner's stages (:mod:`harness.run.runner`) and reads no mo
 * **render+metrics** — one image per pruned set × held-out view: ``render(N·keep, W·H)`` plus the
   metric passes of the config's metrics (:func:`metric_passes`: 3dgs = PSNR + SSIM + LPIPS; mpeg =
   4 PSNR-like passes on 8-bit images + 2 SSIM passes, YUV and occupancy-masked) plus
-  :data:`IMAGE_OVERHEAD_S`; every view task of :data:`CHUNK` sets also computes the view's LPIPS
-  reference features once (``lpips_ref_px · W·H``). Pruned sets are counted as distinct (score
+  :data:`IMAGE_OVERHEAD_S`; one task per view measures all its sets and computes the view's LPIPS
+  reference features once (``lpips_ref_px · W·H``; the runner splits views only when there are
+  fewer than a few per worker). Pruned sets are counted as distinct (score
   task, ratio) pairs: an **upper bound**, since methods that keep identical splats share one entry
   (the default study measures 114 sets where this counts 130).
 
@@ -47,8 +48,6 @@ from harness.core.errors import InputError
 from harness.run.config import RunConfig, SceneSpec
 from harness.run.unit_costs import UnitCosts, train_pixels
 
-#: pruned sets per view task (as :data:`harness.run.runner.CHUNK`)
-CHUNK = 8
 #: per pool stage: spawning workers, importing torch/lpips, numba's first compile (default study:
 #: its first score results came after ~15 s, its first reference renders after ~20 s)
 STARTUP_S = 20.0
@@ -291,10 +290,6 @@ def estimate(config: RunConfig, infos: list[SceneInfo], units: UnitCosts | None)
     and the longest single task of each stage (``units=None``: counts only)."""
     from methods.registry import get_pruner
 
-    try:  # the runner's own chunk size, when it still has one
-        from harness.run.runner import CHUNK as chunk
-    except ImportError:
-        chunk = CHUNK
     u = units or UnitCosts(0, 0, 0, 0, 0, 0, 0, 0, {}, {})
     passes = metric_passes(config.protocol.metrics)
     per_px = passes["lpips"] * u.lpips_px + passes["ssim"] * u.ssim_px + passes["psnr"] * u.psnr_px
@@ -344,11 +339,10 @@ def estimate(config: RunConfig, infos: list[SceneInfo], units: UnitCosts | None)
                         continue
                     extra = gt_px * px if photos else 0.0
                     image = [u.render(n * k, px) + per_px * px + extra + IMAGE_OVERHEAD_S for k in keeps]
-                    tasks_v = math.ceil(n_sets / chunk)
-                    ref_cost = tasks_v * ref_px * px + (extra + 2 * ref_px * px) * photos  # + photo features, gt
-                    longest = ref_px * px + sum(sorted(image, reverse=True)[:chunk])
-                    st["render+metrics"].add(n_sets, sum(image) + ref_cost, longest)
-                    st["render+metrics"].detail["view_tasks"] += tasks_v
+                    ref_cost = ref_px * px + (extra + 2 * ref_px * px) * photos  # + photo features, gt
+                    task = ref_cost + sum(image)  # one task per view
+                    st["render+metrics"].add(n_sets, task, task)
+                    st["render+metrics"].detail["view_tasks"] += 1
         for k, v in passes.items():
             st["render+metrics"].detail[f"{k}_passes"] = v * st["render+metrics"].units
         images = st["render+metrics"].units - before["render+metrics"][0]

@@ -48,9 +48,21 @@ from harness.run.verify import (
 )
 from harness.run.versions import module_versions
 
-#: pruned sets per view task: small enough to balance two workers, large enough that the per-task
-#: reference LPIPS features (one VGG pass) stay a small overhead
-CHUNK = 8
+#: tasks per worker below which views are split (see :meth:`Runner._view_stage`)
+BALANCE = 4
+#: fewest pruned sets in a split-off task: a task pays one reference feature pass (LPIPS-VGG) and one
+#: projection of the view, as much as measuring about one pruned set
+MIN_CHUNK = 8
+
+
+def view_parts(jobs: list, views: int, slots: int) -> list[list]:
+    """A view's pruned sets as one task, or, when ``views`` tasks cannot fill ``slots`` (the tasks
+    wanted in flight), as near-equal chunks of at least :data:`MIN_CHUNK` sets, in order."""
+    if views >= slots:
+        return [jobs]
+    parts = max(1, min(-(-slots // views), len(jobs) // MIN_CHUNK))
+    cuts = [len(jobs) * k // parts for k in range(parts + 1)]  # sizes differ by at most one
+    return [jobs[a:b] for a, b in zip(cuts, cuts[1:])]
 
 
 @dataclass
@@ -294,11 +306,13 @@ class Runner:
         return out
 
     def _view_stage(self, items, prunes):
-        """Reference renders first (one task per view), then the pruned sets in chunks of
-        :data:`CHUNK` masks, biggest scenes first, so two workers finish together. A chunk recomputes
-        its view's reference features unless its worker measured the same view just before. A view
-        with a photo also measures its unpruned render against the photo (first chunk, or a task of
-        its own when every pruned set is measured)."""
+        """Reference renders first (one task per view), then the pruned sets: one task per view, so
+        the view's reference features and projection are computed once for all of them, biggest
+        scenes first so the workers finish together. Only when there are fewer views than
+        :data:`BALANCE` tasks per worker are views split, into chunks of at least :data:`MIN_CHUNK`
+        pruned sets (each chunk computes its view's reference features and projection again). A view
+        with a photo also measures its unpruned render against the photo (its first task, or a task
+        of its own when every pruned set is measured)."""
         p = self.config.protocol
         refs, chunks = [], []
         views: dict[str, str] = {}  # ref key -> "scene[/frame] view NAME" (error messages)
@@ -338,9 +352,14 @@ class Runner:
                 ref_png = not self.cache.has("images", ref_key, "png")  # contact sheets and figures
                 if not have_ref or ref_png:
                     refs.append(task([], render_ref=not have_ref, ref_png=ref_png))
-                cost = len(jobs) * (1.0 + item.n_splats / 5e5) * (1.6 if photo else 1.0)  # LPIPS + render (N)
-                parts = [jobs[c:c + CHUNK] for c in range(0, len(jobs), CHUNK)] or ([[]] if gt_key else [])
-                chunks += [(max(cost, 1.0), task(part, gt=gt_key if c == 0 else None)) for c, part in enumerate(parts)]
+                if jobs or gt_key:  # LPIPS pass + render (N); a photo adds its comparisons
+                    cost = max(len(jobs) * (1.0 + item.n_splats / 5e5) * (1.6 if photo else 1.0), 1.0)
+                    chunks.append((cost, jobs, task, gt_key))
+        slots = BALANCE * self.workers if self.executor.parallel else 1
+        n_views = len(chunks)
+        chunks = [(cost * max(len(part), 1) / max(len(jobs), 1), task(part, gt=gt if c == 0 else None))
+                  for cost, jobs, task, gt in chunks
+                  for c, part in enumerate(view_parts(jobs, n_views, slots))]
         if self.executor.parallel:  # longest first; in-process order keeps a view's chunks together
             refs.sort(key=lambda t: -t.n_splats)
             chunks.sort(key=lambda ct: -ct[0])

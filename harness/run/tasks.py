@@ -37,8 +37,8 @@ def init_worker(threads: int, imports: tuple[str, ...] = (), preload: tuple[str,
     """Pool initializer: cap threads (torch, BLAS, numba, llvmpipe), import ``preload`` modules, then
     plugin modules (they register pruners).
 
-    ``preload`` exists because importing triton (pulled in by torchvision/lpips) *after* an EGL
-    llvmpipe context was created segfaults (two LLVMs in one process); importing it first is safe.
+    ``preload`` exists for modules that must come first: importing triton *after* an EGL llvmpipe
+    context was created segfaults (two LLVMs in one process); importing it first is safe.
     """
     import importlib
 
@@ -203,10 +203,49 @@ def render_alpha(renderer, scene, cam: Camera, background) -> tuple[np.ndarray, 
     return img, (1.0 - (white - black).mean(axis=2)).astype(np.float32)
 
 
+class ViewRenders:
+    """Renders of one view of a scene, whole or pruned: ``self(keep)`` -> ``(image, alpha or None)``
+    (``keep``: bool per splat, None = every splat; alpha when ``with_alpha``).
+
+    A renderer that packs views (``pack``/``draw``: the GL renderer) projects, sorts and packs the
+    scene once, on first use, and draws each pruned set as its splats filtered from that packing,
+    bit for bit the render of ``scene.subset(keep)`` (:meth:`renderers.gl.PackedView.kept`); others
+    render every subset. ``pack_s``: seconds the packing took (0 before :meth:`prepare`).
+    """
+
+    def __init__(self, renderer, scene, cam: Camera, background, with_alpha: bool):
+        self.renderer, self.scene, self.cam = renderer, scene, cam
+        self.background, self.with_alpha = background, with_alpha
+        self._packed = None
+        self.pack_s = 0.0
+
+    def prepare(self) -> None:
+        """Pack the view now (when the renderer packs views; once)."""
+        r = self.renderer
+        if self._packed is None and hasattr(r, "pack") and hasattr(r, "draw"):
+            t0 = time.perf_counter()
+            self._packed = r.pack(self.scene, self.cam)
+            self.pack_s = time.perf_counter() - t0
+
+    def __call__(self, keep: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+        r = self.renderer
+        self.prepare()
+        if self._packed is not None:
+            out = r.draw(self._packed if keep is None else self._packed.kept(keep), self.background,
+                         with_alpha=self.with_alpha)
+            img, alpha = out if self.with_alpha else (out, None)
+            return np.asarray(img, np.float32), None if alpha is None else np.asarray(alpha, np.float32)
+        scene = self.scene if keep is None else self.scene.subset(keep)
+        if self.with_alpha:
+            return render_alpha(r, scene, self.cam, self.background)
+        return np.asarray(r.render(scene, self.cam, background=self.background), dtype=np.float32), None
+
+
 def run_view(task: ViewTask, progress=None, scene=None, ref=None, keep_ref: bool = False) -> dict:
     """Reference render of one view (cached), then each not-yet-measured pruned set of it.
 
-    The reference's metric features are computed once here and reused for every pruned render.
+    The reference's metric features are computed once here and reused for every pruned render, and
+    the view is projected once for all of them (:class:`ViewRenders`).
     ``progress(n)`` is called after each stored metrics entry (in-process runs only). ``scene``:
     the loaded scene, ``ref``: ``(image, alpha or None)`` of the reference rendered by an earlier
     task of this run, when the executor has them (else they are loaded / read from the cache).
@@ -225,6 +264,7 @@ def run_view(task: ViewTask, progress=None, scene=None, ref=None, keep_ref: bool
 
         om = needs_alpha(task.metrics)  # OM metrics: occupancy from both renders (stored with the reference)
         alpha = om or task.photo is not None  # a photo's OM metrics: the reference's occupancy
+        renders = ViewRenders(renderer, scene, cam, task.background, alpha)
         given = ref if ref is not None and not task.render_ref and image_check(cam.width, cam.height)(ref[0]) is None \
             else None
         # a cached reference that fails its checksum or shape is discarded and rendered again
@@ -236,11 +276,9 @@ def run_view(task: ViewTask, progress=None, scene=None, ref=None, keep_ref: bool
                 cache.get_array("render_alpha", task.ref_key, count=False, check=alpha_check(cam.width, cam.height))
         if ref is None or (alpha and measure and ref_alpha is None):
             t0 = time.perf_counter()
+            ref, ref_alpha = renders()
             if alpha:
-                ref, ref_alpha = render_alpha(renderer, scene, cam, task.background)
                 cache.put_array("render_alpha", task.ref_key, ref_alpha)
-            else:
-                ref = np.asarray(renderer.render(scene, cam, background=task.background), dtype=np.float32)
             ref_rec = {"seconds": time.perf_counter() - t0, "height": int(ref.shape[0]), "width": int(ref.shape[1])}
             cache.put_array("render_ref", task.ref_key, ref)
             cache.put_json("render_ref", task.ref_key, ref_rec)
@@ -263,6 +301,8 @@ def run_view(task: ViewTask, progress=None, scene=None, ref=None, keep_ref: bool
             if task.gt_key is not None:
                 put_png(cache, task.gt_key, photo)
                 cache.put_json("gt", task.gt_key, {**suite.photo_scores(task.ref_key), "seconds": feat_s})
+            if todo:
+                renders.prepare()
             for job in todo:
                 try:
                     packed = cache.get_array("masks", job.mask_key, count=False,
@@ -271,18 +311,15 @@ def run_view(task: ViewTask, progress=None, scene=None, ref=None, keep_ref: bool
                         raise RuntimeError(f"mask {job.mask_key[:12]} is missing or failed verification")
                     keep = np.unpackbits(packed, count=task.n_splats).astype(bool)
                     t0 = time.perf_counter()
-                    if om:
-                        img, img_alpha = render_alpha(renderer, scene.subset(keep), cam, task.background)
-                    else:
-                        img = np.asarray(renderer.render(scene.subset(keep), cam, background=task.background),
-                                         dtype=np.float32)
+                    img, img_alpha = renders(keep)
                     t1 = time.perf_counter()
                     values = suite.score(task.ref_key, img, alpha=img_alpha) if om else suite.score(task.ref_key, img)
                     t2 = time.perf_counter()
                     if job.png:
                         put_png(cache, job.metrics_key, img)
                     rec = {k: float(values[k]) for k in (*task.metrics, *task.gt, "occupancy") if k in values}
-                    rec.update(render_s=t1 - t0, metrics_s=t2 - t1, ref_features_s=feat_s)
+                    # render_s: this set's own render (its share of the view's projection is view_pack_s)
+                    rec.update(render_s=t1 - t0, metrics_s=t2 - t1, ref_features_s=feat_s, view_pack_s=renders.pack_s)
                     cache.put_json("metrics", job.metrics_key, rec)
                     out["done"] += 1
                     if progress:

@@ -116,6 +116,7 @@ class Toolkit:
     metric_modules: tuple[str, ...] = ("harness.metrics",)
     #: extra modules each worker imports first (e.g. a plugin registering pruners)
     imports: tuple[str, ...] = field(default_factory=tuple)
-    #: imported before any GL context exists: triton (via torchvision/lpips) segfaults when first
-    #: loaded into a process that already holds an llvmpipe EGL context
-    preload: tuple[str, ...] = ("torchvision", "lpips")
+    #: modules each worker imports before anything else, e.g. one that must not be loaded after an
+    #: llvmpipe EGL context exists (triton segfaults then: the GL renderer imports it first itself, and
+    #: LPIPS no longer imports torchvision/lpips, which pulled it in)
+    preload: tuple[str, ...] = ()

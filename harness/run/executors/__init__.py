@@ -29,7 +29,7 @@ interchangeable: the rows of a run are read from the cache afterwards.
 
   Worker processes are long-lived (per-process state: the scene last loaded, one GL context, the
   metric suite); each runs :func:`harness.run.tasks.init_worker` once before its first task (thread
-  caps, then the ``preload`` modules — torchvision/lpips before any EGL context — then plugins).
+  caps, then the toolkit's ``preload`` modules, then plugins).
 
 Before anything is created, :func:`preflight` checks that the cache location serves this executor
 (``memory://`` only for one local worker) and that a Ray address answers within 10 s.
