@@ -5,10 +5,13 @@
     def add_arguments(parser): ...     # argparse arguments (the command's one parser builder)
     def run(args) -> int: ...          # exit status
 
-Modules are discovered, so adding a command touches no shared file. ``harness NAME ...`` is parsed by
-that command's own parser (:func:`command_parser`), so its usage, its ``--help`` and its errors are
-its own; a builder that needs the command's arguments to decide its options (``prune``: the
-flags of the chosen ``--method``) takes them as a second parameter, ``add_arguments(parser, argv)``.
+Modules are discovered, so adding a command touches no shared file. ``harness NAME ...`` imports
+that command's module only and is parsed by its own parser (:func:`command_parser`), so its usage,
+its ``--help`` and its errors are its own, and it pays for no other command's imports; ``harness
+--help`` imports none (:func:`harness.commands.catalog` reads their ``NAME`` and ``HELP``). A
+builder that needs the command's arguments to decide its options (``prune``: the flags of the
+chosen ``--method``; ``bench``: the chosen benchmark's) takes them as a second parameter,
+``add_arguments(parser, argv)``.
 Unknown options, commands and choices get a "did you mean" (:class:`Parser`). Bad input anywhere
 raises :class:`harness.core.errors.InputError`, printed here as one line on stderr with exit status 2.
 Any other exception that reaches :func:`main` is also one line with exit status 2 — the command,
@@ -24,21 +27,12 @@ import importlib
 import importlib.util
 import inspect
 import os
-import pkgutil
 import sys
 import traceback
 
 from harness import __version__
-from harness.commands import help_text
+from harness.commands import catalog, help_text
 from harness.core.errors import InputError
-
-
-def _command_modules():
-    import harness.commands as pkg
-
-    for info in sorted(pkgutil.iter_modules(pkg.__path__), key=lambda m: m.name):
-        if not info.name.startswith("_"):
-            yield importlib.import_module(f"harness.commands.{info.name}")
 
 
 def _command_module(name: str):
@@ -79,20 +73,18 @@ class Parser(argparse.ArgumentParser):
         super().error(message + extra)
 
 
-def _fill(parser: argparse.ArgumentParser, mod, argv=()) -> argparse.ArgumentParser:
+def command_parser(mod, argv=()) -> Parser:
+    """The parser of one sub-command, ``harness NAME``, built from its module (and its arguments)."""
+    parser = Parser(prog=f"harness {mod.NAME}", description=help_text(mod.HELP))
     wants_argv = len(inspect.signature(mod.add_arguments).parameters) > 1
     mod.add_arguments(parser, list(argv)) if wants_argv else mod.add_arguments(parser)
     parser.set_defaults(_run=mod.run, command=mod.NAME)
     return parser
 
 
-def command_parser(mod, argv=()) -> Parser:
-    """The parser of one sub-command, ``harness NAME``, built from its module (and its arguments)."""
-    return _fill(Parser(prog=f"harness {mod.NAME}", description=help_text(mod.HELP)), mod, argv)
-
-
 def build_parser() -> argparse.ArgumentParser:
-    """The top-level parser: ``harness --help``, ``--version`` and the list of commands."""
+    """The top-level parser: ``harness --help``, ``--version`` and the list of commands (names and
+    one-line helps from :func:`harness.commands.catalog`: no command module is imported)."""
     parser = Parser(
         prog="harness",
         description="Camera-agnostic 3DGS pruning (BetaDescPrune) and its MPEG-CTC-style evaluation harness.",
@@ -101,8 +93,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true",
                         help="print the traceback of an unexpected error (also accepted after the command)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for mod in _command_modules():
-        _fill(sub.add_parser(mod.NAME, help=help_text(mod.HELP), description=help_text(mod.HELP)), mod)
+    for entry in catalog("harness.commands"):
+        sub.add_parser(entry.name, help=help_text(entry.help), description=help_text(entry.help))
     return parser
 
 
