@@ -11,10 +11,9 @@ its ``--help`` and its errors are its own, and it pays for no other command's im
 --help`` imports none (:func:`harness.commands.catalog` reads their ``NAME`` and ``HELP``). A
 builder that needs the command's arguments to decide its options (``prune``: the flags of the
 chosen ``--method``; ``bench``: the chosen benchmark's) takes them as a second parameter,
-``add_arguments(parser, argv)``.
-Unknown options, commands and choices get a "did you mean" (:class:`Parser`). Bad input anywhere
-raises :class:`harness.core.errors.InputError`, printed here as one line on stderr with exit status 2.
-Any other exception that reaches :func:`main` is also one line with exit status 2 — the command,
+``add_arguments(parser, argv)``. Unknown options, commands and choices get a "did you mean"
+(:class:`Parser`). Bad input anywhere raises :class:`harness.core.errors.HarnessError` (an
+``InputError``), printed here as one line on stderr with exit status 2. Any other exception that reaches :func:`main` is also one line with exit status 2 — the command,
 the input it read last, the exception type and message — and its traceback is printed only with
 ``--debug`` (anywhere on the command line) or ``HARNESS_DEBUG=1``. While a command runs, the files it
 reads are recorded (:func:`harness.io.safe.recording_inputs`) so that no output replaces one.
@@ -32,7 +31,7 @@ import traceback
 
 from harness import __version__
 from harness.commands import catalog, help_text
-from harness.core.errors import InputError
+from harness.core.errors import HarnessError
 
 
 def _command_module(name: str):
@@ -109,7 +108,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 
 def _os_error_line(err: OSError) -> str:
-    """``<file>: <reason>`` of an OSError the commands did not turn into an InputError themselves
+    """``<file>: <reason>`` of an OSError the commands did not turn into a HarnessError themselves
     (a disk that fills up during a run, a folder made read-only meanwhile ...)."""
     where = err.filename if err.filename is not None else "output"
     return f"{where}: {err.strerror or err}"
@@ -124,7 +123,7 @@ def _debug_flag(argv: list[str]) -> tuple[list[str], bool]:
 
 
 def _unexpected_line(command: str, err: BaseException) -> str:
-    """One line for an exception no command turned into an InputError: the command, the file it
+    """One line for an exception no command turned into a HarnessError: the command, the file it
     involves (its own ``filename``, else the input read last), the exception and its first line."""
     from harness.io.safe import last_input
 
@@ -153,9 +152,9 @@ def _run(args, debug: bool) -> int:
 
     try:
         return int(args._run(args) or 0)
-    except InputError as err:
+    except HarnessError as err:
         print(f"harness: {err}", file=sys.stderr)
-        return InputError.exit_status
+        return HarnessError.exit_status
     except KeyboardInterrupt:
         print("harness: interrupted", file=sys.stderr)
         return 130
@@ -176,17 +175,17 @@ def _run(args, debug: bool) -> int:
         where = last_input()
         print(f"harness: {args.command}: out of memory" + (f" (last input read: {where})" if where else "")
               + "; the input may be too large for this machine", file=sys.stderr)
-        return InputError.exit_status
+        return HarnessError.exit_status
     except OSError as err:  # disk full, read-only, vanished folder: one line, not a traceback
         if debug:
             traceback.print_exc()
         print(f"harness: {_os_error_line(err)}", file=sys.stderr)
-        return InputError.exit_status
+        return HarnessError.exit_status
     except Exception as err:  # the last resort: one line naming what failed (traceback with --debug)
         if debug:
             traceback.print_exc()
         print(_unexpected_line(args.command, err), file=sys.stderr)
-        return InputError.exit_status
+        return HarnessError.exit_status
 
 
 if __name__ == "__main__":

@@ -48,6 +48,8 @@ from renderers import RENDERERS
 NAME = "render"
 HELP = "render a scene from a camera file or a synthetic rig (images + contact sheet)"
 LLFF_HOLD = 8
+#: how this command names the API's arguments (:func:`harness.core.errors.naming`)
+FLAGS = {"background": "--background", "device": "--device", "backend": "--backend"}
 
 
 def add_arguments(parser) -> None:
@@ -76,16 +78,6 @@ def add_arguments(parser) -> None:
                         help=f"rig width/height (default {ASPECT:.4g} for every rig: sizes come from the flags only)")
     parser.add_argument("--up", default=None, metavar="X,Y,Z", help="world direction drawn upwards (default 0,-1,0)")
     parser.add_argument("--background", default="0,0,0", metavar="R,G,B", help="background colour in [0, 1]")
-
-
-def _background(text: str) -> tuple[float, float, float]:
-    try:
-        vals = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        vals = ()
-    if len(vals) != 3 or not all(np.isfinite(vals)) or not all(0.0 <= v <= 1.0 for v in vals):
-        raise InputError("--background", f"expected three numbers R,G,B in [0, 1], got {text!r}")
-    return vals
 
 
 def _triple(text: str | None, flag: str):
@@ -200,24 +192,23 @@ def _save_image(image: np.ndarray, path: Path, fmt: str) -> None:
 
 
 def run(args) -> int:
+    from harness.api.images import check_background, start_renderer
     from harness.core.devices import check_device
+    from harness.core.errors import naming
     from harness.io.cameras import write_3dgs_cameras
     from harness.io.scenes import load_scene
     from harness.views.contact_sheet import ContactSheet
 
-    background = _background(args.background)
-    check_device(args.device, "--device")
+    with naming(FLAGS):
+        background = check_background(args.background)
+        check_device(args.device, "device")
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise InputError(out, "exists and is not a folder")
     scene = load_scene(args.scene)
     origin, cams = select_views(args, scene)
-    from renderers import get_renderer
-
-    try:
-        renderer = get_renderer(args.backend, args.device)
-    except Exception as err:  # noqa: BLE001  no EGL/CUDA here (moderngl, torch errors): usage, not a crash
-        raise InputError(f"--backend {args.backend}", f"cannot start the renderer: {err}") from None
+    with naming(FLAGS):
+        renderer = start_renderer(args.backend, args.device)
     from harness.io.files import make_output_folder, refuse_inputs
 
     make_output_folder(out)  # created, writable (not /proc, not read-only), stale temp files swept
