@@ -5,6 +5,7 @@ The Python API (:mod:`harness.api`, imported on first use so that ``import harne
     scene = harness.load("bonsai-7k")                 # a path or a named dataset
     pruned = harness.prune(scene, ratio=0.3)          # .scene .mask .scores .tau .seconds
     harness.save(pruned.scene, "bonsai-30.ply")       # format by name, as `harness convert`
+    cameras = harness.cameras(scene)                  # the views `harness render` renders
     images = harness.render(pruned.scene, cameras)    # (H, W, 3) float32 per camera
     harness.compare(a, b, metrics="mpeg")             # {"rgb_psnr": ..., ...}
     rows = harness.evaluate("ctc_configs/ci.yaml")    # a pandas DataFrame
@@ -23,7 +24,7 @@ Layers (arrows point one way, checked by tests/test_layers.py)::
 
 __version__ = "0.1.0"
 
-_API = ("Pruned", "compare", "evaluate", "info", "load", "methods", "prune", "render", "save", "score")
+_API = ("Pruned", "cameras", "compare", "evaluate", "info", "load", "methods", "prune", "render", "save", "score")
 __all__ = ["HarnessError", "Scene", *_API]
 
 

@@ -45,7 +45,7 @@ def test_import_harness_is_cheap_and_lists_the_api():
     code = ("import sys, harness; heavy = [m for m in ('numpy', 'torch', 'pandas', 'harness.api') if m in sys.modules];"
             " print(heavy, sorted(harness.__all__), callable(harness.prune))")
     out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, check=True).stdout
-    assert out.startswith("[] ['HarnessError', 'Pruned', 'Scene', 'compare', 'evaluate', 'info', 'load', 'methods', "
+    assert out.startswith("[] ['HarnessError', 'Pruned', 'Scene', 'cameras', 'compare', 'evaluate', 'info', 'load', 'methods', "
                           "'prune', 'render', 'save', 'score'] True"), out
     with pytest.raises(AttributeError, match="no attribute 'nope'"):
         harness.nope  # noqa: B018
@@ -229,8 +229,15 @@ def test_render_is_the_commands_render(tmp_path, capsys):
     files = sorted((tmp_path / "r").glob("0*.npy"))
     images = harness.render(path, tmp_path / "r" / "cameras.json", background=(0.1, 0.2, 0.3))
     assert len(images) == len(files) == 2
-    for img, f in zip(images, files):
+    rig = harness.cameras(path, "orbit", longest_side=40, n_test=2, n_train=0)
+    written = harness.cameras(path, cameras=tmp_path / "r" / "cameras.json")  # the file keeps them to ~1e-15
+    assert [(c.name, c.width, c.height) for c in rig] == [(c.name, c.width, c.height) for c in written]
+    np.testing.assert_allclose([c.world_to_cam for c in rig], [c.world_to_cam for c in written], atol=1e-12)
+    for img, again, f in zip(images, harness.render(path, rig, background=(0.1, 0.2, 0.3)), files):
         np.testing.assert_array_equal(img, np.load(f))
+        np.testing.assert_array_equal(again, img)
+    with pytest.raises(harness.HarnessError, match="longest_side: must be 1..8192 pixels"):
+        harness.cameras(path, longest_side=0)
     with pytest.raises(harness.HarnessError, match="background: expected three numbers"):
         harness.render(path, tmp_path / "r" / "cameras.json", background=(2, 0, 0))
 
