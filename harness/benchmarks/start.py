@@ -1,8 +1,8 @@
 """`harness bench start`: what everyday commands cost as whole processes — start-up included.
 
-Each command runs as a fresh child process (``python -m harness …``); its wall time (from start to
+Each command runs as a fresh child process (``python -m harness …``); its wall time (from spawn to
 exit) and its own CPU seconds and peak resident memory (``os.wait4``: that child's rusage, not a
-running maximum over all children) are recorded. A bare ``python -c "import numpy"`` runs in every
+running maximum over all children; spawned from a small launcher, :data:`LAUNCHER`) are recorded. A bare ``python -c "import numpy"`` runs in every
 round as the floor every command stands on.
 
 ``--against DIR`` times a second checkout (e.g. a worktree of the ``wave3-base`` tag) with the same
@@ -27,7 +27,6 @@ import statistics
 import subprocess
 import sys
 import tempfile
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -62,21 +61,37 @@ class Sample:
     score_s: float | None = None  # a prune's own score stage (its --json report)
 
 
+#: started by :func:`run_child` to start the measured command: a bare interpreter (``-I -S``, ~9 MiB)
+#: whose child is timed from spawn to exit and read with ``os.wait4``. A child's peak memory counts
+#: the memory of the process that spawned it (spawn shares it until exec), so it is spawned from
+#: this launcher, not from the benchmark's own, larger process.
+LAUNCHER = """
+import os, sys, time
+report, cwd, *argv = sys.argv[1:]
+os.chdir(cwd)
+t0 = time.perf_counter()
+pid = os.posix_spawn(argv[0], argv, os.environ)
+_, status, usage = os.wait4(pid, 0)
+wall = time.perf_counter() - t0
+with open(report, "w") as f:
+    f.write(repr((os.waitstatus_to_exitcode(status), wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss)))
+"""
+
+
 def run_child(argv: list[str], cwd: Path) -> tuple[Sample, str]:
     """Run ``argv`` in ``cwd`` to its exit; (its sample, its stdout). A failure is an error."""
-    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
-        t0 = time.perf_counter()
-        proc = subprocess.Popen(argv, cwd=cwd, stdout=out, stderr=err, stdin=subprocess.DEVNULL)
-        _, status, usage = os.wait4(proc.pid, 0)  # this child's own rusage
-        wall = time.perf_counter() - t0
-        proc.returncode = os.waitstatus_to_exitcode(status)
-        out.seek(0)
-        err.seek(0)
-        stdout, stderr = out.read().decode(errors="replace"), err.read().decode(errors="replace")
-    if proc.returncode != 0:
-        raise RuntimeError(f"{' '.join(argv)} (in {cwd}) exited {proc.returncode}: {stderr.strip()[-500:]}")
-    sample = Sample(wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024.0, os.getloadavg()[0])
-    return sample, stdout
+    import ast
+
+    with tempfile.TemporaryDirectory() as tmp:
+        report = Path(tmp) / "report"
+        done = subprocess.run([sys.executable, "-I", "-S", "-c", LAUNCHER, str(report), str(cwd), *argv],
+                              capture_output=True, text=True, errors="replace", stdin=subprocess.DEVNULL)
+        if done.returncode != 0 or not report.is_file():
+            raise RuntimeError(f"the launcher of {' '.join(argv)} failed: {done.stderr.strip()[-500:]}")
+        status, wall, cpu, peak_kib = ast.literal_eval(report.read_text())
+    if status != 0:
+        raise RuntimeError(f"{' '.join(argv)} (in {cwd}) exited {status}: {done.stderr.strip()[-500:]}")
+    return Sample(wall, cpu, peak_kib / 1024.0, os.getloadavg()[0]), done.stdout
 
 
 def _command(name: str, output: Path) -> list[str]:
