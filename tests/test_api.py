@@ -16,8 +16,9 @@ import yaml
 import harness
 from harness.cli import main
 from harness.io.datasets import scene_path
-from harness.io.scenes import load_scene, write_scene
+from harness.io.scenes import write_scene
 from tests import runner_fakes as fakes
+from tests.gl_support import require_gl
 from tests.scene_factory import random_scene
 
 REPO = Path(__file__).resolve().parent.parent
@@ -27,18 +28,6 @@ def _luigi():
     if not scene_path("luigi").exists():
         pytest.skip("luigi is not fetched (`harness fetch luigi`)")
     return "luigi"
-
-
-def _gl():
-    from renderers.gl import GLRenderer, GLUnavailable
-
-    gl = GLRenderer()
-    try:
-        gl._ensure_context()
-    except GLUnavailable as err:
-        pytest.skip(f"no EGL OpenGL context on this machine: {err}")
-    finally:
-        gl.close()
 
 
 def test_import_harness_is_cheap_and_lists_the_api():
@@ -221,7 +210,7 @@ def test_compare_for_psnr_alone_imports_no_torch(tmp_path):
 
 @pytest.mark.gl
 def test_render_is_the_commands_render(tmp_path, capsys):
-    _gl()
+    require_gl()
     path = _write(random_scene(300, sh_degree=1, seed=6), tmp_path)
     assert main(["render", path, "--rig", "orbit", "--longest-side", "40", "--n-test", "2", "--n-train", "0",
                  "--format", "npy", "--background", "0.1,0.2,0.3", "--out", str(tmp_path / "r")]) == 0
@@ -244,7 +233,7 @@ def test_render_is_the_commands_render(tmp_path, capsys):
 
 @pytest.mark.gl
 def test_evaluate_returns_the_rows_the_command_writes(tmp_path, capsys):
-    _gl()
+    require_gl()
     from harness.report.results import read_results
 
     scenes = fakes.write_two_scenes(tmp_path)

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from harness.io.scenes import write_scene
+from tests.gl_support import require_gl
 from tests.scene_factory import random_scene
 
 REPO = Path(__file__).resolve().parent.parent
@@ -66,15 +67,7 @@ def test_info_help_and_psnr_import_nothing_heavy(scene, tmp_path):
 def test_render_imports_no_pandas_or_matplotlib(scene, tmp_path):
     """torch, yes: the GL renderer projects and sorts the splats with torch (on the GPU when there is
     one) before drawing them; scipy.ndimage places the synthetic rig."""
-    from renderers.gl import GLRenderer, GLUnavailable
-
-    gl = GLRenderer()
-    try:
-        gl._ensure_context()
-    except GLUnavailable as err:
-        pytest.skip(f"no EGL OpenGL context on this machine: {err}")
-    finally:
-        gl.close()
+    require_gl()
     loaded = loaded_by("render", scene, "--rig", "orbit", "--longest-side", "24", "--n-test", "1", "--n-train", "0",
                        "--out", tmp_path / "r")
     assert not {"pandas", "pyarrow", "matplotlib", "scipy.stats", "torchvision", "lpips"} & set(loaded), loaded

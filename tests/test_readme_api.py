@@ -10,6 +10,7 @@ import pytest
 
 from harness.io.datasets import scene_path
 from harness.metrics import lpips_weights as lw
+from tests.gl_support import require_gl
 
 README = Path(__file__).resolve().parent.parent / "README.md"
 
@@ -31,15 +32,7 @@ def test_the_readme_example(tmp_path, monkeypatch):
         pytest.skip("luigi is not fetched (`harness fetch luigi`)")
     if not lw.weights_available():
         pytest.skip("LPIPS-VGG weights not converted here: run harness fetch --weights")
-    from renderers.gl import GLRenderer, GLUnavailable
-
-    gl = GLRenderer()
-    try:
-        gl._ensure_context()
-    except GLUnavailable as err:
-        pytest.skip(f"no EGL OpenGL context on this machine: {err}")
-    finally:
-        gl.close()
+    require_gl()
     monkeypatch.chdir(tmp_path)  # the example writes luigi30.ply and study/ into the working folder
     test = doctest.DocTestParser().get_doctest(example(), {}, "README.md: From Python", str(README), 0)
     runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS)

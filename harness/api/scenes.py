@@ -11,13 +11,19 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from harness.core.errors import InputError
+
+if TYPE_CHECKING:  # numpy and the scene model are imported where they are used
+    import numpy as np
+
+    from harness.core.scene import GaussianScene
 
 DEFAULT_METHOD = "betadesc"
 
 
-def load(path_or_name, *, lod: int | str | None = None, drop_nonfinite: bool = False):
+def load(path_or_name, *, lod: int | str | None = None, drop_nonfinite: bool = False) -> GaussianScene:
     """The scene in a file (.ply, .compressed.ply, .spz, .ksplat, .splat, SOG) or a named dataset
     (``"bonsai-7k"``), validated: a :class:`harness.core.scene.GaussianScene`. ``lod``: a SOG level
     or ``"all"``; ``drop_nonfinite`` drops NaN/inf splats instead of refusing them."""
@@ -200,9 +206,9 @@ class Pruned:
     the count removed, ``seconds`` per stage (``read`` when a path was given, ``score``,
     ``score.<stage>``, ``select``)."""
 
-    scene: object
-    mask: object
-    scores: object
+    scene: GaussianScene
+    mask: np.ndarray
+    scores: np.ndarray | None
     tau: float
     removed: int
     method: str
