@@ -5,13 +5,15 @@
     def add_arguments(parser): ...     # argparse arguments (the command's one parser builder)
     def run(args) -> int: ...          # exit status
 
-Modules are discovered, so adding a command touches no shared file. ``harness NAME ...`` is parsed by
-that command's own parser (:func:`command_parser`), so its usage, its ``--help`` and its errors are
-its own; a builder that needs the command's arguments to decide its options (``prune``: the
-flags of the chosen ``--method``) takes them as a second parameter, ``add_arguments(parser, argv)``.
-Unknown options, commands and choices get a "did you mean" (:class:`Parser`). Bad input anywhere
-raises :class:`harness.core.errors.InputError`, printed here as one line on stderr with exit status 2.
-Any other exception that reaches :func:`main` is also one line with exit status 2 — the command,
+Modules are discovered, so adding a command touches no shared file. ``harness NAME ...`` imports
+that command's module only and is parsed by its own parser (:func:`command_parser`), so its usage,
+its ``--help`` and its errors are its own, and it pays for no other command's imports; ``harness
+--help`` imports none (:func:`harness.commands.catalog` reads their ``NAME`` and ``HELP``). A
+builder that needs the command's arguments to decide its options (``prune``: the flags of the
+chosen ``--method``; ``bench``: the chosen benchmark's) takes them as a second parameter,
+``add_arguments(parser, argv)``. Unknown options, commands and choices get a "did you mean"
+(:class:`Parser`). Bad input anywhere raises :class:`harness.core.errors.HarnessError` (an
+``InputError``), printed here as one line on stderr with exit status 2. Any other exception that reaches :func:`main` is also one line with exit status 2 — the command,
 the input it read last, the exception type and message — and its traceback is printed only with
 ``--debug`` (anywhere on the command line) or ``HARNESS_DEBUG=1``. While a command runs, the files it
 reads are recorded (:func:`harness.io.safe.recording_inputs`) so that no output replaces one.
@@ -24,21 +26,12 @@ import importlib
 import importlib.util
 import inspect
 import os
-import pkgutil
 import sys
 import traceback
 
 from harness import __version__
-from harness.commands import help_text
-from harness.core.errors import InputError
-
-
-def _command_modules():
-    import harness.commands as pkg
-
-    for info in sorted(pkgutil.iter_modules(pkg.__path__), key=lambda m: m.name):
-        if not info.name.startswith("_"):
-            yield importlib.import_module(f"harness.commands.{info.name}")
+from harness.commands import catalog, help_text
+from harness.core.errors import HarnessError
 
 
 def _command_module(name: str):
@@ -79,20 +72,18 @@ class Parser(argparse.ArgumentParser):
         super().error(message + extra)
 
 
-def _fill(parser: argparse.ArgumentParser, mod, argv=()) -> argparse.ArgumentParser:
+def command_parser(mod, argv=()) -> Parser:
+    """The parser of one sub-command, ``harness NAME``, built from its module (and its arguments)."""
+    parser = Parser(prog=f"harness {mod.NAME}", description=help_text(mod.HELP))
     wants_argv = len(inspect.signature(mod.add_arguments).parameters) > 1
     mod.add_arguments(parser, list(argv)) if wants_argv else mod.add_arguments(parser)
     parser.set_defaults(_run=mod.run, command=mod.NAME)
     return parser
 
 
-def command_parser(mod, argv=()) -> Parser:
-    """The parser of one sub-command, ``harness NAME``, built from its module (and its arguments)."""
-    return _fill(Parser(prog=f"harness {mod.NAME}", description=help_text(mod.HELP)), mod, argv)
-
-
 def build_parser() -> argparse.ArgumentParser:
-    """The top-level parser: ``harness --help``, ``--version`` and the list of commands."""
+    """The top-level parser: ``harness --help``, ``--version`` and the list of commands (names and
+    one-line helps from :func:`harness.commands.catalog`: no command module is imported)."""
     parser = Parser(
         prog="harness",
         description="Camera-agnostic 3DGS pruning (BetaDescPrune) and its MPEG-CTC-style evaluation harness.",
@@ -101,8 +92,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true",
                         help="print the traceback of an unexpected error (also accepted after the command)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for mod in _command_modules():
-        _fill(sub.add_parser(mod.NAME, help=help_text(mod.HELP), description=help_text(mod.HELP)), mod)
+    for entry in catalog("harness.commands"):
+        sub.add_parser(entry.name, help=help_text(entry.help), description=help_text(entry.help))
     return parser
 
 
@@ -117,7 +108,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 
 def _os_error_line(err: OSError) -> str:
-    """``<file>: <reason>`` of an OSError the commands did not turn into an InputError themselves
+    """``<file>: <reason>`` of an OSError the commands did not turn into a HarnessError themselves
     (a disk that fills up during a run, a folder made read-only meanwhile ...)."""
     where = err.filename if err.filename is not None else "output"
     return f"{where}: {err.strerror or err}"
@@ -132,7 +123,7 @@ def _debug_flag(argv: list[str]) -> tuple[list[str], bool]:
 
 
 def _unexpected_line(command: str, err: BaseException) -> str:
-    """One line for an exception no command turned into an InputError: the command, the file it
+    """One line for an exception no command turned into a HarnessError: the command, the file it
     involves (its own ``filename``, else the input read last), the exception and its first line."""
     from harness.io.safe import last_input
 
@@ -161,9 +152,9 @@ def _run(args, debug: bool) -> int:
 
     try:
         return int(args._run(args) or 0)
-    except InputError as err:
+    except HarnessError as err:
         print(f"harness: {err}", file=sys.stderr)
-        return InputError.exit_status
+        return HarnessError.exit_status
     except KeyboardInterrupt:
         print("harness: interrupted", file=sys.stderr)
         return 130
@@ -184,17 +175,17 @@ def _run(args, debug: bool) -> int:
         where = last_input()
         print(f"harness: {args.command}: out of memory" + (f" (last input read: {where})" if where else "")
               + "; the input may be too large for this machine", file=sys.stderr)
-        return InputError.exit_status
+        return HarnessError.exit_status
     except OSError as err:  # disk full, read-only, vanished folder: one line, not a traceback
         if debug:
             traceback.print_exc()
         print(f"harness: {_os_error_line(err)}", file=sys.stderr)
-        return InputError.exit_status
+        return HarnessError.exit_status
     except Exception as err:  # the last resort: one line naming what failed (traceback with --debug)
         if debug:
             traceback.print_exc()
         print(_unexpected_line(args.command, err), file=sys.stderr)
-        return InputError.exit_status
+        return HarnessError.exit_status
 
 
 if __name__ == "__main__":

@@ -5,6 +5,12 @@ half to even), the k lowest scores, ties broken by index (the lower index is rem
 i.e. a stable sort on (score, index). τ is reported as the largest removed score (the score
 value at the cut); with k = 0 it is −inf. ``keep`` fractions are ``ratio = 1 − keep``
 (:mod:`harness.core.ratios`).
+
+The selection is O(N), without sorting: τ is the k-th smallest score (``np.partition``); every
+score below τ is removed, and of the scores equal to τ the lowest-indexed ``k − #{s < τ}`` — exactly
+the first k of the stable order. NaN scores sort last, as in ``np.argsort`` (τ is NaN only when
+fewer than k scores are numbers). τ is read from the last removed splat itself, so even its sign
+of zero is that of the sorted selection.
 """
 
 from __future__ import annotations
@@ -39,11 +45,18 @@ def select_by_ratio(scores: np.ndarray, ratio: float) -> PruneSelection:
     scores = np.asarray(scores, dtype=np.float64)
     n = len(scores)
     k = removal_count(n, ratio)
-    order = np.argsort(scores, kind="stable")
     keep = np.ones(n, dtype=bool)
-    keep[order[:k]] = False
-    tau = float(scores[order[k - 1]]) if k > 0 else float("-inf")
-    return PruneSelection(keep=keep, removed=k, tau=tau, tau_quantile=k / n if n else 0.0)
+    if k == 0:
+        return PruneSelection(keep=keep, removed=0, tau=float("-inf"), tau_quantile=0.0)
+    cut = np.partition(scores, k - 1)[k - 1]  # the k-th smallest (NaN last, as argsort)
+    if np.isnan(cut):
+        below, at = ~np.isnan(scores), np.isnan(scores)
+    else:
+        below, at = scores < cut, scores == cut
+    ties = np.flatnonzero(at)[: k - int(np.count_nonzero(below))]  # the lowest-indexed of the scores at the cut
+    keep[below] = False
+    keep[ties] = False
+    return PruneSelection(keep=keep, removed=k, tau=float(scores[ties[-1]]), tau_quantile=k / n)
 
 
 def select_by_keep(scores: np.ndarray, keep_fraction: float) -> PruneSelection:

@@ -7,17 +7,17 @@ import pytest
 
 from harness.benchmarks import _common
 from harness.cli import main
-from harness.commands.bench import _modules
+from harness.commands import catalog
 from harness.core.paths import results_dir
 from harness.io.scenes import write_scene
 from tests.scene_factory import random_scene
 
 
 def test_every_benchmark_takes_out(capsys):
-    for mod in _modules():
+    for entry in catalog("harness.benchmarks"):
         with pytest.raises(SystemExit):
-            main(["bench", mod.NAME, "--help"])
-        assert "--out DIR" in capsys.readouterr().out, mod.NAME
+            main(["bench", entry.name, "--help"])
+        assert "--out DIR" in capsys.readouterr().out, entry.name
 
 
 def test_default_is_outside_the_tracked_tree_and_a_tracked_folder_is_named(tmp_path, monkeypatch, capsys):

@@ -94,7 +94,7 @@ def test_options_reach_the_pruner_and_text_report(scene_file, tmp_path, capsys):
     (["--ratio", "0.3", "--param", "gamma"], "--param: expected NAME=VALUE"),
     (["--ratio", "0.3", "--param", "nope=1"], "--param nope: method 'betadesc': no such parameter"),
     (["--ratio", "0.3", "--max-nn", "2.5"], "--max-nn: method 'betadesc': expected int >= 1, got '2.5'"),
-    (["--ratio", "0.3", "--method", "lightgs"], "'lightgs' needs training cameras; give them with --cameras"),
+    (["--ratio", "0.3", "--method", "lightgs"], "--cameras: 'lightgs' needs training cameras; none were given"),
 ])
 def test_bad_arguments_exit_2_without_output(scene_file, tmp_path, capsys, argv, message):
     out = tmp_path / "bad.ply"

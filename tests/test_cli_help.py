@@ -5,6 +5,10 @@ from __future__ import annotations
 import pytest
 
 from harness.cli import build_parser, main
+from harness.commands import catalog
+
+COMMANDS = [e.name for e in catalog("harness.commands")]
+BENCHMARKS = [e.name for e in catalog("harness.benchmarks")]
 
 
 def _subcommands(parser):
@@ -12,14 +16,26 @@ def _subcommands(parser):
     return action.choices
 
 
-@pytest.mark.parametrize("command", sorted(_subcommands(build_parser())))
+def test_every_command_and_benchmark_is_listed():
+    """The catalog reads NAME and HELP from the sources: the same as the modules hold, each named
+    after its file (so `harness NAME` finds it), and the top-level help lists them all."""
+    import importlib
+
+    assert {"prune", "info", "render", "compare", "run", "bench"} <= set(COMMANDS) and "prune" in BENCHMARKS
+    for entry in catalog("harness.commands") + catalog("harness.benchmarks"):
+        mod = importlib.import_module(entry.module)
+        assert (entry.name, entry.help) == (mod.NAME, mod.HELP) and entry.module.endswith("." + entry.name)
+    assert sorted(_subcommands(build_parser())) == sorted(COMMANDS)
+
+
+@pytest.mark.parametrize("command", COMMANDS)
 def test_command_help(command, capsys):
     with pytest.raises(SystemExit) as info:
         main([command, "--help"])
     assert info.value.code == 0 and "usage:" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("bench", sorted(_subcommands(_subcommands(build_parser())["bench"])))
+@pytest.mark.parametrize("bench", BENCHMARKS)
 def test_benchmark_help(bench, capsys):
     """`harness bench methods --help` used to crash on the "%" of "30 %" in its help text."""
     with pytest.raises(SystemExit) as info:

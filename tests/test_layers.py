@@ -3,7 +3,7 @@
 Every ``import`` statement of the project's own code is read from the source (module level *and*
 inside functions: a lazy import is still a dependency), and checked against :data:`ALLOWED`::
 
-    commands/cli → run, benchmarks → report → methods → renderers, metrics → views, io → core
+    commands/cli → api, benchmarks → run → report → methods → renderers, metrics → views, io → core
 
 ``methods`` and ``renderers`` never reach ``harness.run`` or ``harness.report``; ``harness.core``
 imports nothing of the project. A cycle between modules (A imports B, which imports A, directly or
@@ -29,14 +29,15 @@ METHODS = METRICS | RENDERERS | {"methods"}
 REPORT = METHODS | VIEWS | {"harness.report"}
 RUN = REPORT | {"harness.run"}
 BENCHMARKS = RUN | {"harness.benchmarks"}
-COMMANDS = BENCHMARKS | {"harness.commands"}
+API = RUN | {"harness.api"}
+COMMANDS = BENCHMARKS | API | {"harness.commands"}
 #: layer of a module (longest matching prefix) -> the layers it may import
 ALLOWED = {
     "harness.core": CORE, "harness.io": IO, "harness.views": VIEWS, "harness.metrics": METRICS,
     "renderers": RENDERERS, "methods": METHODS, "harness.report": REPORT, "harness.run": RUN,
-    "harness.benchmarks": BENCHMARKS, "harness.commands": COMMANDS,
+    "harness.benchmarks": BENCHMARKS, "harness.api": API, "harness.commands": COMMANDS,
     "harness.cli": COMMANDS | {"harness.cli", "harness"}, "harness.__main__": {"harness.cli"},
-    "harness": {"harness"},
+    "harness": {"harness", "harness.api", "harness.core"},
 }
 
 

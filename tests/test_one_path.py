@@ -16,6 +16,8 @@ import shutil
 from collections import Counter
 
 import pytest
+
+from tests.gl_support import require_gl
 import yaml
 
 from harness.cli import main
@@ -46,15 +48,7 @@ def _numbers(text: str) -> Counter:
 
 @pytest.mark.gl
 def test_run_tables_and_report_write_the_same_outputs_per_protocol(tmp_path, capsys):
-    from renderers.gl import GLRenderer, GLUnavailable
-
-    gl = GLRenderer()
-    try:
-        gl._ensure_context()
-    except GLUnavailable as err:
-        pytest.skip(f"no EGL OpenGL context on this machine: {err}")
-    finally:
-        gl.close()
+    require_gl()
     scenes = fakes.write_two_scenes(tmp_path)
     run = tmp_path / "run"
     assert main(["run", _config(tmp_path, scenes), "--out", str(run), "--cache", str(tmp_path / "cache")]) == 0

@@ -17,9 +17,7 @@ from __future__ import annotations
 
 import json
 import os
-import resource
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
@@ -52,23 +50,21 @@ def add_arguments(parser) -> None:
 
 
 def _end_to_end(scene: str, ratio: float, repeats: int) -> dict:
+    from harness.benchmarks.start import run_child
+
     runs = []
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "pruned.ply"
         cmd = [sys.executable, "-m", "harness", "prune", scene, str(out), "--ratio", str(ratio), "--json"]
         for _ in range(repeats + 1):  # the first run warms the numba cache and the page cache
-            before = resource.getrusage(resource.RUSAGE_CHILDREN)
-            t0 = time.perf_counter()
-            proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
-            wall = time.perf_counter() - t0
-            after = resource.getrusage(resource.RUSAGE_CHILDREN)
-            if proc.returncode != 0:
-                raise RuntimeError(f"harness prune failed: {proc.stderr.strip()}")
-            report = json.loads(proc.stdout)
-            report["process_wall"] = wall
-            report["process_cpu"] = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+            try:  # each run's own wall, CPU and peak memory (bench start's launcher)
+                sample, stdout = run_child(cmd, Path.cwd())
+            except RuntimeError as err:
+                raise RuntimeError(f"harness prune failed: {err}") from None
+            report = json.loads(stdout)
+            report.update(process_wall=sample.wall_s, process_cpu=sample.cpu_s, process_peak=sample.peak_mib)
             runs.append(report)
-        peak_mb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
+        peak_mb = max(r["process_peak"] for r in runs[1:])
     runs = runs[1:]
     stages = {k: statistics.median(r["seconds"][k] for r in runs) for k in runs[0]["seconds"]}
     method_seconds = sum(v for k, v in stages.items() if k in ("read", "score", "select", "write"))

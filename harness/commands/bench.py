@@ -6,38 +6,38 @@ and writes its results (JSON + markdown) into ``--out DIR``, which every benchma
 results/bench`` updates the committed results, and the benchmark then says that it did. Speed goals
 live here, never in timed tests; ratios are always measured within one run because the machines are
 noisy.
+
+Only the chosen benchmark's module is imported (and its parser built); the others are listed by
+name and help (:func:`harness.commands.catalog`), so ``harness bench start`` pays for no other
+benchmark's imports.
 """
 
 from __future__ import annotations
 
-import importlib
-import pkgutil
-
-from harness.benchmarks._common import DEFAULT_OUT
-from harness.commands import help_text
+from harness.commands import catalog, help_text
 
 NAME = "bench"
 HELP = "run a benchmark; results into --out (default runs/bench; --out results/bench updates the committed ones)"
 
 
-def _modules():
-    import harness.benchmarks as pkg
-
-    for info in sorted(pkgutil.iter_modules(pkg.__path__), key=lambda m: m.name):
-        if not info.name.startswith("_"):
-            yield importlib.import_module(f"harness.benchmarks.{info.name}")
-
-
-def add_arguments(parser) -> None:
+def add_arguments(parser, argv=()) -> None:
+    chosen = next((word for word in argv if not word.startswith("-")), None)
     sub = parser.add_subparsers(dest="benchmark", metavar="BENCHMARK", required=True)
-    for mod in _modules():
-        p = sub.add_parser(mod.NAME, help=help_text(mod.HELP), description=help_text(mod.HELP))
-        mod.add_arguments(p)
-        p.add_argument("--out", default=None, metavar="DIR",
-                       help=help_text(f"folder for the results (default {DEFAULT_OUT}"
-                                      f"{'/reading' if mod.NAME == 'reading' else ''}, outside the tracked tree; "
-                                      "--out results/bench updates the committed results and says so)"))
-        p.set_defaults(_bench=mod.run)
+    for entry in catalog("harness.benchmarks"):
+        p = sub.add_parser(entry.name, help=help_text(entry.help), description=help_text(entry.help))
+        if entry.name == chosen:
+            _fill(p, entry.load())
+
+
+def _fill(p, mod) -> None:
+    from harness.benchmarks._common import DEFAULT_OUT
+
+    mod.add_arguments(p)
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help=help_text(f"folder for the results (default {DEFAULT_OUT}"
+                                  f"{'/reading' if mod.NAME == 'reading' else ''}, outside the tracked tree; "
+                                  "--out results/bench updates the committed results and says so)"))
+    p.set_defaults(_bench=mod.run)
 
 
 def run(args) -> int:

@@ -12,6 +12,7 @@ JSON has no infinity, so with ``--json`` an infinite PSNR (identical images) is 
 ``"psnr": null`` together with ``"psnr_inf": true``; ``psnr_inf`` is always present (false otherwise).
 The same applies to the ``psnr_y/u/v/yuv`` keys of ``--yuv``: ``null`` with ``"<key>_inf": true``.
 Mismatched sizes, NaN pixels and unreadable files are input errors (one line, exit status 2).
+The measuring is :func:`harness.api.compare` (``harness.compare`` in Python); this module prints it.
 """
 
 from __future__ import annotations
@@ -51,50 +52,17 @@ def _json_ready(metrics: dict) -> dict:
     return out
 
 
-def metric_names(text: str, qmiv: bool = False) -> tuple[str, ...]:
-    """Metric names from a comma-separated list of metric and family names (InputError if unknown);
-    with ``qmiv`` the mpeg family and MPEG names become their QMIV-mode counterparts."""
-    from harness.core.errors import InputError
-    from harness.metrics.registry import METRICS, expand, requestable
-
-    words = [w.strip() for w in text.split(",") if w.strip()]
-    known = requestable()
-    bad = [w for w in words if w not in known]
-    if bad or not words:
-        raise InputError("--metrics", f"unknown metric or family {', '.join(bad) or repr(text)}; known: {', '.join(known)}")
-    names = expand(words)
-    if qmiv:
-        qm = {m.name for m in METRICS if m.family == "mpeg-qmiv"}
-        names = tuple(dict.fromkeys(n + "_qmiv" if n + "_qmiv" in qm else n for n in names))
-    return names
+#: how this command names the API's arguments (:func:`harness.core.errors.naming`)
+FLAGS = {"metrics": "--metrics", "device": "--device", "mask": "--mask"}
 
 
 def run(args) -> int:
-    import numpy as np
-    import torch
+    from harness.api.images import compare
+    from harness.core.errors import naming
 
-    from harness.metrics.images import check_same_size, read_image
-    from harness.metrics.lpips_vgg import LpipsVGG
-    from harness.metrics.suite import compare_images
-
-    names = metric_names(args.metrics, args.qmiv)
-    a, b = read_image(args.a), read_image(args.b)
-    check_same_size(a, b, args.a, args.b)
-    mask = None
-    if args.mask:
-        m = read_image(args.mask)
-        check_same_size(a, m, args.a, args.mask)
-        mask = np.any(m != 0, axis=2)
-    from harness.core.devices import check_device
-
-    device = None if check_device(args.device, "--device") is None else torch.device(args.device)
-    model = LpipsVGG(device=device) if "lpips" in names else None
-    metrics = compare_images(a, b, lpips_model=model, yuv=args.yuv, names=names, mask=mask)
-    if args.qmiv:  # same keys in both modes; the mode is said once
-        metrics = {k[:-5] if k.endswith("_qmiv") else k: v for k, v in metrics.items()}
-        metrics["mode"] = "qmiv"
-    if mask is None:
-        metrics.pop("occupancy", None)
+    with naming(FLAGS):
+        metrics = compare(args.a, args.b, args.metrics, device=args.device, yuv=args.yuv, qmiv=args.qmiv,
+                          mask=args.mask)
     if args.json:
         print(json.dumps(_json_ready(metrics), allow_nan=False))
     else:

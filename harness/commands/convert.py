@@ -39,7 +39,7 @@ def _size(path: Path) -> int:
 
 
 def run(args) -> int:
-    from harness.commands._outputs import check_outputs
+    from harness.api.scenes import check_outputs
     from harness.io.datasets import resolve_scene
     from harness.io.scenes import read_scene, write_scene
     from harness.io.writers import writer_for

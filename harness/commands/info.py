@@ -1,7 +1,8 @@
 """`harness info SCENE [--json] [--lod N|all] [--drop-nonfinite]`: what a scene holds.
 
 ``--json`` prints strict JSON: a statistic that is not finite (e.g. the mean scale of a scene with
-an overflowing log-scale) is ``null`` (:mod:`harness.core.jsonout`)."""
+an overflowing log-scale) is ``null`` (:mod:`harness.core.jsonout`). The facts are
+:func:`harness.api.info` (``harness.info`` in Python); this module prints them."""
 
 from __future__ import annotations
 
@@ -37,14 +38,12 @@ def _fmt_stats(s: dict) -> str:
 
 
 def run(args) -> int:
-    from harness.io.scenes import describe_scene, read_scene
+    from harness.api.scenes import info as describe
 
-    result = read_scene(args.scene, lod=args.lod, drop_nonfinite=args.drop_nonfinite)
-    if result.dropped_nonfinite:
-        print(f"harness: {result.path}: dropped {result.dropped_nonfinite} splats with NaN/inf values",
+    info = describe(args.scene, lod=args.lod, drop_nonfinite=args.drop_nonfinite)
+    if info["dropped_nonfinite"]:
+        print(f"harness: {info['path']}: dropped {info['dropped_nonfinite']} splats with NaN/inf values",
               file=sys.stderr)
-    info = describe_scene(result.scene, result.path, fmt=result.format, lod=result.lod, format_name=result.format_name)
-    info["dropped_nonfinite"] = result.dropped_nonfinite
     if args.json:  # non-finite statistics (an overflowing scale) are null: always valid JSON
         from harness.core.jsonout import dumps
 

@@ -14,21 +14,10 @@ def add_arguments(parser) -> None:
                         "(reading parameters always show theirs)")
 
 
-def describe() -> list[dict]:
-    from methods import list_pruners
-
-    return [{"name": s.name, "label": s.label, "group": s.group, "needs": sorted(s.needs),
-             "ablation": None if s.ablation is None else {"descriptors": s.ablation.descriptors,
-                                                          "beta": s.ablation.beta},
-             "summary": s.summary,
-             "params": {p.name: {"type": p.describe(), "default": p.default, "doc": p.doc,
-                                 **({"reading": p.reading} if p.reading else {})}
-                        for p in s.params.specs()}}
-            for s in list_pruners()]
-
-
 def run(args) -> int:
-    rows = describe()
+    from harness.api.scenes import methods
+
+    rows = methods()
     if args.json:
         from harness.core.jsonout import dumps
 

@@ -18,6 +18,9 @@ checked by the pruner's :class:`harness.core.params.Params` before anything is r
 another pruner is refused at parsing with the pruners it belongs to. ``--cameras FILE`` gives
 training views: required by camera-aware pruners (LightGSPrune, ConfSplatPrune) and used by
 BetaDescPrune's optional view-aware edge evidence when ``--view-weight`` > 0.
+
+The work is :func:`harness.api.prune` (``harness.prune`` in Python): this module turns the flags
+into its arguments, checks the outputs first, writes the kept splats and prints the report.
 """
 
 from __future__ import annotations
@@ -26,15 +29,11 @@ import math
 import time
 from pathlib import Path
 
-import numpy as np
-
 from harness.commands import help_text
-from harness.core import ratios
 from harness.core.errors import InputError
 
 NAME = "prune"
 HELP = "prune a splat scene to a ratio with BetaDescPrune (or any registered pruner) and write it (.ply, .spz ...)"
-DEFAULT_METHOD = "betadesc"
 _OWN = {"input", "output", "ratio", "keep", "method", "seed", "scores", "json", "cameras", "param", "device"}
 
 
@@ -44,6 +43,8 @@ def _flag(name: str) -> str:
 
 def _method_in(argv) -> str:
     """The ``--method`` value among the command's arguments (the last one wins, as in argparse)."""
+    from harness.api.scenes import DEFAULT_METHOD
+
     method = DEFAULT_METHOD
     for i, word in enumerate(argv):
         if word == "--method" and i + 1 < len(argv):
@@ -54,6 +55,7 @@ def _method_in(argv) -> str:
 
 
 def add_arguments(parser, argv=()) -> None:
+    from harness.api.scenes import DEFAULT_METHOD
     from harness.io.writers import endings
     from methods.registry import list_pruners
 
@@ -126,17 +128,12 @@ def resolve(args, spec):
         raise InputError(where, f"method {spec.name!r}: {err.problem}") from None
 
 
-def _check_paths(args) -> float:
-    """The pruning ratio; every output path checked before any work, so a bad one leaves nothing."""
-    from harness.commands._outputs import check_outputs
+def _check_outputs(args) -> None:
+    """Every output path checked before any work, so a bad one leaves nothing."""
+    from harness.api.scenes import check_outputs
     from harness.io.datasets import resolve_scene
     from harness.io.writers import writer_for
 
-    value, flag = (args.ratio, "--ratio") if args.ratio is not None else (args.keep, "--keep")
-    try:
-        ratio = ratios.canonical(value) if args.ratio is not None else ratios.from_keep(value)
-    except ValueError:
-        raise InputError(flag, f"must be a number in [0, 1], got {value}") from None
     out = Path(args.output)
     writer_for(out)  # the format from the name, refused before any work
     if args.scores is not None and Path(args.scores).suffix.lower() != ".npy":
@@ -145,64 +142,35 @@ def _check_paths(args) -> float:
     check_outputs([out] + ([Path(args.scores)] if args.scores is not None else []), inputs)
     if args.scores is not None and Path(args.scores).resolve() == out.resolve():
         raise InputError(args.scores, "the scores file and the pruned scene are the same path")
-    return ratio
 
 
-def _cameras(args, spec, params):
-    if not args.cameras:
-        if "cameras" in spec.needs:
-            raise InputError("--method", f"{spec.name!r} needs training cameras; give them with --cameras FILE")
-        return None
-    if not spec.wants_cameras(params):
-        hint = " (enable its view-aware evidence with --view-weight > 0)" if "view_weight" in params.names() else ""
-        raise InputError("--cameras", f"{spec.name!r} does not use cameras with these parameters{hint}")
-    from harness.io.cameras import load_cameras
-
-    return load_cameras(args.cameras)
+#: how this command names the API's arguments (:func:`harness.core.errors.naming`)
+FLAGS = {"ratio": "--ratio", "keep": "--keep", "method": "--method", "cameras": "--cameras", "device": "--device"}
 
 
 def run(args) -> int:
-    from harness.core.timing import record_stages
+    from harness import api
+    from harness.core.errors import naming
     from harness.io.files import atomic_write_npy
-    from harness.io.scenes import load_scene, write_scene
-    from methods import PruneContext, get_pruner, select_by_ratio
+    from harness.io.scenes import write_scene
 
-    try:
-        spec = get_pruner(args.method)
-    except KeyError as err:
-        raise InputError("--method", str(err.args[0])) from None
-    from harness.core.devices import check_device
-
-    params = resolve(args, spec)
-    ratio = _check_paths(args)
-    check_device(args.device, "--device")
-    cameras = _cameras(args, spec, params)
-
-    seconds: dict[str, float] = {}
-    t0 = time.perf_counter()
-    scene = load_scene(args.input)
-    seconds["read"] = time.perf_counter() - t0
-
-    scores = None
-    convert_only = ratio == 0.0 and args.scores is None  # nothing to remove: nothing to score
-    if not convert_only:
-        t0 = time.perf_counter()
-        with record_stages() as stages:
-            try:
-                scores = spec.score(scene, PruneContext(params=params, seed=args.seed, cameras=cameras,
-                                                        device=args.device))
-            except ValueError as err:  # a value the method rejects only once it sees the scene
-                raise InputError("--method", f"{spec.name}: {err}") from None
-        seconds["score"] = time.perf_counter() - t0
-        seconds.update({f"score.{k}": v for k, v in stages.items()})
-
-    t0 = time.perf_counter()
-    selection = select_by_ratio(scores if scores is not None else np.zeros(len(scene)), ratio)
-    seconds["select"] = time.perf_counter() - t0
+    with naming(FLAGS):
+        spec, _ = api.scenes.pruner(args.method, {})  # an unknown --method before its parameters
+    params = resolve(args, spec).to_dict()  # text -> values, errors naming the flags
+    _check_outputs(args)
+    with naming(FLAGS):
+        pruned = api.prune(args.input, args.ratio, keep=args.keep, method=spec.name, cameras=args.cameras,
+                           seed=args.seed, device=args.device, **params)
+        seconds, scores = dict(pruned.seconds), pruned.scores
+        if scores is None and args.scores is not None:  # ratio 0 scores nothing unless --scores asks
+            t0 = time.perf_counter()
+            scores = api.score(pruned.scene, spec.name, cameras=args.cameras, seed=args.seed, device=args.device,
+                               **params)  # pruned.scene: every splat, nothing was removed
+            seconds = {"read": seconds["read"], "score": time.perf_counter() - t0, "select": seconds["select"]}
 
     t0 = time.perf_counter()
     existed = Path(args.output).exists()
-    write_scene(scene.subset(selection.keep), args.output)  # the input's header comments travel with it
+    write_scene(pruned.scene, args.output)  # the input's header comments travel with it
     if args.scores is not None:
         try:
             atomic_write_npy(args.scores, scores)
@@ -212,18 +180,19 @@ def run(args) -> int:
             raise InputError(args.scores, f"cannot write: {err.strerror or err}") from None
     seconds["write"] = time.perf_counter() - t0
 
-    tau = selection.tau if math.isfinite(selection.tau) else None  # None: nothing removed
-    report = {"method": spec.name, "params": params.to_dict(), "splats_in": len(scene),
-              "splats_out": selection.kept, "removed": selection.removed, "scored": scores is not None,
-              "tau": tau, "tau_quantile": selection.tau_quantile, "seconds": seconds}
+    tau = pruned.tau if math.isfinite(pruned.tau) else None  # None: nothing removed
+    splats_in = len(pruned.mask)
+    report = {"method": spec.name, "params": pruned.params, "splats_in": splats_in,
+              "splats_out": pruned.kept, "removed": pruned.removed, "scored": scores is not None,
+              "tau": tau, "tau_quantile": pruned.removed / splats_in if splats_in else 0.0, "seconds": seconds}
     if args.json:
         from harness.core.jsonout import dumps
 
         print(dumps(report))
     else:
-        print(f"{spec.name}: {len(scene):,} -> {selection.kept:,} splats "
-              f"(removed {selection.removed:,}, tau = {'none' if tau is None else f'{tau:.6g}'})")
-        if convert_only:
+        print(f"{spec.name}: {splats_in:,} -> {pruned.kept:,} splats "
+              f"(removed {pruned.removed:,}, tau = {'none' if tau is None else f'{tau:.6g}'})")
+        if scores is None:
             print(f"  ratio 0: nothing removed and nothing scored; the same as `harness convert {args.input} "
                   f"{args.output}`")
         print("  " + ", ".join(f"{k} {v:.3f} s" for k, v in seconds.items()))

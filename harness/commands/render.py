@@ -30,6 +30,10 @@ from the flags alone**, so renders of any two scenes made with the same flags ha
 Rigs render ``--longest-side`` px (default 1024) at ``--aspect`` (default 4/3) — a dataset's own rig
 included —, and their held-out ``test`` views unless ``--split`` says otherwise. At most
 :data:`harness.views.rigs.MAX_VIEWS` views per split.
+
+The rule is :func:`harness.api.views.views` (``harness.cameras`` in Python) and the renderer
+:func:`harness.api.images.start_renderer` (``harness.render`` renders into arrays); this module adds
+the files.
 """
 
 from __future__ import annotations
@@ -47,7 +51,9 @@ from renderers import RENDERERS
 
 NAME = "render"
 HELP = "render a scene from a camera file or a synthetic rig (images + contact sheet)"
-LLFF_HOLD = 8
+#: how this command names the API's arguments (:func:`harness.core.errors.naming`)
+FLAGS = {"background": "--background", "device": "--device", "backend": "--backend", "longest_side": "--longest-side",
+         "up": "--up", "n_test/n_train": "--n-test/--n-train", "aspect": "--aspect", "split": "--split"}
 
 
 def add_arguments(parser) -> None:
@@ -78,111 +84,6 @@ def add_arguments(parser) -> None:
     parser.add_argument("--background", default="0,0,0", metavar="R,G,B", help="background colour in [0, 1]")
 
 
-def _background(text: str) -> tuple[float, float, float]:
-    try:
-        vals = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        vals = ()
-    if len(vals) != 3 or not all(np.isfinite(vals)) or not all(0.0 <= v <= 1.0 for v in vals):
-        raise InputError("--background", f"expected three numbers R,G,B in [0, 1], got {text!r}")
-    return vals
-
-
-def _triple(text: str | None, flag: str):
-    if text is None:
-        return None
-    try:
-        vals = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        vals = ()
-    if len(vals) != 3 or not all(np.isfinite(vals)):
-        raise InputError(flag, f"expected three numbers X,Y,Z, got {text!r}")
-    return vals
-
-
-def _split_llff(cams):
-    return ([c for i, c in enumerate(cams) if i % LLFF_HOLD != 0], [c for i, c in enumerate(cams) if i % LLFF_HOLD == 0])
-
-
-def _position_keys(scene) -> np.ndarray:
-    """One 64-bit key per splat from the exact bits of its position (a pruned file keeps them)."""
-    bits = np.ascontiguousarray(scene.means, dtype=np.float32).view(np.uint32).astype(np.uint64)
-    k = bits[:, 0] * np.uint64(0x9E3779B97F4A7C15)
-    k ^= bits[:, 1] * np.uint64(0xC2B2AE3D27D4EB4F) + (k >> np.uint64(29))
-    k ^= bits[:, 2] * np.uint64(0x165667B19E3779F9) + (k >> np.uint64(31))
-    return k
-
-
-def source_dataset(arg: str, scene):
-    """(dataset name, the scene its rig is fitted to, how it was recognised) or None: the named
-    dataset ``scene`` is, or was pruned from (module docstring)."""
-    from harness.io.datasets import SCENES, identify, scene_path
-    from harness.io.scenes import load_scene
-
-    name = identify(arg)
-    if name is not None:
-        return name, scene, f"the {name} dataset's own"
-    keys = None
-    for name in SCENES:
-        path = scene_path(name)
-        if not path.exists():
-            continue
-        data = load_scene(path)
-        if len(data) < len(scene) or data.sh_degree != scene.sh_degree:
-            continue
-        keys = _position_keys(scene) if keys is None else keys
-        if np.isin(keys, _position_keys(data)).all():
-            return name, data, f"the {name} dataset's own, fitted to {name}: this scene's splats are a subset of it"
-    return None
-
-
-def select_views(args, scene):
-    """(where the views came from, the cameras to render), per the module docstring."""
-    from harness.core.cameras import MAX_SIDE
-    from harness.io.cameras import embedded_cameras, load_cameras
-
-    if args.longest_side is not None and not 1 <= args.longest_side <= MAX_SIDE:
-        raise InputError("--longest-side", f"must be 1..{MAX_SIDE} pixels (the maximum render size), "
-                                           f"got {args.longest_side}")
-    up = _triple(args.up, "--up")
-    if up is not None and not any(up):
-        raise InputError("--up", "must be a non-zero direction")
-    file_cams = load_cameras(args.cameras) if args.cameras else None
-    if file_cams is None and args.rig in (None, "default"):
-        file_cams = embedded_cameras(scene) or None
-    if file_cams is not None:
-        origin = args.cameras or f"{scene.meta.source or args.scene} (embedded cameras)"
-        cams = [c.resized(args.longest_side) for c in file_cams] if args.longest_side else file_cams
-        if args.split is None:  # used as given
-            return f"{origin}, every camera", cams
-        train, test = _split_llff(cams)
-        selected = {"test": test, "train": train, "all": cams}[args.split]
-        origin += f", {args.split} split (every {LLFF_HOLD}th view is a test view)"
-    else:
-        from harness.views.rigs import scene_rig
-
-        if not 1 <= args.n_test <= MAX_VIEWS or not 0 <= args.n_train <= MAX_VIEWS:
-            raise InputError("--n-test/--n-train", f"need 1..{MAX_VIEWS} test views and 0..{MAX_VIEWS} training "
-                                                   f"views, got {args.n_test} and {args.n_train}")
-        if args.aspect is not None and not (np.isfinite(args.aspect) and 0.1 <= args.aspect <= 10):
-            raise InputError("--aspect", f"must be a width/height ratio in [0.1, 10], got {args.aspect}")
-        rig = args.rig or "default"
-        found = source_dataset(args.scene, scene) if rig == "default" else None
-        dataset, fitted, how = found if found else (None, scene, "")
-        try:
-            views = scene_rig(dataset, fitted, rig, n_train=args.n_train, n_test=args.n_test, seed=args.seed,
-                              longest_side=args.longest_side or LONGEST_SIDE, aspect=args.aspect or ASPECT, up=up)
-        except ValueError as err:
-            raise InputError(args.scene, f"cannot build a rig: {err}") from None
-        origin = f"rig {views.rig}" + (f" ({how})" if how else "")
-        split = args.split or "test"
-        selected = {"test": views.test, "train": views.train, "all": views.all}[split]
-        origin += f", {split} views"
-    if not selected:
-        raise InputError("--split", f"the {args.split!r} split has no views")
-    return origin, selected
-
-
 def _safe(name: str) -> str:
     stem = re.sub(r"[^A-Za-z0-9._-]+", "_", Path(name).with_suffix("").as_posix()).strip("._")
     return stem[:80] or "view"
@@ -200,24 +101,26 @@ def _save_image(image: np.ndarray, path: Path, fmt: str) -> None:
 
 
 def run(args) -> int:
+    from harness.api.images import check_background, start_renderer
+    from harness.api.views import views
     from harness.core.devices import check_device
+    from harness.core.errors import naming
     from harness.io.cameras import write_3dgs_cameras
     from harness.io.scenes import load_scene
     from harness.views.contact_sheet import ContactSheet
 
-    background = _background(args.background)
-    check_device(args.device, "--device")
+    with naming(FLAGS):
+        background = check_background(args.background)
+        check_device(args.device, "device")
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise InputError(out, "exists and is not a folder")
     scene = load_scene(args.scene)
-    origin, cams = select_views(args, scene)
-    from renderers import get_renderer
-
-    try:
-        renderer = get_renderer(args.backend, args.device)
-    except Exception as err:  # noqa: BLE001  no EGL/CUDA here (moderngl, torch errors): usage, not a crash
-        raise InputError(f"--backend {args.backend}", f"cannot start the renderer: {err}") from None
+    with naming(FLAGS):
+        origin, cams = views(scene, cameras=args.cameras, rig=args.rig, split=args.split, longest_side=args.longest_side,
+                             n_train=args.n_train, n_test=args.n_test, seed=args.seed, aspect=args.aspect, up=args.up,
+                             name=args.scene)
+        renderer = start_renderer(args.backend, args.device)
     from harness.io.files import make_output_folder, refuse_inputs
 
     make_output_folder(out)  # created, writable (not /proc, not read-only), stale temp files swept

@@ -11,7 +11,8 @@ the run record (``run.json``, kept per run under ``records/``), and publishes th
 `harness report`), printing a summary saying where everything is. A stage that fails on some scene
 is recorded in the results and run.json and makes the exit status 1. A table or plot of the config
 that these results cannot make is a ``warning:`` line of the summary naming what is missing (the
-exit status stays 0: the measurements are complete).
+exit status stays 0: the measurements are complete). The run is :func:`harness.api.study.run_study`
+(``harness.evaluate`` in Python returns its rows); this module prints its summary.
 
 A run that measured nothing (every scene optional and absent, or every stage failed) replaces
 nothing: the earlier results, tables and page of the folder stay as they were, and only its record
@@ -20,9 +21,7 @@ is added under ``records/``.
 
 from __future__ import annotations
 
-import json
 import sys
-from pathlib import Path
 
 NAME = "run"
 HELP = "evaluate pruning methods on scenes per a YAML config (cached, resumable)"
@@ -46,115 +45,23 @@ def add_arguments(parser) -> None:
                              "without it Ray starts a local cluster of --workers workers on this machine)")
 
 
+#: how this command names the API's arguments (:func:`harness.core.errors.naming`)
+FLAGS = {"workers": "--workers", "threads": "--threads", "address": "--address", "executor": "--executor",
+         "out": "--out", "cache": "--cache"}
+
+
 def run(args) -> int:
-    from rich.console import Console
+    from harness.api.study import run_study
+    from harness.core.errors import naming
 
-    from harness.core.errors import InputError
-    from harness.core.paths import cache_dir
-    from harness.report.outputs import publish
-    from harness.report.record import (
-        contact_sheets,
-        copy_images,
-        summary_lines,
-        write_run_json,
-    )
-    from harness.report.results import to_frame, write_results
-    from harness.run.config import load_config
-    from harness.run.progress import StageProgress
-    from harness.run.runner import Runner
-
-    config = load_config(args.config)
-    from harness.run.captured import check_captures
-
-    check_captures(config, Path.cwd())  # a bad capture: one line, exit 2, before any output
-    workers = args.workers if args.workers is not None else config.workers
-    if not 1 <= workers <= 256:
-        raise InputError("--workers", f"must be 1..256, got {workers}")
-    if args.threads is not None and not 1 <= args.threads <= 1024:
-        raise InputError("--threads", f"must be 1..1024, got {args.threads}")
-    spec = executor_spec(config.executor, args.executor, args.address)
-    from harness.run.executors import preflight
-
-    preflight(spec, workers, args.cache)  # before the output folder: a bad cache URL or Ray address
-    from harness.core.devices import check_device
-    from harness.io.files import make_output_folder, sweep_stale_temps
-    from harness.run.cache import is_url
-    from harness.run.executors import make_executor
-
-    if spec.address is None:  # on a cluster the nodes' devices count (checked when it is joined)
-        check_device(config.protocol.device, f"{args.config}: protocol.device")
-    from harness.run.plan import check_sources
-    from harness.run.toolkit import Toolkit
-
-    check_sources(config, Toolkit(), Path.cwd())  # a misspelt or absent required scene: before any work
-    out_dir = make_output_folder(Path(args.out or config.output), "--out" if args.out else f"{args.config}: output")
-    if args.cache and is_url(args.cache) and not args.cache.startswith("file://"):
-        cache_root = args.cache  # an fsspec URL: its entries are PUT one by one (harness.run.cache)
-    else:
-        cache_root = make_output_folder(Path(args.cache.removeprefix("file://")) if args.cache else cache_dir() / "stages",
-                                        "--cache" if args.cache else "stage cache").absolute()
-    sweep_stale_temps(out_dir, recursive=True)
-    console = Console(stderr=True, soft_wrap=True)
-    where = f"{workers} worker(s)" if spec.name == "local" else \
-        f"Ray ({'a local cluster of ' + str(workers) + ' worker(s)' if spec.address is None else spec.address})"
-    console.print(f"[bold]harness run[/] {config.name}: {len(config.scenes)} scenes, "
-                  f"{len(config.methods)} method variants, {where} -> {out_dir}")
-    with make_executor(spec, workers, device=config.protocol.device, cache_location=str(cache_root), threads=args.threads,
-                       log=lambda m: console.print(f"[yellow]{m}[/]")) as executor, StageProgress(console) as progress:
-        runner = Runner(config, out_dir=out_dir, cache_root=cache_root, workers=workers, force=args.force,
-                        progress=progress, log=lambda m: console.print(f"[yellow]{m}[/]"),
-                        base_dir=Path.cwd(), executor=executor)
-        result = runner.run()
-    df = to_frame(result.rows)
-    if not (df["status"] == "ok").any():
-        return _nothing_measured(out_dir, config, result, df, workers, cache_root)
-    pq, csv = write_results(df, out_dir)
-    images = copy_images(result.images, out_dir)
-    sheets = contact_sheets(runner.items, runner.cache, runner._ref_key, out_dir, config.protocol.background)
-    run_json = write_run_json(out_dir, config, result, workers=workers, cache_root=cache_root, argv=sys.argv[1:])
-    published = publish(out_dir, df, json.loads(run_json.read_text()))
-    written, report = published.written, published.page
-    paths = {"results": pq, "results (csv)": csv, "tables": out_dir / "tables", "plots": out_dir / "plots",
-             "images": images,
-             "contact sheets": f"{out_dir / 'contact_sheets'} (coverage per view: "
-                               + "; ".join(f"{k} " + " ".join(f"{100 * c:.0f}%" for c in v) for k, v in sheets.items())
-                               + ")",
-             "run record": run_json,
-             "report page": report,
-             "stage cache": cache_root}
-    for line in summary_lines(result, df, paths):
+    with naming(FLAGS):
+        study = run_study(args.config, out=args.out, executor=args.executor, address=args.address,
+                          workers=args.workers, threads=args.threads, cache=args.cache, force=args.force,
+                          argv=sys.argv[1:])
+    for line in study.summary:
         print(line)
-    for line in written.warnings + written.missing:  # what the config asked for and these results cannot show
-        print(f"warning: {line}")
-    print(f"wrote {len(written.paths)} table/plot files")
-    return 1 if result.errors else 0
-
-
-def _nothing_measured(out_dir: Path, config, result, df, workers: int, cache_root) -> int:
-    """No measured row: keep the folder's earlier results and outputs; add this run's record only."""
-    from harness.report.record import summary_lines, write_run_json
-
-    record = write_run_json(out_dir, config, result, workers=workers, cache_root=cache_root, argv=sys.argv[1:],
-                            latest=False)
-    for line in summary_lines(result, df, {"run record": record}):
-        print(line)
-    print(f"nothing measured: the earlier results, tables and page in {out_dir} are left as they were")
-    return 1 if result.errors else 0
-
-
-def executor_spec(spec, name: str | None, address: str | None):
-    """The config's ``executor`` with ``--executor`` / ``--address`` applied (``--address`` means Ray)."""
-    import dataclasses
-
-    from harness.core.errors import InputError
-
-    if address is not None and name == "local":
-        raise InputError("--address", "is a Ray cluster address; it goes with --executor ray")
-    if name is None and address is not None:
-        name = "ray"
-    if name is not None and name != spec.name:
-        spec = dataclasses.replace(spec, name=name, address=None) if name == "local" else \
-            dataclasses.replace(spec, name=name)
-    if address is not None:
-        spec = dataclasses.replace(spec, address=address)
-    return spec
+    if study.measured:
+        for line in study.warnings:  # what the config asked for and these results cannot show
+            print(f"warning: {line}")
+        print(f"wrote {study.written} table/plot files")
+    return 1 if study.errors else 0

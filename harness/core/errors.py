@@ -1,12 +1,21 @@
-"""The one error type a user sees: bad input, reported as one line, exit status 2."""
+"""The one error type a user sees: bad input, reported as one line, exit status 2.
+
+:class:`HarnessError` is what the Python API (``harness.prune`` ...) raises and the command line
+prints; :class:`InputError`, bad input, is the kind raised everywhere today. Both are
+``<source>: <problem>`` on one line. The API names its keyword arguments as sources (``ratio``),
+the command line its flags (``--ratio``): a command calls the API inside :func:`naming`, which
+renames the source and keeps the problem, so both say the same thing about the same mistake.
+"""
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Iterator, Mapping
 
 
-class InputError(Exception):
-    """Bad user input (file, config, argument). ``str(err)`` is the one-line message.
+class HarnessError(Exception):
+    """An error with a one-line message. ``str(err)`` is the line the CLI prints after ``harness: ``.
 
     ``source`` names the file (or config key, or argument) and ``problem`` says what is wrong.
     The CLI prints ``harness: <source>: <problem>`` to stderr and exits with status 2.
@@ -21,3 +30,19 @@ class InputError(Exception):
 
     def __reduce__(self):  # raised in a pool worker or Ray task, it travels back whole
         return (self.__class__, (self.source, self.problem))
+
+
+class InputError(HarnessError):
+    """Bad user input (file, config, argument)."""
+
+
+@contextmanager
+def naming(names: Mapping[str, str]) -> Iterator[None]:
+    """Errors raised inside whose source is a key of ``names`` are re-raised naming ``names[source]``
+    instead (same class, same problem): ``with naming({"ratio": "--ratio"}): harness.api.prune(...)``."""
+    try:
+        yield
+    except HarnessError as err:
+        if err.source not in names:
+            raise
+        raise err.__class__(names[err.source], err.problem) from None

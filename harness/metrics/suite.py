@@ -41,14 +41,20 @@ import numpy as np
 
 from harness.metrics import registry as _registry
 from harness.metrics.images import as_image, check_same_size, read_image
-from harness.metrics.lpips_vgg import (
-    LpipsFeatures,
-    LpipsVGG,
-    load_features,
-    save_features,
-)
 from harness.metrics.psnr import mse, psnr, psnr_from_mse, summarize_psnr, yuv_psnr
-from harness.metrics.ssim import ssim, ssim_batch
+
+# LPIPS and SSIM run on torch (1-2 CPU-s to import): imported where they are computed, so that
+# PSNR and the MPEG set alone (`harness compare --metrics psnr`) never import it
+_LAZY = {"LpipsFeatures": "lpips_vgg", "LpipsVGG": "lpips_vgg", "load_features": "lpips_vgg",
+         "save_features": "lpips_vgg", "ssim": "ssim", "ssim_batch": "ssim"}
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(f"harness.metrics.{_LAZY[name]}"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 __all__ = [
     "METRICS",
@@ -70,6 +76,8 @@ __all__ = [
 @lru_cache(maxsize=1)
 def default_lpips() -> LpipsVGG:
     """One shared :class:`LpipsVGG` (default device, float32) per process."""
+    from harness.metrics.lpips_vgg import LpipsVGG
+
     return LpipsVGG()
 
 
@@ -124,6 +132,8 @@ def _pair_metrics(ref: np.ndarray, img: np.ndarray, yuv: bool, ssim_border: str,
     if "psnr" in names:
         out["psnr"] = psnr_from_mse(mse(ref, img))
     if "ssim" in names:
+        from harness.metrics.ssim import ssim_batch
+
         first = sides.get("ssim", ref[None])
         out["ssim"] = float(ssim_batch(first, img[None], border=ssim_border, device=device)[0])
     if yuv:
@@ -176,6 +186,8 @@ class MetricSuite:
             raise ValueError(f"unknown metric(s) {', '.join(unknown)}; known: {', '.join(METRICS)}")
         if "lpips" in self.names and lpips_model is None:
             import torch
+
+            from harness.metrics.lpips_vgg import LpipsVGG
 
             threads = torch.get_num_threads()
             lpips_model = LpipsVGG(device=device) if device is not None else default_lpips()
@@ -259,6 +271,8 @@ class MetricSuite:
             np.save(part, img)
             if alpha is not None:
                 np.save(stem.with_suffix(".alpha.npy"), self._alpha[key])
+            from harness.metrics.lpips_vgg import save_features
+
             save_features(feats, stem.with_suffix(".lpips.pt"))
             part.replace(stem.with_suffix(".ref.npy"))
         self._remember(key, img, feats)
@@ -277,6 +291,8 @@ class MetricSuite:
             stem = self._stem(key)
             if stem.with_suffix(".ref.npy").is_file() and stem.with_suffix(".lpips.pt").is_file():
                 img = np.load(stem.with_suffix(".ref.npy"), allow_pickle=False)
+                from harness.metrics.lpips_vgg import load_features
+
                 feats = load_features(stem.with_suffix(".lpips.pt"), self.lpips.device)
                 self._remember(key, img, feats)
                 if stem.with_suffix(".alpha.npy").is_file():

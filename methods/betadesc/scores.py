@@ -25,7 +25,6 @@ Scores (param ``score``):
 from __future__ import annotations
 
 import numpy as np
-from scipy import special
 
 SCORES = ("ucb", "lcb", "quantile", "literal")
 
@@ -46,6 +45,8 @@ def beta_score(a: np.ndarray, b: np.ndarray, kind: str = "ucb", gamma: float = 0
     if kind == "quantile":
         if not 0.0 < q < 1.0:
             raise ValueError(f"quantile q must be in (0, 1), got {q}")
+        from scipy import special  # for this score only: not imported by the default ranking
+
         return special.betaincinv(np.asarray(a, np.float64), np.asarray(b, np.float64), q)
     mu, nu, sigma = beta_moments(a, b)
     if kind == "ucb":

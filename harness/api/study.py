@@ -1,0 +1,150 @@
+"""A study from Python: :func:`evaluate` runs a config as ``harness run`` does and returns its rows.
+
+:func:`run_study` is ``harness run`` without the printing: it validates the config and resolves
+every scene before any work (a misspelt scene, method or metric, or a required scene whose files are
+absent, is one :class:`harness.HarnessError` and nothing is written), runs the staged, cached plan,
+writes tidy results, contact sheets and the run record, and publishes the tables, plots and
+``report.html`` (:func:`harness.report.outputs.publish`). A run that measured nothing replaces
+nothing: the folder's earlier results, tables and page stay, and only its record is added.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from harness.core.errors import InputError
+
+
+@dataclass
+class Study:
+    """What a study produced: ``frame`` (the tidy rows, a pandas DataFrame), the output folder, the
+    summary lines ``harness run`` prints, the tables' warnings, the count of table/plot files written,
+    the stage errors (a failed stage is a row with status "error") and whether anything was measured."""
+
+    frame: object
+    out_dir: Path
+    summary: list[str]
+    warnings: list[str] = field(default_factory=list)
+    written: int = 0
+    errors: list[str] = field(default_factory=list)
+    measured: bool = True
+
+
+def _config(config_or_path):
+    """A validated :class:`harness.run.config.RunConfig` from a YAML path, a mapping (the YAML's
+    content) or a config already loaded."""
+    from harness.run.config import RunConfig, load_config, parse_config
+
+    if isinstance(config_or_path, RunConfig):
+        return config_or_path
+    if isinstance(config_or_path, (str, Path)):
+        return load_config(config_or_path)
+    if isinstance(config_or_path, dict):
+        return parse_config(config_or_path, "<config>")
+    raise InputError("config", f"expected a YAML path, a mapping or a RunConfig, got {type(config_or_path).__name__}")
+
+
+def executor_spec(spec, name: str | None, address: str | None):
+    """The config's ``executor`` with ``executor`` / ``address`` applied (an address means Ray)."""
+    import dataclasses
+
+    if address is not None and name == "local":
+        raise InputError("address", "is a Ray cluster address; it needs the ray executor, not local")
+    if name is None and address is not None:
+        name = "ray"
+    if name is not None and name not in ("local", "ray"):
+        raise InputError("executor", f"must be local or ray, got {name!r}")
+    if name is not None and name != spec.name:
+        spec = dataclasses.replace(spec, name=name, address=None) if name == "local" else \
+            dataclasses.replace(spec, name=name)
+    if address is not None:
+        spec = dataclasses.replace(spec, address=address)
+    return spec
+
+
+def run_study(config_or_path, *, out=None, executor: str | None = None, address: str | None = None,
+              workers: int | None = None, threads: int | None = None, cache=None, force: bool = False,
+              console=None, argv=None) -> Study:
+    """Run a study (module docstring). ``executor`` None: the config's; ``console``: a rich Console
+    for progress and messages (default: stderr); ``argv``: what the run record says ran it."""
+    from rich.console import Console
+
+    from harness.core.devices import check_device
+    from harness.core.paths import cache_dir
+    from harness.io.files import make_output_folder, sweep_stale_temps
+    from harness.report.outputs import publish
+    from harness.report.record import contact_sheets, copy_images, summary_lines, write_run_json
+    from harness.report.results import to_frame, write_results
+    from harness.run.cache import is_url
+    from harness.run.captured import check_captures
+    from harness.run.executors import make_executor, preflight
+    from harness.run.plan import check_sources
+    from harness.run.progress import StageProgress
+    from harness.run.runner import Runner
+    from harness.run.toolkit import Toolkit
+
+    config = _config(config_or_path)
+    check_captures(config, Path.cwd())  # a bad capture: one line, before any output
+    workers = workers if workers is not None else config.workers
+    if not 1 <= workers <= 256:
+        raise InputError("workers", f"must be 1..256, got {workers}")
+    if threads is not None and not 1 <= threads <= 1024:
+        raise InputError("threads", f"must be 1..1024, got {threads}")
+    spec = executor_spec(config.executor, executor, address)
+    preflight(spec, workers, cache)  # before the output folder: a bad cache URL or Ray address
+    if spec.address is None:  # on a cluster the nodes' devices count (checked when it is joined)
+        check_device(config.protocol.device, f"{config.source_path}: protocol.device")
+    check_sources(config, Toolkit(), Path.cwd())  # a misspelt or absent required scene: before any work
+    out_dir = make_output_folder(Path(out or config.output), "out" if out else f"{config.source_path}: output")
+    cache = str(cache) if cache is not None else None
+    if cache and is_url(cache) and not cache.startswith("file://"):
+        cache_root = cache  # an fsspec URL: its entries are PUT one by one (harness.run.cache)
+    else:
+        cache_root = make_output_folder(Path(cache.removeprefix("file://")) if cache else cache_dir() / "stages",
+                                        "cache" if cache else "stage cache").absolute()
+    sweep_stale_temps(out_dir, recursive=True)
+    console = console or Console(stderr=True, soft_wrap=True)
+    log = lambda m: console.print(f"[yellow]{m}[/]")  # noqa: E731
+    where = f"{workers} worker(s)" if spec.name == "local" else \
+        f"Ray ({'a local cluster of ' + str(workers) + ' worker(s)' if spec.address is None else spec.address})"
+    console.print(f"[bold]harness run[/] {config.name}: {len(config.scenes)} scenes, "
+                  f"{len(config.methods)} method variants, {where} -> {out_dir}")
+    with make_executor(spec, workers, device=config.protocol.device, cache_location=str(cache_root), threads=threads,
+                       log=log) as pool, StageProgress(console) as progress:
+        runner = Runner(config, out_dir=out_dir, cache_root=cache_root, workers=workers, force=force,
+                        progress=progress, log=log, base_dir=Path.cwd(), executor=pool)
+        result = runner.run()
+    df = to_frame(result.rows)
+    if not (df["status"] == "ok").any():  # keep the folder's earlier results and outputs; add this record
+        record = write_run_json(out_dir, config, result, workers=workers, cache_root=cache_root, argv=argv,
+                                latest=False)
+        lines = summary_lines(result, df, {"run record": record})
+        lines.append(f"nothing measured: the earlier results, tables and page in {out_dir} are left as they were")
+        return Study(df, out_dir, lines, errors=list(result.errors), measured=False)
+    pq, csv = write_results(df, out_dir)
+    images = copy_images(result.images, out_dir)
+    sheets = contact_sheets(runner.items, runner.cache, runner._ref_key, out_dir, config.protocol.background)
+    run_json = write_run_json(out_dir, config, result, workers=workers, cache_root=cache_root, argv=argv)
+    published = publish(out_dir, df, json.loads(run_json.read_text()))
+    paths = {"results": pq, "results (csv)": csv, "tables": out_dir / "tables", "plots": out_dir / "plots",
+             "images": images,
+             "contact sheets": f"{out_dir / 'contact_sheets'} (coverage per view: "
+                               + "; ".join(f"{k} " + " ".join(f"{100 * c:.0f}%" for c in v) for k, v in sheets.items())
+                               + ")",
+             "run record": run_json,
+             "report page": published.page,
+             "stage cache": cache_root}
+    written = published.written
+    return Study(df, out_dir, summary_lines(result, df, paths), warnings=written.warnings + written.missing,
+                 written=len(written.paths), errors=list(result.errors))
+
+
+def evaluate(config_or_path, out=None, executor: str | None = "local", **options):
+    """Run a study (a YAML config path, its content as a mapping, or a loaded config) like ``harness
+    run``, writing everything into ``out`` (default: the config's ``output``), and return its rows:
+    a pandas DataFrame, one row per scene × method × ratio × view × protocol (``status`` ok, skipped
+    or error). ``executor``: "local" (a process pool), "ray", or None for the config's own;
+    ``options``: ``workers``, ``threads``, ``cache``, ``force``, ``address`` as for ``harness run``."""
+    return run_study(config_or_path, out=out, executor=executor, **options).frame
