@@ -62,7 +62,7 @@ def curve_metrics(mets) -> list[tuple[str, str, int]]:
     db = [m for m in mets if stats.is_db(m[0])]
     out = db[:1]
     if db:
-        out += [m for m in db if m[0] != db[0][0] and m[0].replace("_om", "", 1) == db[0][0]][:1]
+        out += [m for m in db if m[0] != db[0][0] and catalog.masked_of(m[0]) == db[0][0]][:1]
     out += [m for m in mets if not catalog.higher_is_better(m[0])][:1]
     return out
 

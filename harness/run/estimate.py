@@ -258,10 +258,13 @@ def scene_info(spec: SceneSpec, config: RunConfig, assume: Assumptions, toolkit=
 # --------------------------------------------------------------------------- counting and costing
 def metric_passes(names) -> dict[str, int]:
     """Passes per measured image: ``lpips`` (LPIPS-VGG trunk), ``ssim`` (3-plane SSIM) and ``psnr``
-    (a PSNR-like pass: squared errors, 8-bit quantisation, colour conversion)."""
-    out = {"lpips": 0, "ssim": 0, "psnr": 0}
+    (a PSNR-like pass: squared errors, 8-bit quantisation, colour conversion), each metric's as
+    registered (its ``cost``, :mod:`harness.metrics.registry`)."""
+    from harness.metrics.registry import METRICS, PASS_KINDS
+
+    out = dict.fromkeys(PASS_KINDS, 0)
     for n in names:
-        out["lpips" if n == "lpips" else "ssim" if "ssim" in n else "psnr"] += 1
+        out[METRICS.get(n).cost] += 1
     return out
 
 

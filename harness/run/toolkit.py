@@ -86,13 +86,11 @@ def make_metrics(names: tuple[str, ...], device: str):
 
 
 def check_metrics(names: tuple[str, ...]) -> None:
-    """Fail before any work when a metric cannot run: LPIPS-VGG weights not fetched -> InputError."""
-    if "lpips" in names:
-        from harness.core.errors import InputError
-        from harness.metrics.lpips_weights import FETCH_HINT, weights_path
+    """Fail before any work when a metric cannot run (its registered ``check``: LPIPS-VGG weights
+    not fetched -> InputError)."""
+    from harness.metrics.registry import check_available
 
-        if not weights_path().is_file():
-            raise InputError(weights_path(), f"LPIPS-VGG backbone weights are missing; {FETCH_HINT}")
+    check_available(names)
 
 
 @dataclass(frozen=True)
