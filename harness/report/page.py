@@ -124,7 +124,7 @@ def summary_html(built: dict[str, Built]) -> str:
 def tables_html(built: dict[str, Built]) -> str:
     """Every table, folded, grouped by held-out view protocol (each summary names it too)."""
     from harness.report.summary import PROTOCOL_NOTES
-    from harness.report.tables import TITLES
+    from harness.report.tables import base_title
 
     out = []
     for proto in dict.fromkeys(b.protocol for b in built.values()):
@@ -133,7 +133,7 @@ def tables_html(built: dict[str, Built]) -> str:
                        "</small></h3>")
         for b in (b for b in built.values() if b.protocol == proto):
             tag = " <small>(not made from these results)</small>" if isinstance(b.table, Missing) else ""
-            name = TITLES.get(b.name, b.name) + (f" — {proto} views" if proto else "")
+            name = base_title(b.name) + (f" — {proto} views" if proto else "")
             out.append(f"<details id='t-{esc(b.key)}'><summary>{esc(name)}{tag}</summary>{table_html(b)}</details>")
     return "\n".join(out)
 
