@@ -110,7 +110,7 @@ def run(args) -> int:
         return _nothing_measured(out_dir, config, result, df, workers, cache_root)
     pq, csv = write_results(df, out_dir)
     images = copy_images(result.images, out_dir)
-    sheets = contact_sheets(runner.items, runner.cache, runner._ref_key, out_dir, config.protocol.background)
+    sheets = contact_sheets(runner.items, runner.cache, runner.ref_key, out_dir, config.protocol.background)
     run_json = write_run_json(out_dir, config, result, workers=workers, cache_root=cache_root, argv=sys.argv[1:])
     published = publish(out_dir, df, json.loads(run_json.read_text()))
     written, report = published.written, published.page

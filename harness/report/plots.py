@@ -31,7 +31,7 @@ import pandas as pd
 from harness.core import ratios
 from harness.report import catalog, stats
 from harness.report.cells import prepare
-from harness.report.record import _slug, image_name
+from harness.report.record import slug, image_name
 from harness.report.tabledata import Written
 
 #: the plots a config or ``harness tables --plots`` can name
@@ -141,13 +141,13 @@ def plot_curves(df: pd.DataFrame, out: Path, protocol: str = "") -> list[Path]:
         views = f"held-out views: {protocol}" if protocol else "held-out views"
         fig.suptitle(f"{scene}: pruned vs unpruned render, {views} (cell means)")
         fig.tight_layout()
-        paths.append(_save(fig, out / f"curves_{_slug(scene)}.png"))
+        paths.append(_save(fig, out / f"curves_{slug(scene)}.png"))
         plt.close(fig)
     return paths
 
 
 def _first_frame_dir(images: Path, scene: str) -> Path | None:
-    d = images / _slug(scene)
+    d = images / slug(scene)
     if (d / "input.png").exists():
         return d
     subs = sorted(p for p in d.glob("*") if p.is_dir()) if d.exists() else []

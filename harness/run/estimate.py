@@ -180,19 +180,19 @@ def _sizes(cams) -> list[tuple[int, int]]:
 
 
 def _present_views(spec, config, toolkit, base, dataset):
-    from harness.run.plan import _select_test
+    from harness.run.plan import select_test
 
     if spec.sequence is not None:
         from harness.io.sequences import find_sequence, sequence_cameras
 
         root = Path(spec.sequence) if Path(spec.sequence).is_absolute() else base / spec.sequence
         cams = sequence_cameras(find_sequence(root)[0], spec.width, spec.height)
-        train, test = _select_test(cams, spec) if spec.test or spec.test_every else (cams, cams)
+        train, test = select_test(cams, spec) if spec.test or spec.test_every else (cams, cams)
         return _sizes(test), _sizes(train)
     if spec.cameras is not None:
         path = Path(spec.cameras.path) if Path(spec.cameras.path).is_absolute() else base / spec.cameras.path
         cams = [c.resized(config.protocol.longest_side) for c in toolkit.load_cameras(str(path))]
-        train, test = _select_test(cams, spec.cameras)
+        train, test = select_test(cams, spec.cameras)
         return _sizes(test), _sizes(train)
     size = _rig_size(spec, config, dataset)
     from harness.io.capture import CaptureProtocol
@@ -237,13 +237,13 @@ def _assumed(spec, config, assume: Assumptions, dataset, reason: str) -> SceneIn
 
 def scene_info(spec: SceneSpec, config: RunConfig, assume: Assumptions, toolkit=None, base: Path | None = None):
     """A scene as the estimate sees it: read (file headers, camera files) when present, else assumed."""
-    from harness.run.plan import _cameras_missing, resolve_paths
+    from harness.run.plan import cameras_missing, resolve_paths
     from harness.run.toolkit import Toolkit
 
     toolkit, base = toolkit or Toolkit(), Path(base or ".")
     dataset = spec.source if spec.source and toolkit.resolve_dataset(spec.source) else None
     frames, reason = resolve_paths(spec, toolkit, base)
-    reason = reason or _cameras_missing(spec, base)
+    reason = reason or cameras_missing(spec, base)
     if not reason:
         real = _real_views(spec, config, toolkit, base)  # a bad capture is an error, not an assumption
         try:

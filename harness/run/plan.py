@@ -165,7 +165,7 @@ def check_sources(config: RunConfig, toolkit: Toolkit, base: Path, *, names_only
     skips, problems = [], []
     for i, spec in enumerate(config.scenes):
         _, reason = resolve_paths(spec, toolkit, base)
-        reason = reason or _cameras_missing(spec, base)
+        reason = reason or cameras_missing(spec, base)
         if reason is None:
             continue
         if spec.optional:
@@ -180,14 +180,14 @@ def check_sources(config: RunConfig, toolkit: Toolkit, base: Path, *, names_only
     return skips
 
 
-def _cameras_missing(spec: SceneSpec, base: Path) -> str | None:
+def cameras_missing(spec: SceneSpec, base: Path) -> str | None:
     if spec.cameras is None:
         return None
     p = Path(spec.cameras.path)
     return None if (p if p.is_absolute() else base / p).exists() else f"cameras not found: {spec.cameras.path}"
 
 
-def _select_test(cams: list[Camera], spec) -> tuple[list[Camera], list[Camera]]:
+def select_test(cams: list[Camera], spec) -> tuple[list[Camera], list[Camera]]:
     """Split cameras from a file: named test views, else every ``test_every``-th (LLFF convention)."""
     if spec.test:
         test = [c for c in cams if c.name in spec.test or Path(c.name).stem in spec.test]
@@ -220,7 +220,7 @@ def scene_views(item_spec: SceneSpec, scene, path: Path, protocol, cache: StageC
         return hit["rig"], [Camera.from_dict(c) for c in hit["train"]], [Camera.from_dict(c) for c in hit["test"]]
     if item_spec.cameras is not None:
         cams = [c.resized(p.longest_side) for c in toolkit.load_cameras(str(cpath))]
-        train, test = _select_test(cams, item_spec.cameras)
+        train, test = select_test(cams, item_spec.cameras)
         if not test:
             from harness.core.errors import InputError
 
@@ -263,7 +263,7 @@ def _sequence_views(spec: SceneSpec, cache: StageCache, versions: Versions, base
         return hit["rig"], [Camera.from_dict(c) for c in hit["train"]], [Camera.from_dict(c) for c in hit["test"]]
     cams = sequence_cameras(seq, spec.width, spec.height)
     if spec.test or spec.test_every:
-        train, test = _select_test(cams, spec)
+        train, test = select_test(cams, spec)
         if not test:
             from harness.core.errors import InputError
 
@@ -305,7 +305,7 @@ def load_items(config: RunConfig, cache: StageCache, toolkit: Toolkit, versions:
     for spec in config.scenes:
         views, reason = captures[spec.name]
         frames, missing = resolve_paths(spec, toolkit, base)
-        missing = missing or _cameras_missing(spec, base)
+        missing = missing or cameras_missing(spec, base)
         if not missing and real is not None and views is None and not _measures_rig(config):
             missing = f"the {real.name} protocol measures it only, and {reason}"
         if missing:
