@@ -20,7 +20,6 @@ is added under ``records/``.
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
@@ -51,15 +50,8 @@ def run(args) -> int:
 
     from harness.core.errors import InputError
     from harness.core.paths import cache_dir
-    from harness.report.outputs import publish
-    from harness.report.record import (
-        contact_sheets,
-        copy_images,
-        summary_lines,
-        write_run_json,
-    )
-    from harness.report.results import to_frame, write_results
     from harness.run.config import load_config
+    from harness.run.finish import finish_run
     from harness.run.progress import StageProgress
     from harness.run.runner import Runner
 
@@ -105,40 +97,13 @@ def run(args) -> int:
                         progress=progress, log=lambda m: console.print(f"[yellow]{m}[/]"),
                         base_dir=Path.cwd(), executor=executor)
         result = runner.run()
-    df = to_frame(result.rows)
-    if not (df["status"] == "ok").any():
-        return _nothing_measured(out_dir, config, result, df, workers, cache_root)
-    pq, csv = write_results(df, out_dir)
-    images = copy_images(result.images, out_dir)
-    sheets = contact_sheets(runner.items, runner.cache, runner.ref_key, out_dir, config.protocol.background)
-    run_json = write_run_json(out_dir, config, result, workers=workers, cache_root=cache_root, argv=sys.argv[1:])
-    published = publish(out_dir, df, json.loads(run_json.read_text()))
-    written, report = published.written, published.page
-    paths = {"results": pq, "results (csv)": csv, "tables": out_dir / "tables", "plots": out_dir / "plots",
-             "images": images,
-             "contact sheets": f"{out_dir / 'contact_sheets'} (coverage per view: "
-                               + "; ".join(f"{k} " + " ".join(f"{100 * c:.0f}%" for c in v) for k, v in sheets.items())
-                               + ")",
-             "run record": run_json,
-             "report page": report,
-             "stage cache": cache_root}
-    for line in summary_lines(result, df, paths):
+    done = finish_run(out_dir, config, runner, result, workers=workers, cache_root=cache_root, argv=sys.argv[1:])
+    for line in done.summary:
         print(line)
-    for line in written.warnings + written.missing:  # what the config asked for and these results cannot show
-        print(f"warning: {line}")
-    print(f"wrote {len(written.paths)} table/plot files")
-    return 1 if result.errors else 0
-
-
-def _nothing_measured(out_dir: Path, config, result, df, workers: int, cache_root) -> int:
-    """No measured row: keep the folder's earlier results and outputs; add this run's record only."""
-    from harness.report.record import summary_lines, write_run_json
-
-    record = write_run_json(out_dir, config, result, workers=workers, cache_root=cache_root, argv=sys.argv[1:],
-                            latest=False)
-    for line in summary_lines(result, df, {"run record": record}):
-        print(line)
-    print(f"nothing measured: the earlier results, tables and page in {out_dir} are left as they were")
+    if done.measured:
+        for line in done.warnings:  # what the config asked for and these results cannot show
+            print(f"warning: {line}")
+        print(f"wrote {done.written} table/plot files")
     return 1 if result.errors else 0
 
 

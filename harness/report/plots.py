@@ -201,7 +201,7 @@ def _grid(df: pd.DataFrame, images: Path, columns, title: str, path: Path, capti
 def _taus(df: pd.DataFrame, method: str) -> dict:
     """(scene, ratio key) -> τ of the first frame (score at the cut)."""
     d = df[(df["method"] == method) & (df["variant"] == "default") & df["tau"].notna()]
-    return {(s, round(float(r), 6)): float(t) for (s, r), t in d.groupby(["scene", "ratio"])["tau"].first().items()}
+    return {(s, ratios.key(r)): float(t) for (s, r), t in d.groupby(["scene", "ratio"])["tau"].first().items()}
 
 
 def write_plots(df: pd.DataFrame, run_dir: str | Path, names) -> Written:
@@ -234,12 +234,12 @@ def write_plots(df: pd.DataFrame, run_dir: str | Path, names) -> Written:
             taus = _taus(df, proposed)
             cols = [("unpruned", "input", "", 0.0)]
             for r in FIG1_RATIOS:
-                tv = [t for (_, rk), t in taus.items() if rk == round(r, 6)]
+                tv = [t for (_, rk), t in taus.items() if rk == ratios.key(r)]
                 rng = "" if not tv else f"\nτ = {min(tv):.3f}" + (f"–{max(tv):.3f}" if max(tv) - min(tv) >= 5e-4 else "")
                 cols.append((f"{ratios.percent(r)} pruned{rng}", proposed, "default", r))
 
             def cap(scene, col):
-                t = taus.get((scene, round(col[3], 6)))
+                t = taus.get((scene, ratios.key(col[3])))
                 return "" if col[1] == "input" or t is None else f"τ = {t:.3f}"
 
             title = (f"{catalog.method_label(proposed)} at increasing pruning, τ = score at the cut (paper Fig. 1)"
