@@ -193,9 +193,6 @@ class MetricSuite:
         self._photo_ref[key] = self._photo_values(key, ref, None if feats is None or ref_feats is None
                                                   else self.lpips.feature_distance(feats, ref_feats))
 
-    def has_photo(self, view_key: str) -> bool:
-        return str(view_key) in self._photo
-
     def _photo_values(self, key: str, img: np.ndarray, lpips_value) -> dict:
         """``gt_<name>`` of ``img`` against the view's photo (module docstring)."""
         photo, _, mask = self._photo[key]

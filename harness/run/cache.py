@@ -105,8 +105,7 @@ class FileDigests:
     counts what was read (the cost of hashing is reported by ``harness run``).
     """
 
-    def __init__(self, index_path: Path | None = None):
-        self.index_path = None  # kept for callers; digests are no longer memoised on disk
+    def __init__(self):
         self._memo: dict[tuple, str] = {}
         self.hashed_bytes = 0
         self.seconds = 0.0

@@ -30,7 +30,6 @@ mean"); an optional one is recorded as skipped with the reason.
 from __future__ import annotations
 
 import glob
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -56,7 +55,6 @@ class SceneItem:
     rig: str
     train: list[Camera]
     test: list[Camera]
-    load_s: float = 0.0
     ply_base: int = 0  # size model of the pruned .ply (harness.io.plysize): base + digits + N·row
     ply_row: int = 0
     #: held-out views of the other rig protocols (the rig protocol's are ``test``)
@@ -338,7 +336,6 @@ def _scene_items(spec, frames, config, cache, toolkit, versions, base, real=None
 
     items, views, shifted = [], None, None
     for frame, path in frames:
-        t0 = time.perf_counter()
         digest = digest_json({"file": cache.files.scene(path), "lod": spec.lod})
         scene = _LazyScene(toolkit, str(path), spec.lod)
         key = cache.key("load", scene=digest, code=versions.reader)
@@ -360,7 +357,7 @@ def _scene_items(spec, frames, config, cache, toolkit, versions, base, real=None
         if shifted is None:
             shifted = shifted_views(spec, scene, config, cache, toolkit, versions, digest, rig)
         items.append(SceneItem(spec, frame, str(path), digest, info["n_splats"], info["sh_degree"], rig,
-                               train, test, time.perf_counter() - t0, info["ply_base"], info["ply_row"], shifted,
+                               train, test, info["ply_base"], info["ply_row"], shifted,
                                real, measure_rig=not isinstance(config.protocols[0], CaptureProtocol)))
     return items
 
