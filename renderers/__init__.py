@@ -7,6 +7,12 @@
 ``gl`` is the moderngl/EGL renderer (Mesa llvmpipe on the CPU, the GPU when present). Both implement
 the classic 3DGS math described in DESIGN.md and must agree to ≥ 45 dB PSNR.
 
+A renderer declares what it can do beyond ``render`` in its class attribute ``capabilities``
+(:func:`capabilities`): :data:`ALPHA` — ``render_with_alpha(scene, camera, background) -> (image,
+alpha)`` in one pass; :data:`PACK` — ``pack(scene, camera) -> view`` and ``draw(view or
+view.kept(mask), background, with_alpha)``: a view projected once and any subset of its splats drawn
+from it, bit for bit the render of that subset. Callers ask :func:`capabilities`, never ``hasattr``.
+
 Renderers are registered lazily (``"module:Class"``: nothing heavy is imported until one is made);
 third parties add theirs through the ``harness.renderers`` entry-point group, whose modules call
 :func:`register_renderer`.
@@ -32,6 +38,17 @@ class RendererSpec:
         module, _, attr = self.factory.partition(":")
         cls = getattr(importlib.import_module(module), attr)
         return cls(device=device) if self.uses_device else cls()
+
+
+#: one-pass ``render_with_alpha`` (module docstring)
+ALPHA = "alpha"
+#: ``pack`` / ``draw``: a view projected once, its subsets drawn from it (module docstring)
+PACK = "pack"
+
+
+def capabilities(renderer) -> frozenset[str]:
+    """What ``renderer`` declares it can do beyond ``render`` (its class's ``capabilities``)."""
+    return frozenset(getattr(type(renderer), "capabilities", ()))
 
 
 RENDERERS: Registry[RendererSpec] = Registry("renderer", group="harness.renderers")

@@ -257,6 +257,9 @@ class GLRenderer:
     ``footprint``: ``"box"`` or ``"tile"``, see the module docstring.
     """
 
+    #: what it can do beyond ``render`` (:func:`renderers.capabilities`)
+    capabilities = frozenset({"alpha", "pack"})
+
     name = "gl"
 
     def __init__(self, max_tile: int | None = None, device=None, footprint: str = "box"):

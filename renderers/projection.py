@@ -50,7 +50,6 @@ from renderers.sh import sh_to_color
 
 NEAR_Z = 0.2
 DILATION = 0.3
-TAN_CLAMP = 1.3
 TILE = 16
 
 

@@ -322,6 +322,9 @@ class ReferenceRenderer:
     Defaults match the GL renderer (``footprint="box"``, ``early_stop=False``); pass
     ``footprint="tile", early_stop=True`` for graphdeco's exact behaviour."""
 
+    #: what it can do beyond ``render`` (:func:`renderers.capabilities`)
+    capabilities = frozenset({"alpha"})
+
     name = "reference"
 
     def __init__(self, device=None, *, early_stop: bool = False, footprint: str = "box"):

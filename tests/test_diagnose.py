@@ -9,7 +9,7 @@ import pytest
 
 from harness.cli import main
 from harness.core.scene import GaussianScene
-from harness.report import diagnose as dg
+from methods import diagnose as dg
 from tests.scene_factory import random_scene
 
 

@@ -28,6 +28,7 @@ from harness.run.runner import Runner
 from tests import runner_fakes as fakes
 
 ray = pytest.importorskip("ray", reason="the ray package is not installed (pip install -e '.[test]')")
+pytestmark = pytest.mark.ray
 
 REPO = Path(__file__).resolve().parent.parent
 #: every column of the rows except the wall-clock ones (they differ between any two runs)

@@ -12,7 +12,7 @@ from PIL import Image
 
 from harness.cli import main
 from harness.metrics import mpeg, mpeg_ssim
-from harness.metrics.registry import expand, mpeg_names
+from harness.metrics.registry import expand, family_names
 from harness.metrics.suite import MetricSuite, compare_images
 from tests import mpeg_reference as ref
 
@@ -112,7 +112,7 @@ def test_gcc_o3_rounding_option_is_within_a_micro_db():
 
 
 def test_registry_families():
-    assert expand(["mpeg"]) == mpeg_names() == ("rgb_psnr", "yuv_psnr", "yuv_ssim", "rgb_psnr_om",
+    assert expand(["mpeg"]) == family_names("mpeg") == ("rgb_psnr", "yuv_psnr", "yuv_ssim", "rgb_psnr_om",
                                                  "yuv_psnr_om", "yuv_ssim_om", "rgb_ivssim", "yuv_ivssim")
     assert expand(["3dgs"]) == ("psnr", "ssim", "lpips")
     assert all(n.endswith("_qmiv") for n in expand(["mpeg-qmiv"]))
@@ -190,7 +190,7 @@ def test_compare_cli_keys(tmp_path, capsys):
     Image.fromarray(b).save(tmp_path / "b.png")
     assert main(["compare", str(tmp_path / "a.png"), str(tmp_path / "b.png"), "--metrics", "mpeg", "--json"]) == 0
     obj = json.loads(capsys.readouterr().out)
-    assert set(obj) == set(mpeg_names())  # no occupancy without --mask; all-ones mask: OM = full frame
+    assert set(obj) == set(family_names("mpeg"))  # no occupancy without --mask; all-ones mask: OM = full frame
     assert obj["rgb_psnr_om"] == obj["rgb_psnr"] == ref.mpeg_metrics(a, b, None)["psnr_rgb_avg"]
     assert main(["compare", str(tmp_path / "a.png"), str(tmp_path / "a.png"), "--metrics", "mpeg", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["rgb_psnr"] == 999.99
@@ -200,5 +200,5 @@ def test_compare_cli_keys(tmp_path, capsys):
 
 def test_compare_images_keeps_uint8():
     a, b = _pair(16, 16, 9)
-    got = compare_images(a, b, names=mpeg_names())
+    got = compare_images(a, b, names=family_names("mpeg"))
     assert got["yuv_psnr"] == ref.mpeg_metrics(a, b, None)["psnr_yuv_avg"]

@@ -116,10 +116,12 @@ def test_a_plot_that_cannot_be_drawn_says_why(tmp_path):
 
 
 def test_om_and_bytes_panels_when_the_results_carry_them(figures, tmp_path, monkeypatch):
-    from harness.metrics.registry import METRICS, MetricSpec, register_metric
+    from harness.metrics.builtin import psnr_pair
+    from harness.metrics.registry import METRICS, register_metric
 
     monkeypatch.setattr(METRICS, "_entries", dict(METRICS._entries))
-    register_metric(MetricSpec("psnr_om", "OM-PSNR", True, 2, "test"))
+    register_metric("psnr_om", label="OM-PSNR", compute=psnr_pair, higher_is_better=True, unit="dB", cost="psnr",
+                    family="test", digits=2, masks="psnr")
     df = _rows().assign(psnr_om=lambda d: d["psnr"] - 1.0, bytes=lambda d: 1000 * (1 - d["ratio"]))
     plots.plot_curves(df, tmp_path)
     axes = figures["curves_grape-small.png"].axes

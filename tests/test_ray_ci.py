@@ -26,7 +26,7 @@ from harness.io.datasets import scene_path
 from harness.metrics.lpips_weights import weights_path
 
 pytest.importorskip("ray", reason="the ray package is not installed (setup.sh installs it)")
-pytestmark = [pytest.mark.data, pytest.mark.gl, pytest.mark.weights]
+pytestmark = [pytest.mark.data, pytest.mark.gl, pytest.mark.weights, pytest.mark.ray]
 
 REPO = Path(__file__).resolve().parent.parent
 TIMING = ["score_s", "prune_s", "render_ref_s", "render_s", "metrics_s"]

@@ -95,11 +95,13 @@ def test_comparison_markdown_is_one_table_per_metric_and_csv_is_tidy(tmp_path):
 
 
 def test_comparison_takes_new_metric_columns_from_the_registry(monkeypatch):
-    from harness.metrics.registry import METRICS, MetricSpec, register_metric
+    from harness.metrics.builtin import psnr_pair
+    from harness.metrics.registry import METRICS, register_metric
 
     monkeypatch.setattr(METRICS, "_entries", dict(METRICS._entries))  # registrations undone after the test
-    register_metric(MetricSpec("t_psnr", "T-PSNR", True, 2, "test"))
-    register_metric(MetricSpec("t_psnr_om", "OM-T-PSNR", True, 2, "test"))
+    db = dict(compute=psnr_pair, higher_is_better=True, unit="dB", cost="psnr", family="test", digits=2)
+    register_metric("t_psnr", label="T-PSNR", **db)
+    register_metric("t_psnr_om", label="OM-T-PSNR", masks="t_psnr", **db)
     df = _rows()
     df["t_psnr_om"], df["t_psnr"] = df["psnr"] - 1.0, df["psnr"]
     metrics = list(dict.fromkeys(_t("comparison", df).tidy["metric"]))

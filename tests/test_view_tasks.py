@@ -42,6 +42,8 @@ class _Packed:
 class PackingPointRenderer(fakes.PointRenderer):
     """The fake point renderer with the GL renderer's pack/draw protocol, counting packs."""
 
+    capabilities = frozenset({"pack"})
+
     def pack(self, scene, camera):
         CALLS["pack"] += 1
         return _Packed(scene, camera)

@@ -6,7 +6,6 @@ import json
 import resource
 import statistics
 import time
-from contextlib import contextmanager
 from pathlib import Path
 
 from harness.core.paths import results_dir
@@ -29,16 +28,6 @@ def require(module: str, purpose: str):
 def peak_rss_mb() -> float:
     """Peak resident memory of this process so far (MiB)."""
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-
-
-@contextmanager
-def stopwatch(out: dict, key: str):
-    """``with stopwatch(times, "read"): ...`` stores the elapsed seconds in ``times["read"]``."""
-    t0 = time.perf_counter()
-    try:
-        yield
-    finally:
-        out[key] = time.perf_counter() - t0
 
 
 def median_time(fn, repeats: int = 3) -> tuple[float, list[float]]:

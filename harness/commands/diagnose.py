@@ -3,7 +3,7 @@
 Per pruner: Spearman's ρ of each per-splat quantity (BetaDesc: s, ℓ, o, u, w, A, B, score; others:
 the score) with LightGaussian's global significance over the scene's default-rig training views,
 and at ratio R the shares of significance and of opacity·volume removed and the fraction of removed
-splats that come from voxels losing > 90 % of their splats (:mod:`harness.report.diagnose`).
+splats that come from voxels losing > 90 % of their splats (:mod:`methods.diagnose`).
 
 ``--method`` is repeatable; parameters follow a colon (``betadesc:reading=v1,o_norm=rank``).
 ``random``, ``opacity`` and ``lightgs`` are added as references unless ``--no-references``; ``lightgs``
@@ -66,7 +66,8 @@ def run(args) -> int:
     import math
 
     from harness.io.scenes import load_scene
-    from harness.report import diagnose as dg
+    from harness.views.rigs import training_views
+    from methods import diagnose as dg
 
     if not (math.isfinite(args.ratio) and 0.0 <= args.ratio <= 1.0):
         raise InputError("--ratio", f"must be in [0, 1], got {args.ratio}")
@@ -77,7 +78,7 @@ def run(args) -> int:
     scene = load_scene(args.scene, lod=args.lod)
     if len(scene) == 0:
         raise InputError(args.scene, "the scene has no splats")
-    cams = dg.training_views(args.scene, scene, n_train=args.n_train, n_test=args.n_test,
+    cams = training_views(args.scene, scene, n_train=args.n_train, n_test=args.n_test,
                              longest_side=args.longest_side, seed=args.seed)
     if not cams:
         raise InputError("--n-train", "the rig has no training views to compute LightGS significance from")

@@ -39,11 +39,16 @@ class ParamError(ValueError):
         super().__init__(f"{key}: {problem}" if key else problem)
 
 
-def param(default, *, doc: str, ge=None, gt=None, le=None, lt=None, reading: str = ""):
+def param(default, *, doc: str, ge=None, gt=None, le=None, lt=None, reading: str = "", choices=None,
+          parse=None):
     """A parameter field: default, bounds (numbers), what it means (``doc``) and, for a reading of
-    the paper, the sentence it reads (``reading``)."""
+    the paper, the sentence it reads (``reading``). Run-config sections (:mod:`harness.run.schema`)
+    declare theirs the same way, with ``choices`` (a tuple, or a function returning the registered
+    names) and, for a value that is no scalar (a list, a mapping), the function that reads it:
+    ``parse(value, key, source) -> value``."""
     return dataclasses.field(default=default,
-                             metadata={"doc": doc, "ge": ge, "gt": gt, "le": le, "lt": lt, "reading": reading})
+                             metadata={"doc": doc, "ge": ge, "gt": gt, "le": le, "lt": lt, "reading": reading,
+                                       "choices": choices, "parse": parse})
 
 
 @dataclass(frozen=True)

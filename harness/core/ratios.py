@@ -35,6 +35,12 @@ def to_keep(ratio: float) -> float:
     return canonical(1.0 - canonical(ratio))
 
 
+def key(ratio: float) -> float:
+    """The key under which results of ``ratio`` are grouped and looked up: its value to
+    :data:`DECIMALS` decimals (no range check: stored results are read as they are)."""
+    return round(float(ratio), DECIMALS)
+
+
 def same(a: float, b: float) -> bool:
     """Are two (canonical) ratios the same?"""
     return abs(float(a) - float(b)) <= TOLERANCE

@@ -35,6 +35,10 @@ class Registry(Generic[T]):
             raise ValueError(f"{self.kind} {name!r} is already registered")
         self._entries[name] = entry
 
+    def registered(self, name: str) -> bool:
+        """Is ``name`` registered already (nothing is loaded to find out)?"""
+        return name in self._entries
+
     def _load_builtins(self) -> None:
         if not self._builtins_loaded:
             self._builtins_loaded = True

@@ -198,13 +198,6 @@ def rotations(scene: GaussianScene) -> np.ndarray:
     return quat_to_rotmat(scene.quats)
 
 
-def covariances(scene: GaussianScene) -> np.ndarray:
-    """Σ = R S Sᵀ Rᵀ (N, 3, 3), float64."""
-    r = rotations(scene).astype(np.float64)
-    m = r * scales(scene).astype(np.float64)[:, None, :]
-    return m @ np.swapaxes(m, -1, -2)
-
-
 def bounding_box(scene: GaussianScene) -> tuple[np.ndarray, np.ndarray, float]:
     """(min, max, diagonal length) of the splat centres; an empty scene gives zeros."""
     if len(scene) == 0:

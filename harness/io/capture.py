@@ -142,9 +142,9 @@ def _transform(spec: CaptureSpec, base: Path):
 def _split(spec: CaptureSpec, cams: list[Camera], base: Path) -> tuple[list[Camera], list[Camera]]:
     """(train, test) cameras per the spec; a name the camera file lacks is one line."""
     from harness.core.suggest import did_you_mean
-    from harness.io.photos import _stem
+    from harness.io.photos import photo_stem
 
-    by_name = {_stem(c.name): c for c in cams}
+    by_name = {photo_stem(c.name): c for c in cams}
     source, train_names = spec.cameras, None
     if spec.named:
         m = manifest(spec.named)
@@ -164,22 +164,22 @@ def _split(spec: CaptureSpec, cams: list[Camera], base: Path) -> tuple[list[Came
         order = sorted(by_name)
         test_names, source = [n for i, n in enumerate(order) if i % spec.test_every == 0], "capture.test_every"
     for names in (test_names, train_names or []):
-        unknown = [n for n in names if _stem(n) not in by_name]
+        unknown = [n for n in names if photo_stem(n) not in by_name]
         if unknown:
             raise InputError(source, f"names {len(unknown)} view(s) the camera file does not have: "
-                                     f"{unknown[0]!r}{did_you_mean(_stem(unknown[0]), by_name)}"
+                                     f"{unknown[0]!r}{did_you_mean(photo_stem(unknown[0]), by_name)}"
                                      f"{', ...' if len(unknown) > 1 else ''} ({len(cams)} cameras in {spec.cameras})")
-    test = sorted((by_name[_stem(n)] for n in dict.fromkeys(test_names)), key=lambda c: c.name)
+    test = sorted((by_name[photo_stem(n)] for n in dict.fromkeys(test_names)), key=lambda c: c.name)
     held = {c.name for c in test}
     if not test:
         raise InputError(source, "no held-out views")
     if train_names is None:
         train = [c for c in cams if c.name not in held]
     else:
-        both = [n for n in train_names if by_name[_stem(n)].name in held]
+        both = [n for n in train_names if by_name[photo_stem(n)].name in held]
         if both:
             raise InputError(source, f"{both[0]!r} is both a training and a held-out view")
-        train = [by_name[_stem(n)] for n in dict.fromkeys(train_names)]
+        train = [by_name[photo_stem(n)] for n in dict.fromkeys(train_names)]
     return train, test
 
 

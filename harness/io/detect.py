@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import json
 import struct
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -32,71 +31,33 @@ _PEEK = 64
 
 @dataclass(frozen=True)
 class Detected:
-    kind: str  # "ply" | "compressed-ply" | "spz" | "ksplat" | "sog" | "splat"
+    kind: str  # a registered format (harness.io.formats): "ply" | "compressed-ply" | "spz" | "ksplat" | ...
     name: str  # what `harness info` prints
 
 
 def detect(path: Path) -> Detected:
-    """The format of ``path`` (a file or SOG folder); InputError when it is none the harness reads."""
+    """The format of ``path`` (a file or SOG folder): the first registered format
+    (:mod:`harness.io.formats`, in registration order) that recognises it; InputError when none does."""
+    from harness.io.formats import FORMATS, Probe
+
     if path.is_dir():
-        if (path / "lod-meta.json").is_file() or (path / "meta.json").is_file():
-            return Detected("sog", "sog (PlayCanvas SOG folder)")
+        probe = Probe(path, None, None)
+    else:
+        size = check_regular(path, "scene", "scene file").st_size  # FIFOs, devices, huge files refused first
+        with open_regular(path, "scene", "scene file") as f:
+            probe = Probe(path, f.read(_PEEK), size)
+    for fmt in FORMATS:
+        name = fmt.detect(probe)
+        if name is not None:
+            return Detected(fmt.kind, name)
+    if probe.is_dir:
         raise InputError(path, "is a folder without lod-meta.json or meta.json (not a SOG scene)")
-    size = check_regular(path, "scene", "scene file").st_size  # FIFOs, devices, huge files refused first
-    with open_regular(path, "scene", "scene file") as f:
-        head = f.read(_PEEK)
-    name = path.name.lower()
-    if head.split(b"\n", 1)[0].strip() == b"ply":
-        return _ply(path)
-    from harness.io import spz
-
-    header = spz.probe(head if head[:2] != spz.GZIP_MAGIC else _read(path, spz.PROBE_BYTES))
-    if header is not None:
-        return Detected("spz", spz.describe(header))
-    if head[:4] == b"PK\x03\x04" and (name.endswith(".sog") or _zip_has_meta(path)):
-        return Detected("sog", "sog (PlayCanvas SOG bundle)")
-    if name.endswith(("meta.json", "lod-meta.json")):
-        return Detected("sog", "sog (PlayCanvas SOG meta.json)")
-    from harness.io import ksplat
-
-    if name.endswith(".ksplat") and ksplat.looks_like_ksplat(head):
-        return Detected("ksplat", _ksplat_name(path, size))
-    ks = ksplat.probe(path, size)
-    if ks is not None and ks.size == size:
-        return Detected("ksplat", ksplat.describe(ks))
-    if name.endswith(".splat") and head[:2] != b"\x1f\x8b":
-        return Detected("splat", "splat (antimatter15, 32-byte records)")
-    raise InputError(path, f"unsupported format: {looks_like(path, head, size)}")
-
-
-def _ksplat_name(path: Path, size: int) -> str:
-    from harness.io import ksplat
-
-    header = ksplat.probe(path, size)
-    return ksplat.describe(header) if header is not None else "ksplat (unreadable header)"
+    raise InputError(path, f"unsupported format: {looks_like(path, probe.head, probe.size)}")
 
 
 def _read(path: Path, count: int) -> bytes:
     with open_regular(path, "scene", "scene file") as f:
         return f.read(count)
-
-
-def _ply(path: Path) -> Detected:
-    from harness.io import compressed_ply
-    from harness.io.ply import read_ply_header
-
-    header = read_ply_header(path)
-    if compressed_ply.is_compressed_ply(header):
-        return Detected("compressed-ply", compressed_ply.describe(header))
-    return Detected("ply", f"ply (INRIA 3DGS, {header.format.replace('_', ' ')})")
-
-
-def _zip_has_meta(path: Path) -> bool:
-    try:
-        with zipfile.ZipFile(path) as z:
-            return "meta.json" in z.namelist()
-    except (zipfile.BadZipFile, OSError):
-        return False
 
 
 def _glb(path: Path, size: int) -> str:

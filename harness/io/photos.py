@@ -43,7 +43,7 @@ def photo_index(folder: Path) -> dict[str, Path]:
     return found
 
 
-def _stem(name: str) -> str:
+def photo_stem(name: str) -> str:
     return Path(name).stem if Path(name).suffix.lower() in (*EXTENSIONS, ".tif", ".tiff") else name
 
 
@@ -52,7 +52,7 @@ def match_photos(cameras: list[Camera], folder: Path, source) -> dict[str, Path]
     index = photo_index(folder)
     out, missing = {}, []
     for cam in cameras:
-        p = index.get(_stem(cam.name))
+        p = index.get(photo_stem(cam.name))
         if p is None:
             missing.append(cam.name)
         else:

@@ -298,9 +298,10 @@ def _expanded_nodes(node, memo: dict) -> int:
     return memo[key]
 
 
-def load_yaml(path: str | Path, what: str = "config"):
+def load_yaml(path: str | Path, what: str = "config", *, with_node: bool = False):
     """A YAML document from a checked regular file (size-capped, UTF-8), with duplicate keys and
-    alias bombs refused; any problem is one InputError naming the file and line."""
+    alias bombs refused; any problem is one InputError naming the file and line. ``with_node``:
+    ``(document, its composed node)`` (the node's marks give each value's line)."""
     import yaml
 
     path = Path(path)
@@ -312,10 +313,11 @@ def load_yaml(path: str | Path, what: str = "config"):
     try:
         node = loader.get_single_node()
         if node is None:
-            return None
+            return (None, None) if with_node else None
         if _expanded_nodes(node, {}) > MAX_YAML_NODES:
             raise InputError(path, f"YAML expands to more than {MAX_YAML_NODES:,} values (aliases); refusing it")
-        return loader.construct_document(node)
+        doc = loader.construct_document(node)
+        return (doc, node) if with_node else doc
     except yaml.YAMLError as err:
         mark = getattr(err, "problem_mark", None)
         at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""

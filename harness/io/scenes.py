@@ -36,39 +36,10 @@ _CORE = ("means", "scales_log", "quats", "opacity_logit", "sh_dc", "sh_rest")
 class LoadResult:
     scene: GaussianScene
     path: Path
-    format: str           # "ply" | "compressed-ply" | "spz" | "ksplat" | "splat" | "sog"
+    format: str           # a registered format (harness.io.formats): "ply" | "compressed-ply" | "spz" | ...
     lod: int | str | None  # the SOG level read (None for single-level formats)
     dropped_nonfinite: int = 0
     format_name: str = ""  # e.g. "spz v3 (gzip, SH degree 3)": what `harness info` prints
-
-
-def detect_format(path: Path) -> str:
-    """The reader key of ``path`` by content (see :mod:`harness.io.detect`); InputError otherwise."""
-    from harness.io.detect import detect
-
-    return detect(path).kind
-
-
-def _read(path: Path, kind: str, lod) -> GaussianScene:
-    if kind in ("ply", "compressed-ply"):
-        from harness.io.ply import read_ply
-
-        return read_ply(path)
-    if kind == "spz":
-        from harness.io.spz import read_spz
-
-        return read_spz(path)
-    if kind == "ksplat":
-        from harness.io.ksplat import read_ksplat
-
-        return read_ksplat(path)
-    if kind == "splat":
-        from harness.io.splat import read_splat
-
-        return read_splat(path)
-    from harness.io.sog import read_sog
-
-    return read_sog(path, lod)
 
 
 def scene_extent(path: Path) -> Path:
@@ -112,18 +83,19 @@ def read_scene(path_or_name, *, lod: int | str | None = None, drop_nonfinite: bo
     """Read and validate a scene given by path or name (see module docstring)."""
     from harness.io.datasets import resolve_scene
     from harness.io.detect import detect
+    from harness.io.formats import FORMATS
 
     path = resolve_scene(path_or_name)
     try:
         detected = detect(path)
         fmt = detected.kind
-        if fmt != "sog" and lod not in (None, 0):
+        spec = FORMATS.get(fmt)
+        if spec.lod_levels is None and lod not in (None, 0):
             raise InputError(path, f"has no LOD levels (asked for level {lod})")
-        scene = _read(path, fmt, lod)
-        if fmt == "sog":
-            from harness.io.sog import lod_levels
-
-            lod = (0 if lod is None else lod) if lod_levels(path) is not None else None
+        scene = spec.read(path, lod)
+        # the level read: of a format with levels, when this file has them (a SOG without lod-meta.json has none)
+        lod = (0 if lod is None else lod) if spec.lod_levels is not None and spec.lod_levels(path) is not None \
+            else None
     except IsADirectoryError:
         raise InputError(path, "is a folder, expected a file") from None
     except PermissionError:
@@ -132,7 +104,7 @@ def read_scene(path_or_name, *, lod: int | str | None = None, drop_nonfinite: bo
         raise InputError(path, f"cannot read: {err.strerror or err}") from None
     scene, dropped = check_scene(scene, path, drop_nonfinite=drop_nonfinite)
     scene = scene.with_meta(source=str(path), format=fmt)
-    return LoadResult(scene, path, fmt, lod if fmt == "sog" else None, dropped, detected.name)
+    return LoadResult(scene, path, fmt, lod, dropped, detected.name)
 
 
 def load_scene(path_or_name, *, lod: int | str | None = None, drop_nonfinite: bool = False) -> GaussianScene:

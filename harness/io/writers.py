@@ -1,5 +1,6 @@
 """Scene writers, chosen by the output file's name: one table for ``convert``, ``prune`` and
-:func:`harness.io.scenes.write_scene`.
+:func:`harness.io.scenes.write_scene`, made of the writable formats' registrations
+(:mod:`harness.io.formats`).
 
 =================  =====================================  ==========================================
 name ends with     format                                  what is lost
@@ -35,59 +36,35 @@ class Writer:
     write: Callable[..., None]                    # write(scene, path, **options)
 
 
-def _ply(scene, path, *, comments=None, sibr_layout=False, **_):
-    from harness.io.ply import write_ply
+def writers() -> tuple[Writer, ...]:
+    """The writable registered formats (:mod:`harness.io.formats`), longest ending first:
+    ``x.compressed.ply`` is a compressed.ply, not a .ply."""
+    from harness.io.formats import FORMATS
 
-    write_ply(scene, path, comments=comments, sibr_layout=sibr_layout)
-
-
-def _compressed_ply(scene, path, *, comments=None, **_):
-    from harness.io.compressed_ply import write_compressed_ply
-
-    write_compressed_ply(scene, path, comments=comments)
-
-
-def _splat(scene, path, **_):
-    from harness.io.splat import write_splat
-
-    write_splat(scene, path)
-
-
-def _spz(scene, path, *, spz_version=None, **_):
-    from harness.io.spz_write import DEFAULT_VERSION, write_spz
-
-    write_spz(scene, path, spz_version or DEFAULT_VERSION)
-
-
-#: longest ending first: ``x.compressed.ply`` is a compressed.ply, not a .ply
-WRITERS = (
-    Writer(".compressed.ply", "PlayCanvas compressed.ply", "quantised, Morton-reordered, extra properties dropped",
-           _compressed_ply),
-    Writer(".ply", "INRIA 3DGS .ply", "", _ply),
-    Writer(".splat", "antimatter15 .splat", "SH degree > 0 dropped, 8-bit colour, opacity and rotation", _splat),
-    Writer(".spz", "Niantic .spz", "quantised (12-bit fixed-point positions, 8-bit scales/colour/opacity, "
-           "4-5-bit SH), extra properties dropped", _spz),
-)
-_NOT_WRITTEN = {".sog": "SOG", "meta.json": "SOG", ".ksplat": ".ksplat"}
+    out = [Writer(f.ending, f.label, f.loses, f.write) for f in FORMATS if f.write is not None]
+    return tuple(sorted(out, key=lambda w: -len(w.ending)))
 
 
 def endings() -> list[str]:
-    return [w.ending for w in WRITERS]
+    """The writable endings, in registration order."""
+    from harness.io.formats import FORMATS
+
+    return [f.ending for f in FORMATS if f.write is not None]
 
 
 def writer_for(path) -> Writer:
     """The writer a file name asks for; InputError naming the endings otherwise."""
     from harness.core.suggest import did_you_mean
+    from harness.io.formats import FORMATS
 
     name = Path(path).name.lower()
-    for w in WRITERS:
+    for w in writers():
         if name.endswith(w.ending):
             return w
     known = ", ".join(endings())
-    for ending, what in _NOT_WRITTEN.items():
-        if name.endswith(ending):
-            why = " (see harness/io/writers.py; splat-transform writes it)" if what == "SOG" else ""
-            raise InputError(path, f"{what} is read but not written{why}; write one of {known}")
+    for f in FORMATS:
+        if f.write is None and name.endswith(f.endings):
+            raise InputError(path, f"{f.short} is read but not written{f.not_written}; write one of {known}")
     suffix = Path(name).suffix
     hint = did_you_mean(suffix, endings()) if suffix else ""
     raise InputError(path, f"cannot write {suffix + ' files' if suffix else 'files without an extension'}{hint}; "

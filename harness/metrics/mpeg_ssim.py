@@ -258,20 +258,3 @@ def ssim_yuv(a, b: np.ndarray, mask: np.ndarray | None = None) -> tuple[list[flo
             total, count = _masked_ssim_sum(sa.padded, pb, pm, _W, h, w)
             om.append(total / count if count > 0 else 1.0)
     return full, om
-
-
-def ssim_plane(a: np.ndarray, b: np.ndarray) -> float:
-    """Tool SSIM of two planes given in *tool* row order (already flipped), float64 values."""
-    sa = plane_stats(a)
-    h, w = a.shape
-    total, count = _ssim_sum(sa.padded, sa.mu, sa.var, pad_like_tool(np.asarray(b, np.float64)), _W, h, w)
-    return total / count if count > 0 else 1.0
-
-
-def masked_ssim_plane(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> float:
-    """Tool OM-SSIM of two planes and a 0/1 mask, all in tool row order."""
-    h, w = a.shape
-    pm = pad_like_tool((np.asarray(mask) != 0).astype(np.float64))
-    total, count = _masked_ssim_sum(pad_like_tool(np.asarray(a, np.float64)),
-                                    pad_like_tool(np.asarray(b, np.float64)), pm, _W, h, w)
-    return total / count if count > 0 else 1.0

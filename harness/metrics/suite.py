@@ -41,7 +41,7 @@ import numpy as np
 
 from harness.metrics import registry as _registry
 from harness.metrics.images import as_image, check_same_size, read_image
-from harness.metrics.psnr import mse, psnr, psnr_from_mse, summarize_psnr, yuv_psnr
+from harness.metrics.psnr import psnr, psnr_from_mse, summarize_psnr, yuv_psnr
 
 # LPIPS and SSIM run on torch (1-2 CPU-s to import): imported where they are computed, so that
 # PSNR and the MPEG set alone (`harness compare --metrics psnr`) never import it
@@ -83,61 +83,52 @@ def default_lpips() -> LpipsVGG:
 
 #: what a suite measures between two renders (the ``gt_`` twins come with a view's photo)
 METRICS = tuple(m.name for m in _registry.METRICS if not _registry.is_gt(m.name))
+#: LPIPS is computed from features (a view's reference features once, an image's trunk pass shared
+#: by its comparisons with the reference and the photo), not pair by pair
+LPIPS = "lpips"
 #: the photo metrics' OM region: where the unpruned render's accumulated alpha reaches this (module docstring)
 GT_OCCUPANCY_ALPHA = 0.5
-MPEG_NAMES = set(_registry.mpeg_names(False) + _registry.mpeg_names(True))
 
 
-def mpeg_values(ref, img, names, mask=None, prepared=None) -> dict:
-    """The requested names of the mpeg / mpeg-qmiv families for one pair (8-bit, as the tool), plus
-    ``occupancy`` (%) when an OM metric was asked for. ``prepared``: ``{qmiv: ToolReference}`` of
-    ``ref`` (:func:`reference_sides`), when the reference is measured against many images."""
-    from harness.metrics.mpeg import tool_metrics
-
-    out = {}
-    for qmiv, sfx in ((False, ""), (True, "_qmiv")):
-        wanted = [n for n in _registry.mpeg_names(qmiv) if n in names]
-        if not wanted:
+def _split(names) -> tuple[dict[str, list[str]], list]:
+    """``names`` (LPIPS aside) as the members of each family with a joint computer and the metrics
+    computed one by one (:mod:`.registry`)."""
+    joint: dict[str, list[str]] = {}
+    single = []
+    for n in names:
+        spec = _registry.METRICS.get(n)
+        if n == LPIPS:
             continue
-        om = any("_om" in n for n in wanted)
-        ssim_on = any(n.startswith("yuv_ssim") for n in wanted)
-        iv = any("ivssim" in n for n in wanted)
-        r = tool_metrics((prepared or {}).get(qmiv, ref), img, mask, qmiv=qmiv, ssim=ssim_on, om=om, iv=iv)
-        out.update({n: float(r[n[: -len(sfx)] if sfx else n]) for n in wanted})
-        if om:
-            out["occupancy"] = float(r["occupancy"])
-    return out
+        if spec.compute is None and spec.family in _registry.FAMILIES:
+            joint.setdefault(spec.family, []).append(n)
+        else:
+            single.append(spec)
+    return joint, single
 
 
 def reference_sides(ref: np.ndarray, names, device) -> dict:
-    """What the SSIM and MPEG metrics compute from a reference alone (:class:`.ssim.SsimReference`;
-    :class:`.mpeg.ToolReference` per mode), once for every image it is compared with; the values
-    are those of scoring each pair from scratch, bit for bit."""
-    from harness.metrics.mpeg import ToolReference
-    from harness.metrics.ssim import SsimReference
-
-    sides: dict = {"mpeg": {}}
-    if "ssim" in names:
-        sides["ssim"] = SsimReference(ref[None], device=device)
-    for qmiv in (False, True):
-        if set(_registry.mpeg_names(qmiv)) & set(names):
-            sides["mpeg"][qmiv] = ToolReference(ref, qmiv=qmiv)
+    """What the metrics ``names`` compute from a reference alone (SSIM's window moments, the MPEG
+    tool's 8-bit/YUV planes per mode: each metric's or family's ``prepare``), once for every image
+    it is compared with; the values are those of scoring each pair from scratch, bit for bit."""
+    joint, single = _split(names)
+    sides = {fam: _registry.FAMILIES[fam].prepare(ref) for fam in joint if _registry.FAMILIES[fam].prepare}
+    sides.update({s.name: s.prepare(ref, device) for s in single if s.prepare is not None})
     return sides
 
 
-def _pair_metrics(ref: np.ndarray, img: np.ndarray, yuv: bool, ssim_border: str, device,
-                  names=METRICS, mask=None, sides=None) -> dict:
+def pair_values(ref: np.ndarray, img: np.ndarray, names, *, device=None, mask=None, sides=None, raw=None) -> dict:
+    """The metrics ``names`` (LPIPS aside) of one pair: each family's joint computer (on ``raw``
+    ``(reference, test)`` when given: uint8 images scored as they are), then each metric's own
+    ``compute`` (on ``sides``, the reference's :func:`reference_sides`, where it has one)."""
     sides = sides or {}
-    out = mpeg_values(ref, img, names, mask, sides.get("mpeg")) if MPEG_NAMES & set(names) else {}
-    if "psnr" in names:
-        out["psnr"] = psnr_from_mse(mse(ref, img))
-    if "ssim" in names:
-        from harness.metrics.ssim import ssim_batch
-
-        first = sides.get("ssim", ref[None])
-        out["ssim"] = float(ssim_batch(first, img[None], border=ssim_border, device=device)[0])
-    if yuv:
-        out.update(yuv_psnr(ref, img))
+    joint, single = _split(names)
+    out = {}
+    for fam, members in joint.items():
+        a, b = raw if raw is not None else (ref, img)
+        out.update(_registry.FAMILIES[fam].compute(sides.get(fam, a), b, members, mask))
+    for spec in single:
+        kw = {k: v for k, v in (("device", device), ("mask", mask)) if spec.takes(k)}
+        out[spec.name] = float(spec.compute(sides.get(spec.name, ref), img, **kw))
     return out
 
 
@@ -150,18 +141,15 @@ def compare_images(a, b, *, lpips_model: LpipsVGG | None = None, yuv: bool = Fal
     raw_a, raw_b = a, b
     a, b = as_image(a, "first image"), as_image(b, "second image")
     check_same_size(a, b)
-    out = {}
-    if MPEG_NAMES & set(names):
-        u8 = lambda raw, f: raw if isinstance(raw, np.ndarray) and raw.dtype == np.uint8 and raw.ndim == 3 \
-            and raw.shape[2] >= 3 else f  # noqa: E731
-        out.update(mpeg_values(u8(raw_a, a), u8(raw_b, b), names, mask))
-    rest = [n for n in names if n not in MPEG_NAMES]
-    model = None
-    if "lpips" in rest:
-        model = lpips_model or default_lpips()
-    out.update(_pair_metrics(a, b, yuv, "zero", model.device if model else None, rest))
+    u8 = lambda raw, f: raw if isinstance(raw, np.ndarray) and raw.dtype == np.uint8 and raw.ndim == 3 \
+        and raw.shape[2] >= 3 else f  # noqa: E731
+    model = (lpips_model or default_lpips()) if LPIPS in names else None
+    out = pair_values(a, b, names, device=model.device if model else None, mask=mask,
+                      raw=(u8(raw_a, a), u8(raw_b, b)))
+    if yuv:
+        out.update(yuv_psnr(a, b))
     if model is not None:
-        out["lpips"] = model(a, b)
+        out[LPIPS] = model(a, b)
     return out
 
 
@@ -178,13 +166,12 @@ class MetricSuite:
     """
 
     def __init__(self, lpips_model: LpipsVGG | None = None, *, names=METRICS, device=None,
-                 feature_dir: str | Path | None = None, max_in_memory: int = 4, yuv: bool = False,
-                 ssim_border: str = "zero"):
+                 feature_dir: str | Path | None = None, max_in_memory: int = 4, yuv: bool = False):
         self.names = tuple(names)
         unknown = sorted(set(self.names) - set(METRICS))
         if unknown:
             raise ValueError(f"unknown metric(s) {', '.join(unknown)}; known: {', '.join(METRICS)}")
-        if "lpips" in self.names and lpips_model is None:
+        if LPIPS in self.names and lpips_model is None:
             import torch
 
             from harness.metrics.lpips_vgg import LpipsVGG
@@ -192,20 +179,19 @@ class MetricSuite:
             threads = torch.get_num_threads()
             lpips_model = LpipsVGG(device=device) if device is not None else default_lpips()
             torch.set_num_threads(threads)
-        self.lpips = lpips_model if "lpips" in self.names else None
+        self.lpips = lpips_model if LPIPS in self.names else None
         self.device = self.lpips.device if self.lpips is not None else device
         self.feature_dir = Path(feature_dir) if feature_dir is not None else None
         if self.feature_dir is not None:
             self.feature_dir.mkdir(parents=True, exist_ok=True)
         self.max_in_memory = max(1, int(max_in_memory))
         self.yuv = yuv
-        self.ssim_border = ssim_border
         self._cache: OrderedDict[str, tuple[np.ndarray, LpipsFeatures]] = OrderedDict()
         self._alpha: dict[str, np.ndarray] = {}  # reference alphas (OM metrics), evicted with _cache
         self._photo: dict[str, tuple] = {}  # view -> (photo, its LPIPS features, reference occupancy mask)
         self._photo_ref: dict[str, dict] = {}  # view -> gt_ metrics of its reference
         self._sides: dict[str, dict] = {}  # reference_sides of the views in _cache, evicted with it
-        self.wants_alpha = any("_om" in n for n in self.names if n in MPEG_NAMES)
+        self.wants_alpha = _registry.needs_alpha(self.names)
 
     # -- photos (gt_ metrics) ------------------------------------------------------------------
     def _set_photo(self, key: str, photo, ref: np.ndarray, ref_feats, alpha) -> None:
@@ -217,14 +203,11 @@ class MetricSuite:
         self._photo_ref[key] = self._photo_values(key, ref, None if feats is None or ref_feats is None
                                                   else self.lpips.feature_distance(feats, ref_feats))
 
-    def has_photo(self, view_key: str) -> bool:
-        return str(view_key) in self._photo
-
     def _photo_values(self, key: str, img: np.ndarray, lpips_value) -> dict:
         """``gt_<name>`` of ``img`` against the view's photo (module docstring)."""
         photo, _, mask = self._photo[key]
-        base = [n for n in self.names if n != "lpips"]
-        row = _pair_metrics(photo, img, False, self.ssim_border, self.device, base, mask)
+        base = [n for n in self.names if n != LPIPS]
+        row = pair_values(photo, img, base, device=self.device, mask=mask)
         out = {_registry.GT_PREFIX + k: v for k, v in row.items() if k in base}
         if "psnr" in self.names:
             m = np.ones(img.shape[:2], bool) if mask is None else mask
@@ -323,9 +306,11 @@ class MetricSuite:
                 mask = occupancy_mask(*(x for x in (ref_alpha, alpha) if x is not None))
             if key not in self._sides:  # also after a reload from feature_dir
                 self._sides[key] = reference_sides(ref, self.names, self.device)
-            row = _pair_metrics(ref, img, self.yuv, self.ssim_border, self.device, self.names, mask, self._sides[key])
+            row = pair_values(ref, img, self.names, device=self.device, mask=mask, sides=self._sides[key])
+            if self.yuv:
+                row.update(yuv_psnr(ref, img))
             if d is not None:
-                row["lpips"] = float(d)
+                row[LPIPS] = float(d)
             if photo is not None:
                 row.update(self._photo_values(key, img, d_photo[0] if d_photo else None))
             rows.append(row)

@@ -96,8 +96,8 @@ def rate_points(s: pd.DataFrame) -> pd.DataFrame:
     if s.empty or "bytes" not in s or s["bytes"].isna().all():
         return s.iloc[0:0].assign(rp=pd.Series(dtype=str), level=pd.Series(dtype=str))
     d = s[(s["variant"] == "default") & s["bytes"].notna()].copy()
-    grid = sorted({round(float(r), 6) for r in d["ratio"]}, reverse=True)
-    d["rp"] = [f"RP{grid.index(round(float(r), 6)) + 1}" for r in d["ratio"]]
+    grid = sorted({ratios.key(r) for r in d["ratio"]}, reverse=True)
+    d["rp"] = [f"RP{grid.index(ratios.key(r)) + 1}" for r in d["ratio"]]
     d["level"] = [next((v for k, v in LEVELS.items() if abs(k - r) <= ratios.TOLERANCE), "") for r in d["ratio"]]
     return d.sort_values(["label", "method", "ratio"], ascending=[True, True, False], kind="stable")
 

@@ -122,11 +122,11 @@ def metric_columns(present) -> list[tuple[str, str, int]]:
 
 
 def display_metrics(present) -> list[tuple[str, str, int]]:
-    """:func:`metric_columns` with each occupancy-masked variant (``x_om…``) right after its
-    full-frame metric (``x…``): OM-PSNR beside PSNR."""
+    """:func:`metric_columns` with each occupancy-masked variant right after the full-frame metric
+    it is registered to restrict (its ``masks``): OM-PSNR beside PSNR."""
     cols = metric_columns(present)
     names = [c[0] for c in cols]
-    base = {n: n.replace("_om", "", 1) for n in names if "_om" in n and n.replace("_om", "", 1) in names}
+    base = {n: m for n in names if (m := METRICS.get(n).masks) in names}
     out = [c for c in cols if c[0] not in base]
     for c in cols:
         if c[0] in base:
@@ -135,6 +135,11 @@ def display_metrics(present) -> list[tuple[str, str, int]]:
                 at += 1
             out.insert(at + 1, c)
     return out
+
+
+def masked_of(metric: str) -> str | None:
+    """The full-frame metric an occupancy-masked ``metric`` restricts (None for others)."""
+    return METRICS.get(metric).masks
 
 
 def higher_is_better(metric: str) -> bool:

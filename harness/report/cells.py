@@ -51,12 +51,12 @@ def prepare(df: pd.DataFrame):
     ok = df[df["status"] == "ok"].copy()
     mets = [m for m in catalog.display_metrics(ok.columns) if ok[m[0]].notna().any()]
     ok["near"] = stats.near_identical(ok, [m[0] for m in mets])
-    ok["rkey"] = ok["ratio"].round(6)
+    ok["rkey"] = ok["ratio"].round(ratios.DECIMALS)
     return ok, mets
 
 
 def _key(method, variant, ratio):
-    return method, variant, round(float(ratio), 6)
+    return method, variant, ratios.key(ratio)
 
 
 def cell_rows(ok, mets, cells, reference_of, table: str, pooled: bool = False, levels=None) -> pd.DataFrame:
@@ -229,14 +229,14 @@ def table_comparison(df: pd.DataFrame, reference: str | None = None):
     reference = reference or catalog.DEFAULT_REFERENCE
     ok, mets = prepare(df)
     cols = [(grp, m, lvl, r) for grp, m in catalog.comparison_methods(ok["method"]) for lvl, r in LEVELS
-            if not ok[(ok["method"] == m) & (ok["variant"] == "default") & (ok["rkey"] == round(r, 6))].empty]
+            if not ok[(ok["method"] == m) & (ok["variant"] == "default") & (ok["rkey"] == ratios.key(r))].empty]
     if not cols:
         return Missing("no method of the comparison groups was measured at 10/20/30 % pruning")
-    levels = {round(r, 6): f"{lvl} ({ratios.percent(r)})" for lvl, r in LEVELS}
+    levels = {ratios.key(r): f"{lvl} ({ratios.percent(r)})" for lvl, r in LEVELS}
     tidy = cell_rows(ok, mets, [(m, "default", r) for *_, m, _, r in cols], lambda c: (reference, "default", c[2]),
                      "comparison", levels=levels)
     layout = ((["Dataset", "Method"], ["label", "method_label"]), lambda r: r["level"],
-              [levels[round(r, 6)] for _, r in LEVELS if round(r, 6) in set(tidy["ratio"])])
+              [levels[ratios.key(r)] for _, r in LEVELS if ratios.key(r) in set(tidy["ratio"])])
     secs = _sections(tidy, mets, *layout, lambda r, dg: cell_text(r, dg, r["method"] == reference))
     secs += _size_section(tidy, *layout)
     wide_cols = pd.MultiIndex.from_tuples([(g, catalog.method_label(m), lvl) for g, m, lvl, _ in cols],
@@ -246,7 +246,7 @@ def table_comparison(df: pd.DataFrame, reference: str | None = None):
     disp = pd.DataFrame("–", pd.MultiIndex.from_tuples(rows, names=["Dataset", "Metric"]), wide_cols)
     for (mk, h, dg) in mets:
         for _, r in tidy[tidy["metric"] == mk].iterrows():
-            col = next(c for c, (_, m, _, rr) in zip(wide_cols, cols) if m == r["method"] and round(rr, 6) == r["ratio"])
+            col = next(c for c, (_, m, _, rr) in zip(wide_cols, cols) if m == r["method"] and ratios.key(rr) == r["ratio"])
             disp.loc[(r["label"], h), col] = mean_text(r, dg)
             if mk == mets[0][0]:
                 for key, h2, _ in sizes:
@@ -259,7 +259,7 @@ def table_comparison(df: pd.DataFrame, reference: str | None = None):
 def table_ablation(df: pd.DataFrame, ratio: float = ABLATION_RATIO):
     ok, mets = prepare(df)
     grid = catalog.ablation_cells()
-    at = ok[ok["rkey"] == round(ratio, 6)]
+    at = ok[ok["rkey"] == ratios.key(ratio)]
     present = [a for a in grid if not at[at["method"] == a[2]].empty]
     missing = [a[2] for a in grid if a not in present]
     if not present:
@@ -337,8 +337,8 @@ def table_per_scene(df: pd.DataFrame):
     without, full = pair
     ok, mets = prepare(df)
     cells = [(full, "default", ratios.from_keep(k)) for k in KEEPS]
-    have = [c for c in cells if not ok[(ok["method"] == full) & (ok["rkey"] == round(c[2], 6))].empty
-            and not ok[(ok["method"] == without) & (ok["rkey"] == round(c[2], 6))].empty]
+    have = [c for c in cells if not ok[(ok["method"] == full) & (ok["rkey"] == ratios.key(c[2]))].empty
+            and not ok[(ok["method"] == without) & (ok["rkey"] == ratios.key(c[2]))].empty]
     if not have:
         return Missing(f"needs {full} and {without} at the same keep fraction (0.7 / 0.5 / 0.3)")
     tidy = cell_rows(ok, mets, have, lambda c: (without, "default", c[2]), "per_scene", pooled=True)

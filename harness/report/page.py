@@ -31,7 +31,7 @@ from harness.core import ratios
 from harness.report import catalog
 from harness.report.pagehtml import esc, html_table, kv_table
 from harness.report.pageimages import AMPLIFY, JPEG_QUALITY, file_uri, scene_images
-from harness.report.record import _slug, read_records
+from harness.report.record import slug, read_records
 from harness.report.tabledata import Built, Missing, Table
 
 CSS = """
@@ -124,7 +124,7 @@ def summary_html(built: dict[str, Built]) -> str:
 def tables_html(built: dict[str, Built]) -> str:
     """Every table, folded, grouped by held-out view protocol (each summary names it too)."""
     from harness.report.summary import PROTOCOL_NOTES
-    from harness.report.tables import TITLES
+    from harness.report.tables import base_title
 
     out = []
     for proto in dict.fromkeys(b.protocol for b in built.values()):
@@ -133,7 +133,7 @@ def tables_html(built: dict[str, Built]) -> str:
                        "</small></h3>")
         for b in (b for b in built.values() if b.protocol == proto):
             tag = " <small>(not made from these results)</small>" if isinstance(b.table, Missing) else ""
-            name = TITLES.get(b.name, b.name) + (f" — {proto} views" if proto else "")
+            name = base_title(b.name) + (f" — {proto} views" if proto else "")
             out.append(f"<details id='t-{esc(b.key)}'><summary>{esc(name)}{tag}</summary>{table_html(b)}</details>")
     return "\n".join(out)
 
@@ -161,7 +161,7 @@ def _scene_html(s, cls: str) -> str:
     for c in s.comparisons:
         groups.setdefault((c.method, c.variant), {})[c.ratio] = c
     out = [f"<style>.{cls}{{background-image:url('{s.reference}')}}</style>",
-           f"<details id='img-{esc(_slug(s.scene))}'><summary>{esc(s.label)} <small>{len(s.comparisons)} pruned "
+           f"<details id='img-{esc(slug(s.scene))}'><summary>{esc(s.label)} <small>{len(s.comparisons)} pruned "
            f"render(s)</small></summary><div class='scroll'><table class='imgs'><tr>"
            f"<th><img class='refimg' alt='reference {esc(s.label)}' src='{s.reference}'><br>reference "
            f"(unpruned), {s.width}×{s.height}</th>" + "".join(f"<th>{ratios.percent(r)} pruned</th>" for r in cols)
@@ -190,7 +190,7 @@ def _scene_html(s, cls: str) -> str:
 def images_html(scenes, protocol: str = "") -> str:
     if not scenes:
         return "<p class='warn'>no stored renders under images/</p>"
-    index = " ".join(f"<a href='#img-{esc(_slug(s.scene))}'>{esc(s.label)}</a>" for s in scenes)
+    index = " ".join(f"<a href='#img-{esc(slug(s.scene))}'>{esc(s.label)}</a>" for s in scenes)
     out = [f"<p class='index'>Scenes: {index}</p>",
            f"<p class='notes'>First held-out view{f' ({esc(protocol)})' if protocol else ''} of each scene. Slider: reference render (left) | pruned render "
            f"(right), JPEG q{JPEG_QUALITY} viewing copies. Below: the largest |pruned − reference| of the R, G, B "
@@ -198,7 +198,7 @@ def images_html(scenes, protocol: str = "") -> str:
            f"≥ {255 // AMPLIFY + 1} levels is white). "
            f"PSNR: this 8-bit pair.</p><p><label>image width <input id='imgw' type='range' min='160' max='720' "
            f"value='240'></label></p>"]
-    out += [_scene_html(s, f"ref-{_slug(s.scene)}".replace(".", "_")) for s in scenes]
+    out += [_scene_html(s, f"ref-{slug(s.scene)}".replace(".", "_")) for s in scenes]
     return "\n".join(out)
 
 
@@ -285,7 +285,7 @@ def write_report(run_dir: str | Path, df: pd.DataFrame, meta: dict, built: dict[
     warnings += [w for b in built.values() if isinstance(b.table, Table) for w in b.table.warnings]
     warnings += [m for m in missing if not m.startswith("table ")]  # tables: said above, from ``built``
     scenes = list(dict.fromkeys(zip(df["scene"], df["label"])))
-    known = {_slug(m): m for m in df["method"].unique()}
+    known = {slug(m): m for m in df["method"].unique()}
     protocols = list(dict.fromkeys(b.protocol for b in built.values() if b.protocol))  # the primary first
     images = images_html(scene_images(run_dir / "images", scenes, known), protocols[0] if protocols else "")
     records, unreadable = read_records(run_dir)

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from harness.report import catalog
-from harness.report.record import _slug
+from harness.report.record import slug
 
 AMPLIFY = 8
 JPEG_QUALITY = 90
@@ -93,7 +93,7 @@ def _parse(name: str) -> tuple[str, str, float] | None:
 
 
 def _first_frame_dir(images: Path, scene: str) -> Path | None:
-    d = images / _slug(scene)
+    d = images / slug(scene)
     if (d / "input.png").exists():
         return d
     subs = sorted(p for p in d.glob("*") if p.is_dir() and (p / "input.png").exists()) if d.exists() else []

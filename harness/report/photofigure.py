@@ -18,7 +18,7 @@ import pandas as pd
 
 from harness.core import ratios
 from harness.report import catalog
-from harness.report.record import _slug, image_name
+from harness.report.record import slug, image_name
 
 COLUMNS = 3
 PAD = 6
@@ -30,7 +30,7 @@ LEVELS = (0.3, 0.2, 0.1)
 def _real_dir(images: Path, scene: str, protocol: str) -> Path | None:
     """The folder of the scene's first captured view: ``<scene>[/<frame>]/<protocol>``, or the scene's
     (first frame's) own folder when that protocol was the run's primary one."""
-    d = images / _slug(scene)
+    d = images / slug(scene)
     frames = sorted(p for p in d.glob("*") if p.is_dir() and p.name != protocol) if d.exists() else []
     for cand in (c for f in (d, *frames) for c in (f / protocol, f)):
         if (cand / "photo.png").is_file() and (cand / "input.png").is_file():
@@ -91,7 +91,7 @@ def write_photo_figures(df: pd.DataFrame, run_dir: str | Path, protocol: str = "
             sheet.paste(img.resize((w, h), Image.Resampling.NEAREST) if img.size != (w, h) else img, (x, y))
             draw.text((x, y + h + 2), title, fill="black", font=font)
             draw.multiline_text((x, y + h + 18), caption, fill="#333333", font=small, spacing=2)
-        path = run_dir / "plots" / f"photos-{_slug(scene)}.png"
+        path = run_dir / "plots" / f"photos-{slug(scene)}.png"
         path.parent.mkdir(parents=True, exist_ok=True)
         atomic_write_with(path, lambda p, s=sheet: s.save(p, format="PNG"))
         out.append(path)

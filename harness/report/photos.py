@@ -37,6 +37,11 @@ def _views(df: pd.DataFrame) -> pd.DataFrame:
     return ok[ok["gt_psnr"].notna()] if "gt_psnr" in ok else ok.iloc[0:0]
 
 
+def has_photos(df: pd.DataFrame) -> bool:
+    """Do any measured rows of ``df`` come from views with a photo?"""
+    return not _views(df).empty
+
+
 def table_photos(df: pd.DataFrame) -> Table | Missing:
     ok = _views(df)
     if ok.empty:

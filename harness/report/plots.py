@@ -31,7 +31,7 @@ import pandas as pd
 from harness.core import ratios
 from harness.report import catalog, stats
 from harness.report.cells import prepare
-from harness.report.record import _slug, image_name
+from harness.report.record import slug, image_name
 from harness.report.tabledata import Written
 
 #: the plots a config or ``harness tables --plots`` can name
@@ -62,7 +62,7 @@ def curve_metrics(mets) -> list[tuple[str, str, int]]:
     db = [m for m in mets if stats.is_db(m[0])]
     out = db[:1]
     if db:
-        out += [m for m in db if m[0] != db[0][0] and m[0].replace("_om", "", 1) == db[0][0]][:1]
+        out += [m for m in db if m[0] != db[0][0] and catalog.masked_of(m[0]) == db[0][0]][:1]
     out += [m for m in mets if not catalog.higher_is_better(m[0])][:1]
     return out
 
@@ -141,13 +141,13 @@ def plot_curves(df: pd.DataFrame, out: Path, protocol: str = "") -> list[Path]:
         views = f"held-out views: {protocol}" if protocol else "held-out views"
         fig.suptitle(f"{scene}: pruned vs unpruned render, {views} (cell means)")
         fig.tight_layout()
-        paths.append(_save(fig, out / f"curves_{_slug(scene)}.png"))
+        paths.append(_save(fig, out / f"curves_{slug(scene)}.png"))
         plt.close(fig)
     return paths
 
 
 def _first_frame_dir(images: Path, scene: str) -> Path | None:
-    d = images / _slug(scene)
+    d = images / slug(scene)
     if (d / "input.png").exists():
         return d
     subs = sorted(p for p in d.glob("*") if p.is_dir()) if d.exists() else []
@@ -201,7 +201,7 @@ def _grid(df: pd.DataFrame, images: Path, columns, title: str, path: Path, capti
 def _taus(df: pd.DataFrame, method: str) -> dict:
     """(scene, ratio key) -> τ of the first frame (score at the cut)."""
     d = df[(df["method"] == method) & (df["variant"] == "default") & df["tau"].notna()]
-    return {(s, round(float(r), 6)): float(t) for (s, r), t in d.groupby(["scene", "ratio"])["tau"].first().items()}
+    return {(s, ratios.key(r)): float(t) for (s, r), t in d.groupby(["scene", "ratio"])["tau"].first().items()}
 
 
 def write_plots(df: pd.DataFrame, run_dir: str | Path, names) -> Written:
@@ -234,12 +234,12 @@ def write_plots(df: pd.DataFrame, run_dir: str | Path, names) -> Written:
             taus = _taus(df, proposed)
             cols = [("unpruned", "input", "", 0.0)]
             for r in FIG1_RATIOS:
-                tv = [t for (_, rk), t in taus.items() if rk == round(r, 6)]
+                tv = [t for (_, rk), t in taus.items() if rk == ratios.key(r)]
                 rng = "" if not tv else f"\nτ = {min(tv):.3f}" + (f"–{max(tv):.3f}" if max(tv) - min(tv) >= 5e-4 else "")
                 cols.append((f"{ratios.percent(r)} pruned{rng}", proposed, "default", r))
 
             def cap(scene, col):
-                t = taus.get((scene, round(col[3], 6)))
+                t = taus.get((scene, ratios.key(col[3])))
                 return "" if col[1] == "input" or t is None else f"τ = {t:.3f}"
 
             title = (f"{catalog.method_label(proposed)} at increasing pruning, τ = score at the cut (paper Fig. 1)"

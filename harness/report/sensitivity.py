@@ -56,7 +56,7 @@ def table_keep(df: pd.DataFrame):
     without, full = pair
     ok, mets = cells.prepare(df)
     have = [r for r in (ratios.from_keep(k) for k in KEEPS)
-            if all(not ok[(ok["method"] == m) & (ok["variant"] == "default") & (ok["rkey"] == round(r, 6))].empty
+            if all(not ok[(ok["method"] == m) & (ok["variant"] == "default") & (ok["rkey"] == ratios.key(r))].empty
                    for m in pair)]
     if not have:
         return Missing(f"needs {without} and {full} at keep {' / '.join(f'{k:g}' for k in KEEPS)} "
@@ -98,7 +98,7 @@ def table_sensitivity(df: pd.DataFrame, keep: float = 0.7):
     method = catalog.proposed_method()
     r = ratios.from_keep(keep)
     ok, mets = cells.prepare(df)
-    at = ok[(ok["method"] == method) & (ok["rkey"] == round(r, 6))]
+    at = ok[(ok["method"] == method) & (ok["rkey"] == ratios.key(r))]
     variants = [v for v in dict.fromkeys(at["variant"]) if v == "default" or _knob(v)]
     if len(variants) < 2:
         return Missing(f"needs {method}'s default variant and at least one sweep variant "

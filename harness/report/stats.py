@@ -25,7 +25,7 @@ x(reference, view) over the (frame, view) pairs both were measured on, then the 
 interval of that mean — one interval on the difference, not two independent intervals.
 
 **Near-identical views.** A measured view is *near-identical* when any of its dB metrics (a metric
-whose name contains ``psnr``: PSNR, and MPEG's RGB/YUV-PSNR with their OM variants) is at least
+registered with ``unit="dB"``: PSNR, and MPEG's RGB/YUV-PSNR with their OM variants) is at least
 :data:`NEAR_IDENTICAL_DB` = 100 dB — that covers PSNR = +inf (identical renders) and MPEG's 999.99
 cap. Such a view says "pruning changed (almost) nothing here" and its dB value is a huge number that
 would dominate any mean, so dB means and dB differences exclude it (a pair is excluded when either
@@ -55,8 +55,10 @@ INTERVAL_DESCRIPTION = ("95 % Student-t interval of the mean paired per-view dif
 
 
 def is_db(metric: str) -> bool:
-    """Is ``metric`` a PSNR in dB (its near-identical views are excluded from means)?"""
-    return "psnr" in metric.lower()
+    """Is ``metric`` a PSNR in dB (registered with ``unit="dB"``, :mod:`harness.metrics.registry`)?"""
+    from harness.metrics.registry import is_db as registered_db
+
+    return registered_db(metric)
 
 
 def drops_near(metric: str) -> bool:

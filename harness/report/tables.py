@@ -27,11 +27,14 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from harness.core.registry import Registry
 from harness.io.files import atomic_write_text
 from harness.report import bd, catalog, cells, claims, photos, sensitivity
 from harness.report.summary import PROTOCOL_NOTES, protocol_subsets, summarise
@@ -82,22 +85,52 @@ def table_runtime(s: pd.DataFrame):
                          "no interval")
 
 
-BUILDERS = {"comparison": cells.table_comparison, "ablation": cells.table_ablation, "keep": sensitivity.table_keep,
-            "sensitivity": sensitivity.table_sensitivity, "runtime": table_runtime, "per_scene": cells.table_per_scene,
-            "versus": cells.table_versus, "bd": bd.table_bd, "ctc": bd.table_ctc, "claims": claims.table_claims,
-            "photos": photos.table_photos}
-#: builders that read the summary (one row per cell) rather than the per-view results
-_USES_SUMMARY = {"runtime", "bd", "ctc"}
-TITLES = {"comparison": "Comparison at low (10 %), mid (20 %) and high (30 %) pruning (paper Table 1)",
-          "ablation": "Ablation: descriptors × Beta at 20 % pruning (paper Table 2)",
-          "keep": "Keep fractions 0.7 / 0.5 / 0.3 with and without descriptors (paper Table 3)",
-          "sensitivity": "Sensitivity: coefficient presets and voxel sizes at keep 0.7",
-          "runtime": "Scoring runtime per scene", "per_scene": "Per-scene descriptor gains",
-          "versus": "Every method against the reference, per view",
-          "bd": "Bjøntegaard deltas against the anchor (BD-rate on .ply bytes; RGB-PSNR, YUV-PSNR, YUV-SSIM)",
-          "ctc": "Per sequence and rate point (MPEG CTC layout)",
-          "claims": "The paper's claims, each tested as the paper states it, with a verdict",
-          "photos": "Against the captured photos: pruned and unpruned renders, per held-out view"}
+@dataclass(frozen=True)
+class TableSpec:
+    """A table a config or ``harness tables`` can name: ``build(data, **options) -> Table | Missing``
+    (``data``: the per-view results, or with ``reads="summary"`` one row per cell, :func:`summarise`;
+    options it names, such as ``reference=`` or ``anchor=``, are passed), its ``title``, and
+    ``with_photos``: it belongs to the held-out view protocols whose views have photos (when any has)."""
+
+    name: str
+    build: Callable
+    title: str
+    reads: str = "results"
+    with_photos: bool = False
+
+
+#: every table, in registration order (built-ins below; third-party ones through the ``harness.tables``
+#: entry-point group: a module whose import calls :func:`register_table`)
+TABLE_SPECS: Registry[TableSpec] = Registry("table", group="harness.tables")
+
+
+def register_table(name: str, *, build: Callable, title: str, reads: str = "results",
+                   with_photos: bool = False) -> TableSpec:
+    """Register table ``name`` (:class:`TableSpec`)."""
+    if reads not in ("results", "summary"):
+        raise ValueError(f"table {name!r}: reads must be 'results' or 'summary', got {reads!r}")
+    spec = TableSpec(name, build, title, reads, with_photos)
+    TABLE_SPECS.add(name, spec, same=lambda a, b: (a.title, a.build.__qualname__) == (b.title, b.build.__qualname__))
+    return spec
+
+
+register_table("comparison", build=cells.table_comparison,
+               title="Comparison at low (10 %), mid (20 %) and high (30 %) pruning (paper Table 1)")
+register_table("ablation", build=cells.table_ablation, title="Ablation: descriptors × Beta at 20 % pruning (paper Table 2)")
+register_table("keep", build=sensitivity.table_keep,
+               title="Keep fractions 0.7 / 0.5 / 0.3 with and without descriptors (paper Table 3)")
+register_table("sensitivity", build=sensitivity.table_sensitivity,
+               title="Sensitivity: coefficient presets and voxel sizes at keep 0.7")
+register_table("runtime", build=table_runtime, title="Scoring runtime per scene", reads="summary")
+register_table("per_scene", build=cells.table_per_scene, title="Per-scene descriptor gains")
+register_table("versus", build=cells.table_versus, title="Every method against the reference, per view")
+register_table("bd", build=bd.table_bd, reads="summary",
+               title="Bjøntegaard deltas against the anchor (BD-rate on .ply bytes; RGB-PSNR, YUV-PSNR, YUV-SSIM)")
+register_table("ctc", build=bd.table_ctc, title="Per sequence and rate point (MPEG CTC layout)", reads="summary")
+register_table("claims", build=claims.table_claims,
+               title="The paper's claims, each tested as the paper states it, with a verdict")
+register_table("photos", build=photos.table_photos, with_photos=True,
+               title="Against the captured photos: pruned and unpruned renders, per held-out view")
 
 
 def _call(fn, data, opts: dict):
@@ -109,17 +142,23 @@ def _call(fn, data, opts: dict):
 def build_tables(df: pd.DataFrame, names, **opts) -> dict[str, Table | Missing]:
     """Each named table built from the results (a :class:`Missing` where it cannot be)."""
     s = summarise(df)
-    return {name: as_table(_call(BUILDERS[name], s if name in _USES_SUMMARY else df, opts)) for name in names}
+    specs = {name: TABLE_SPECS.get(name) for name in names}
+    return {name: as_table(_call(t.build, s if t.reads == "summary" else df, opts)) for name, t in specs.items()}
 
 
 #: the tables a config or ``harness tables --tables`` can name
-TABLES = tuple(BUILDERS)
+TABLES = tuple(TABLE_SPECS.names())
+
+
+def base_title(name: str) -> str:
+    """A table's registered title (its name when it is not registered)."""
+    return TABLE_SPECS.get(name).title if name in TABLE_SPECS else name
 
 
 def title(name: str, protocol: str) -> str:
     """A table's title, with the held-out view protocol its rows come from (every protocol, the
     primary one too; none only for results that carry no protocol)."""
-    base = TITLES.get(name, name)
+    base = base_title(name)
     return base + (f" — held-out views: {protocol} ({PROTOCOL_NOTES.get(protocol, 'a named view protocol')})"
                    if protocol else "")
 
@@ -152,13 +191,13 @@ def write_tables(df: pd.DataFrame, out_dir: str | Path, names, **opts) -> Writte
     out_dir = Path(out_dir) / "tables"
     out_dir.mkdir(parents=True, exist_ok=True)
     subsets = protocol_subsets(df)
-    with_photos = {proto for proto, _, sub in subsets if not photos._views(sub).empty}
+    with_photos = {proto for proto, _, sub in subsets if photos.has_photos(sub)}
     summaries = [summarise(sub).assign(protocol=proto) for proto, _, sub in subsets]
     out = Written([out_dir / "summary.csv"])
     atomic_write_text(out.paths[0], pd.concat(summaries, ignore_index=True).to_csv(index=False))
     for proto, suffix, sub in subsets:
-        # the photos table belongs to the protocols whose views have photos (when any has)
-        here = [n for n in names if n != "photos" or not with_photos or proto in with_photos]
+        # a table of the photos belongs to the protocols whose views have photos (when any has)
+        here = [n for n in names if not TABLE_SPECS.get(n).with_photos or not with_photos or proto in with_photos]
         for name, t in build_tables(sub, here, **opts).items():
             t = with_caption(t)
             key = name + suffix

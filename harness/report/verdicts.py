@@ -114,7 +114,7 @@ class Run:
         return cls(ok, groups, dict(zip(ok["scene"], ok["label"])))
 
     def cell(self, scene, method, ratio, variant="default"):
-        return self.groups.get((scene, method, variant, round(float(ratio), 6)))
+        return self.groups.get((scene, method, variant, ratios.key(ratio)))
 
     def diff(self, scene, a: tuple, b: tuple, metric="psnr") -> Estimate | None:
         """Δ = cell a − cell b (each (method, ratio[, variant])), paired per view; None if either is missing."""
@@ -136,7 +136,7 @@ class Run:
 
     def variant_with(self, method, ratio, key, value) -> str | None:
         """The variant of ``method`` at ``ratio`` whose params equal the default's except ``key`` = ``value``."""
-        rows = self.ok[(self.ok["method"] == method) & (self.ok["rkey"] == round(float(ratio), 6))]
+        rows = self.ok[(self.ok["method"] == method) & (self.ok["rkey"] == ratios.key(ratio))]
         params = {v: json.loads(p or "{}") for v, p in zip(rows["variant"], rows["params"])}
         base = params.get("default")
         if base is None:

@@ -105,8 +105,7 @@ class FileDigests:
     counts what was read (the cost of hashing is reported by ``harness run``).
     """
 
-    def __init__(self, index_path: Path | None = None):
-        self.index_path = None  # kept for callers; digests are no longer memoised on disk
+    def __init__(self):
         self._memo: dict[tuple, str] = {}
         self.hashed_bytes = 0
         self.seconds = 0.0
@@ -190,7 +189,9 @@ class StageCache:
             self.has(stage, key, ext)
         return self.store.path(self.rel(stage, key, ext))
 
-    def _count(self, stage: str, hit: bool) -> None:
+    def count(self, stage: str, hit: bool) -> None:
+        """Record a hit or a miss of ``stage`` (for an entry judged by more than one read, e.g. a
+        score record and its array: the reads say ``count=False`` and the caller counts once)."""
         (self.hits if hit else self.misses)[stage] += 1
 
     def discard(self, stage: str, key: str, ext: str, problem: str) -> None:
@@ -234,7 +235,7 @@ class StageCache:
     def get_json(self, stage: str, key: str, count: bool = True, check: Check | None = None):
         value = None if self.force else self._read(stage, key, "json", _decode_json, check)
         if count:
-            self._count(stage, value is not None)
+            self.count(stage, value is not None)
         return value
 
     def put_json(self, stage: str, key: str, value) -> None:
@@ -244,7 +245,7 @@ class StageCache:
     def get_array(self, stage: str, key: str, count: bool = True, check: Check | None = None) -> np.ndarray | None:
         value = None if self.force else self._read(stage, key, "npy", _decode_npy, check)
         if count:
-            self._count(stage, value is not None)
+            self.count(stage, value is not None)
         return value
 
     def put_array(self, stage: str, key: str, arr: np.ndarray) -> None:

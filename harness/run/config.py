@@ -58,8 +58,13 @@ A config is a YAML mapping::
     tables: [comparison, ablation, keep, sensitivity, runtime, per_scene]
     plots: [curves, figure1, figure3]
 
-Every problem is an :class:`InputError` naming the key path (``methods[2].sweep.voxel``) and what
-is wrong. Variant names are stable: ``<variant or 'default'>`` for plain entries, and
+``extends: default.yaml`` makes a config another one with its own keys over it (mappings merge key
+by key, lists and values replace: :mod:`harness.run.config_files`); ``harness config show CONFIG``
+prints the resolved config with the file and line of every value.
+
+Every section is a dataclass of typed ``param(...)`` fields (:mod:`harness.run.schema`: one
+default, range and doc each). Every problem is an :class:`InputError` naming the key path
+(``methods[2].sweep.voxel``) and what is wrong. Variant names are stable: ``<variant or 'default'>`` for plain entries, and
 ``k1=v1,k2=v2`` (keys in the order written) for sweep combinations, prefixed by ``variant`` when given.
 """
 
@@ -73,91 +78,27 @@ from typing import Any
 from harness.core import ratios
 from harness.core.errors import InputError
 from harness.core.suggest import unknown
-from harness.core.params import Params
-from harness.io.capture import CaptureSpec
-from harness.metrics.registry import expand, requestable
 from harness.report.plots import PLOTS
 from harness.report.tables import TABLES
-from harness.run.config_checks import boolean as _bool
-from harness.run.config_checks import choice as _choice
 from harness.run.config_checks import expand_env
-from harness.run.config_checks import fractions as _fractions
 from harness.run.config_checks import mapping as _mapping
-from harness.run.config_checks import names as _names
-from harness.run.config_checks import num as _num
-from harness.run.config_checks import only as _only
 from harness.run.config_checks import string as _str
-from harness.run.config_views import capture as _capture
+from harness.run.config_sections import (  # noqa: F401  (the sections are imported from here)
+    KINDS,
+    CameraSpec,
+    MethodEntry,
+    MethodVariant,
+    Protocol,
+    SceneSpec,
+    Settings,
+)
+from harness.run.config_sections import pruner as _pruner
 from harness.run.config_views import protocols as _protocols
 from harness.run.executor_spec import ExecutorSpec, parse_executor
+from harness.run.schema import read_section
 from harness.views import rigs
-from renderers import RENDERERS
 
-KINDS = ("forward-facing", "object-centric")
-
-@dataclass(frozen=True)
-class Protocol:
-    longest_side: int = rigs.LONGEST_SIDE
-    aspect: float | None = None  # None: the rig's own (a named dataset's table entry, else 4/3)
-    background: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    renderer: str = "gl"
-    device: str = "cpu"
-    metrics: tuple[str, ...] = ("psnr", "ssim", "lpips")
-    seed: int = 0
-    n_train: int = rigs.N_TRAIN
-    n_test: int = rigs.N_TEST
-
-
-@dataclass(frozen=True)
-class CameraSpec:
-    """Cameras from a file; held-out views by name (``test``) or every k-th view (``test_every``)."""
-
-    path: str
-    test: tuple[str, ...] = ()
-    test_every: int = 0
-
-
-@dataclass(frozen=True)
-class SceneSpec:
-    name: str
-    label: str
-    source: str | None = None
-    frames: str | None = None
-    kind: str = "object-centric"
-    rig: str = "default"
-    cameras: CameraSpec | None = None
-    lod: int | None = None
-    n_train: int = rigs.N_TRAIN
-    n_test: int = rigs.N_TEST
-    suites: tuple[str, ...] = ()
-    #: an MPEG content folder (harness.io.sequences): per-frame PLYs + cameras, native resolution,
-    #: every camera measured unless ``test`` / ``test_every`` name the views
-    sequence: str | None = None
-    test: tuple[str, ...] = ()
-    test_every: int = 0
-    width: int | None = None    # image size for header camera lines without one (default 1920x1080)
-    height: int | None = None
-    #: absent files are skipped with a message (MPEG content not everyone has); otherwise a scene
-    #: that cannot be found is an error before any work (:func:`harness.run.plan.check_sources`)
-    optional: bool = False
-    #: the scene's capture (real cameras, split, photos; harness.io.capture) for the `real` protocol;
-    #: None: a named scene's own (SCENE_CAPTURES), if any; False: none (`capture: false`)
-    capture: CaptureSpec | bool | None = None
-
-
-@dataclass(frozen=True)
-class MethodVariant:
-    """One (pruner, resolved parameters) to evaluate at ``ratios`` on ``scenes`` (None = all)."""
-
-    method: str
-    variant: str
-    params: Params
-    ratios: tuple[float, ...]
-    scenes: tuple[str, ...] | None = None
-
-    @property
-    def key(self) -> str:
-        return f"{self.method}[{self.variant}]"
+SECTIONS = ("protocol", "scenes", "methods", "protocols", "executor")
 
 
 @dataclass
@@ -183,235 +124,157 @@ def merge_ratios(ratio_list, keep) -> tuple[float, ...]:
     return ratios.merge(ratio_list, keep)
 
 
-# --------------------------------------------------------------------------- sections
+# --------------------------------------------------------------------------- reading
 def _protocol(d, src) -> Protocol:
-    d = _mapping(d, "protocol", src)
-    _only(d, set(Protocol.__dataclass_fields__), "protocol", src)
-    p = Protocol()
-    kw: dict[str, Any] = {}
-    if "longest_side" in d:
-        kw["longest_side"] = _num(d["longest_side"], "protocol.longest_side", src, lo=8, hi=8192, integer=True)
-    if "aspect" in d:
-        kw["aspect"] = float(_num(d["aspect"], "protocol.aspect", src, lo=0.1, hi=10))
-    if "background" in d:
-        bg = d["background"]
-        if not isinstance(bg, list) or len(bg) != 3:
-            raise InputError(src, "protocol.background: expected three numbers in [0, 1]")
-        kw["background"] = tuple(float(_num(x, f"protocol.background[{i}]", src, lo=0, hi=1)) for i, x in enumerate(bg))
-    if "renderer" in d:
-        kw["renderer"] = _choice(d["renderer"], RENDERERS.names(), "protocol.renderer", src)
-    if "device" in d:
-        kw["device"] = _str(d["device"], "protocol.device", src)
-    if "metrics" in d:
-        if not isinstance(d["metrics"], list) or not d["metrics"]:
-            raise InputError(src, "protocol.metrics: expected a non-empty list of metric or metric-set names")
-        kw["metrics"] = expand(_names(d["metrics"], requestable(), "protocol.metrics", src, "metric or metric set"))
-    if "seed" in d:
-        kw["seed"] = _num(d["seed"], "protocol.seed", src, lo=0, integer=True)
-    for k in ("n_train", "n_test"):
-        if k in d:
-            kw[k] = _num(d[k], f"protocol.{k}", src, lo=0 if k == "n_train" else 1, hi=rigs.MAX_VIEWS, integer=True)
-    return Protocol(**{**p.__dict__, **kw})
-
-
-def _cameras(d, where, src) -> CameraSpec:
-    d = _mapping(d, where, src)
-    _only(d, {"path", "test", "test_every"}, where, src)
-    if "path" not in d:
-        raise InputError(src, f"{where}.path: required (the cameras file)")
-    test = d.get("test", [])
-    if not isinstance(test, list) or not all(isinstance(t, str) for t in test):
-        raise InputError(src, f"{where}.test: expected a list of view names")
-    every = _num(d.get("test_every", 0), f"{where}.test_every", src, lo=0, integer=True)
-    if not test and not every:
-        raise InputError(src, f"{where}: give the held-out views as `test: [names]` or `test_every: k`")
-    return CameraSpec(path=expand_env(_str(d["path"], f"{where}.path", src)), test=tuple(test), test_every=every)
-
-
-_SCENE_KEYS = {"name", "label", "source", "frames", "kind", "rig", "cameras", "lod", "n_train", "n_test", "suites",
-               "sequence", "test", "test_every", "width", "height", "optional", "capture"}
-
-_SEQUENCE_ONLY = ("test", "test_every", "width", "height")
+    return Protocol(**read_section(Protocol, _mapping(d, "protocol", src), "protocol", src))
 
 
 def _scene(d, i, protocol: Protocol, src) -> SceneSpec:
     where = f"scenes[{i}]"
-    if isinstance(d, str):
-        d = {"name": d}
-    d = _mapping(d, where, src)
-    _only(d, _SCENE_KEYS, where, src)
+    d = _mapping({"name": d} if isinstance(d, str) else d, where, src)
     if "name" not in d:
         raise InputError(src, f"{where}.name: required")
     name = _str(d["name"], f"{where}.name", src)
-    if "source" in d and "frames" in d:
-        raise InputError(src, f"{where}: give either `source` or `frames`, not both")
-    if "rig" in d and "cameras" in d:
-        raise InputError(src, f"{where}: give either `rig` or `cameras`, not both")
-    suites = d.get("suites", [])
-    if not isinstance(suites, list) or not all(isinstance(s, str) for s in suites):
-        raise InputError(src, f"{where}.suites: expected a list of tags")
+    for a, b in (("source", "frames"), ("rig", "cameras")):
+        if a in d and b in d:
+            raise InputError(src, f"{where}: give either `{a}` or `{b}`, not both")
+    kw = read_section(SceneSpec, d, where, src, extra=("name", "label"),
+                      defaults={"n_train": protocol.n_train, "n_test": protocol.n_test})
+    label = _str(d.get("label", name), f"{where}.label", src)
     if "sequence" in d:
-        return _sequence_scene(d, where, name, suites, src, _bool(d.get("optional", False), f"{where}.optional", src))
-    stray = [k for k in _SEQUENCE_ONLY if k in d]
+        return _sequence_scene(d, where, name, label, kw, src)
+    stray = [k for k in ("test", "test_every", "width", "height") if k in d]
     if stray:
         raise InputError(src, f"{where}: {', '.join(stray)} go with `sequence` (for `cameras`, inside it)")
-    lod = d.get("lod")
-    return SceneSpec(
-        name=name,
-        label=_str(d.get("label", name), f"{where}.label", src),
-        source=None if "frames" in d else expand_env(_str(d.get("source", name), f"{where}.source", src)),
-        frames=expand_env(_str(d["frames"], f"{where}.frames", src)) if "frames" in d else None,
-        kind=_choice(d.get("kind", "object-centric"), KINDS, f"{where}.kind", src),
-        rig=_choice(d.get("rig", "default"), rigs.RIG_CHOICES, f"{where}.rig", src),
-        cameras=_cameras(d["cameras"], f"{where}.cameras", src) if "cameras" in d else None,
-        lod=None if lod is None else _num(lod, f"{where}.lod", src, lo=0, integer=True),
-        n_train=_num(d.get("n_train", protocol.n_train), f"{where}.n_train", src, lo=0, hi=rigs.MAX_VIEWS, integer=True),
-        n_test=_num(d.get("n_test", protocol.n_test), f"{where}.n_test", src, lo=1, hi=rigs.MAX_VIEWS, integer=True),
-        suites=tuple(suites),
-        optional=_bool(d.get("optional", False), f"{where}.optional", src),
-        capture=_capture(d["capture"], f"{where}.capture", src) if "capture" in d else None,
-    )
+    if "frames" not in d and kw["source"] is None:
+        kw["source"] = expand_env(name)
+    return SceneSpec(name=name, label=label, **kw)
 
 
-def _sequence_scene(d, where, name, suites, src, optional: bool) -> SceneSpec:
-    """A scene given as an MPEG content folder (``sequence: DIR``)."""
+def _sequence_scene(d, where, name, label, kw, src) -> SceneSpec:
+    """A scene given as an MPEG content folder (``sequence: DIR``): its own frames and cameras."""
     clash = [k for k in ("source", "frames", "cameras", "rig", "lod", "capture") if k in d]
     if clash:
         raise InputError(src, f"{where}: `sequence` brings its own frames and cameras; drop {', '.join(clash)}")
-    test = d.get("test", [])
-    if not isinstance(test, list) or not all(isinstance(t, str) for t in test):
-        raise InputError(src, f"{where}.test: expected a list of view names")
-    size = [None if d.get(k) is None else _num(d[k], f"{where}.{k}", src, lo=1, hi=16384, integer=True)
-            for k in ("width", "height")]
-    if (size[0] is None) != (size[1] is None):
+    if (kw["width"] is None) != (kw["height"] is None):
         raise InputError(src, f"{where}: give both width and height, or neither")
-    return SceneSpec(
-        name=name, label=str(d.get("label", name)), source=None,
-        kind=_choice(d.get("kind", "object-centric"), KINDS, f"{where}.kind", src),
-        sequence=expand_env(_str(d["sequence"], f"{where}.sequence", src)), test=tuple(test),
-        test_every=_num(d.get("test_every", 0), f"{where}.test_every", src, lo=0, integer=True),
-        width=size[0], height=size[1], suites=tuple(suites), optional=optional,
-    )
+    keep = ("kind", "sequence", "test", "test_every", "width", "height", "suites", "optional")
+    return SceneSpec(name=name, label=label, **{k: kw[k] for k in keep})
 
 
 def _fmt(v) -> str:
     return format(v, "g") if isinstance(v, float) else str(v)
 
 
-def _method(d, i, default_ratios, scene_names, src) -> list[MethodVariant]:
-    """Expand one methods[] entry into its variants, each with its parameters resolved and checked
-    (through the pruner's :class:`Params`) here, once."""
-    from harness.core.params import ParamError
+def _entry_ratios(e: dict, default_ratios, where: str, src) -> tuple[float, ...]:
+    """An entry's ratios: its ``ratios``/``keep`` merged, else the top level's (never none)."""
+    if e["ratios"] is not None or e["keep"] is not None:
+        out = merge_ratios(e["ratios"] or (), e["keep"] or ())
+    else:
+        out = default_ratios
+    if not out:
+        raise InputError(src, f"{where}: no pruning ratios (set `ratios`/`keep` here or at the top level)")
+    return out
 
-    where = f"methods[{i}]"
-    if isinstance(d, str):
-        d = {"name": d}
-    d = _mapping(d, where, src)
-    _only(d, {"name", "variant", "params", "sweep", "ratios", "keep", "scenes"}, where, src)
-    name = _str(d.get("name"), f"{where}.name", src)
-    spec = _pruner(name, f"{where}.name", src)
-    params = _mapping(d.get("params"), f"{where}.params", src)
-    sweep = _mapping(d.get("sweep"), f"{where}.sweep", src)
+
+def _entry_scenes(scenes, scene_names, where: str, src) -> tuple[str, ...] | None:
+    if scenes is None:
+        return None
+    if not scenes:
+        raise InputError(src, f"{where}.scenes: expected a non-empty list of scene names")
+    for j, s in enumerate(scenes):
+        if s not in scene_names:
+            raise InputError(src, f"{where}.scenes[{j}]: {unknown('scene of this config', s, sorted(scene_names))}")
+    return tuple(scenes)
+
+
+def _check_sweep(sweep: dict, params: dict, where: str, src) -> None:
     for k, vals in sweep.items():
         if not isinstance(vals, list) or not vals:
             raise InputError(src, f"{where}.sweep.{k}: expected a non-empty list of values")
         if k in params:
             raise InputError(src, f"{where}.sweep.{k}: also set in params; give it in one place")
-    if "ratios" in d or "keep" in d:
-        ratios = merge_ratios(_fractions(d["ratios"], f"{where}.ratios", src) if "ratios" in d else (),
-                              _fractions(d["keep"], f"{where}.keep", src) if "keep" in d else ())
-    else:
-        ratios = default_ratios
-    if not ratios:
-        raise InputError(src, f"{where}: no pruning ratios (set `ratios`/`keep` here or at the top level)")
-    scenes = None
-    if "scenes" in d:
-        scenes = d["scenes"]
-        if not isinstance(scenes, list) or not scenes:
-            raise InputError(src, f"{where}.scenes: expected a non-empty list of scene names")
-        for j, s in enumerate(scenes):
-            if s not in scene_names:
-                raise InputError(src, f"{where}.scenes[{j}]: {unknown('scene of this config', s, sorted(scene_names))}")
-        scenes = tuple(scenes)
-    base = d.get("variant")
-    if base is not None:
-        base = _str(base, f"{where}.variant", src)
-    out = []
+
+
+def _variants(spec, e: dict, where: str, src):
+    """(variant name, resolved parameters) of every combination of the entry's sweep (one without)."""
+    from harness.core.params import ParamError
+
+    params, sweep = e["params"] or {}, e["sweep"] or {}
     keys = list(sweep)
-    for j, combo in enumerate(itertools.product(*(sweep[k] for k in keys)) if keys else [()]):
+    for combo in itertools.product(*(sweep[k] for k in keys)) if keys else [()]:
         label = ",".join(f"{k}={_fmt(v)}" for k, v in zip(keys, combo))
-        variant = ":".join(x for x in (base, label) if x) or "default"
         try:
             resolved = spec.parse_params({**params, **dict(zip(keys, combo))})
         except ParamError as err:
             section = "sweep" if err.key in sweep else "params"
             key = f".{section}.{err.key}" if err.key is not None else f".{section}"
-            raise InputError(src, f"{where}{key}: method {name!r}: {err.problem}") from None
-        out.append(MethodVariant(method=name, variant=variant, params=resolved, ratios=ratios, scenes=scenes))
-    return out
+            raise InputError(src, f"{where}{key}: method {e['name']!r}: {err.problem}") from None
+        yield ":".join(x for x in (e["variant"], label) if x) or "default", resolved
 
 
-def _anchor(v, src) -> str:
-    """The BD anchor: a registered pruner name."""
-    name = _str(v, "anchor", src)
-    _pruner(name, "anchor", src)
-    return name
+def _method(d, i, default_ratios, scene_names, src) -> list[MethodVariant]:
+    """Expand one methods[] entry into its variants, each with its parameters resolved and checked
+    (through the pruner's :class:`Params`) here, once."""
+    where = f"methods[{i}]"
+    d = _mapping({"name": d} if isinstance(d, str) else d, where, src)
+    e = read_section(MethodEntry, d, where, src)
+    if e["name"] is None:
+        _str(None, f"{where}.name", src)  # required: "expected a non-empty string"
+    _check_sweep(e["sweep"] or {}, e["params"] or {}, where, src)
+    rs = _entry_ratios(e, default_ratios, where, src)
+    scenes = _entry_scenes(e["scenes"], scene_names, where, src)
+    spec = _pruner(e["name"], f"{where}.name", src)
+    return [MethodVariant(method=e["name"], variant=v, params=p, ratios=rs, scenes=scenes)
+            for v, p in _variants(spec, e, where, src)]
 
 
-def _pruner(name: str, where: str, src):
-    """The registered pruner ``name``, or an InputError with the known names and the close ones."""
-    from methods.registry import get_pruner, list_pruners
-
-    try:
-        return get_pruner(name)
-    except KeyError:
-        raise InputError(src, f"{where}: {unknown('method', name, [p.name for p in list_pruners()])}") from None
-
-
-def parse_config(data: Any, source: str = "<config>") -> RunConfig:
-    """Validate a parsed YAML document and expand method sweeps."""
-    src = source
-    d = _mapping(data, "top level", src)
-    _only(d, {"name", "output", "workers", "protocol", "ratios", "keep", "scenes", "methods", "tables", "plots",
-              "anchor", "protocols", "executor"}, "top level", src)
-    protocol = _protocol(d.get("protocol"), src)
-    scenes_raw = d.get("scenes")
-    if not isinstance(scenes_raw, list) or not scenes_raw:
+def _scenes(d, protocol: Protocol, src) -> list[SceneSpec]:
+    raw = d.get("scenes")
+    if not isinstance(raw, list) or not raw:
         raise InputError(src, "scenes: expected a non-empty list of scenes")
-    scenes = [_scene(s, i, protocol, src) for i, s in enumerate(scenes_raw)]
+    scenes = [_scene(s, i, protocol, src) for i, s in enumerate(raw)]
     seen: set[str] = set()
     for i, s in enumerate(scenes):
         if s.name in seen:
             raise InputError(src, f"scenes[{i}].name: duplicate scene name {s.name!r}")
         seen.add(s.name)
-    ratios = merge_ratios(_fractions(d["ratios"], "ratios", src) if "ratios" in d else (),
-                          _fractions(d["keep"], "keep", src) if "keep" in d else ())
-    methods_raw = d.get("methods")
-    if not isinstance(methods_raw, list) or not methods_raw:
+    return scenes
+
+
+def _methods(d, default_ratios, scene_names, src) -> list[MethodVariant]:
+    raw = d.get("methods")
+    if not isinstance(raw, list) or not raw:
         raise InputError(src, "methods: expected a non-empty list of methods")
     methods: list[MethodVariant] = []
     keys: dict[str, int] = {}
-    for i, m in enumerate(methods_raw):
-        for v in _method(m, i, ratios, seen, src):
+    for i, m in enumerate(raw):
+        for v in _method(m, i, default_ratios, scene_names, src):
             if v.key in keys:
                 raise InputError(src, f"methods[{i}]: variant {v.key} already defined by methods[{keys[v.key]}]; "
                                       "give one of them a distinct `variant`")
             keys[v.key] = i
             methods.append(v)
-    name = _str(d.get("name", Path(source).stem), "name", src)
+    return methods
+
+
+def parse_config(data: Any, source: str = "<config>") -> RunConfig:
+    """Validate a parsed YAML document (its ``extends`` resolved) and expand method sweeps."""
+    from harness.run.config_files import resolve
+
+    src = source
+    data, _ = resolve(data, source)
+    d = _mapping(data, "top level", src)
+    top = read_section(Settings, d, "", src, extra=SECTIONS)
+    protocol = _protocol(d.get("protocol"), src)
+    scenes = _scenes(d, protocol, src)
+    default_ratios = merge_ratios(top["ratios"], top["keep"])
+    methods = _methods(d, default_ratios, {s.name for s in scenes}, src)
+    name = top["name"] if top["name"] is not None else _str(Path(source).stem, "name", src)
     return RunConfig(
-        name=name,
-        output=expand_env(_str(d.get("output", f"runs/{name}"), "output", src)),
-        workers=_num(d.get("workers", 1), "workers", src, lo=1, hi=256, integer=True),
-        protocol=protocol,
-        scenes=scenes,
-        methods=methods,
-        tables=_names(d.get("tables", list(TABLES)), TABLES, "tables", src, "table"),
-        plots=_names(d.get("plots", list(PLOTS)), PLOTS, "plots", src, "plot"),
-        source_path=str(source),
-        raw=d,
-        anchor=_anchor(d.get("anchor", "lightgs"), src),
-        protocols=_protocols(d.get("protocols", ["rig"]), src),
+        name=name, output=top["output"] or f"runs/{name}", workers=top["workers"], protocol=protocol,
+        scenes=scenes, methods=methods, tables=top["tables"], plots=top["plots"], source_path=str(source), raw=d,
+        anchor=top["anchor"], protocols=_protocols(d.get("protocols", ["rig"]), src),
         executor=parse_executor(d.get("executor"), src),
     )
 

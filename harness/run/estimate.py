@@ -180,19 +180,19 @@ def _sizes(cams) -> list[tuple[int, int]]:
 
 
 def _present_views(spec, config, toolkit, base, dataset):
-    from harness.run.plan import _select_test
+    from harness.run.plan import select_test
 
     if spec.sequence is not None:
         from harness.io.sequences import find_sequence, sequence_cameras
 
         root = Path(spec.sequence) if Path(spec.sequence).is_absolute() else base / spec.sequence
         cams = sequence_cameras(find_sequence(root)[0], spec.width, spec.height)
-        train, test = _select_test(cams, spec) if spec.test or spec.test_every else (cams, cams)
+        train, test = select_test(cams, spec) if spec.test or spec.test_every else (cams, cams)
         return _sizes(test), _sizes(train)
     if spec.cameras is not None:
         path = Path(spec.cameras.path) if Path(spec.cameras.path).is_absolute() else base / spec.cameras.path
         cams = [c.resized(config.protocol.longest_side) for c in toolkit.load_cameras(str(path))]
-        train, test = _select_test(cams, spec.cameras)
+        train, test = select_test(cams, spec.cameras)
         return _sizes(test), _sizes(train)
     size = _rig_size(spec, config, dataset)
     from harness.io.capture import CaptureProtocol
@@ -237,13 +237,13 @@ def _assumed(spec, config, assume: Assumptions, dataset, reason: str) -> SceneIn
 
 def scene_info(spec: SceneSpec, config: RunConfig, assume: Assumptions, toolkit=None, base: Path | None = None):
     """A scene as the estimate sees it: read (file headers, camera files) when present, else assumed."""
-    from harness.run.plan import _cameras_missing, resolve_paths
+    from harness.run.plan import cameras_missing, resolve_paths
     from harness.run.toolkit import Toolkit
 
     toolkit, base = toolkit or Toolkit(), Path(base or ".")
     dataset = spec.source if spec.source and toolkit.resolve_dataset(spec.source) else None
     frames, reason = resolve_paths(spec, toolkit, base)
-    reason = reason or _cameras_missing(spec, base)
+    reason = reason or cameras_missing(spec, base)
     if not reason:
         real = _real_views(spec, config, toolkit, base)  # a bad capture is an error, not an assumption
         try:
@@ -258,10 +258,13 @@ def scene_info(spec: SceneSpec, config: RunConfig, assume: Assumptions, toolkit=
 # --------------------------------------------------------------------------- counting and costing
 def metric_passes(names) -> dict[str, int]:
     """Passes per measured image: ``lpips`` (LPIPS-VGG trunk), ``ssim`` (3-plane SSIM) and ``psnr``
-    (a PSNR-like pass: squared errors, 8-bit quantisation, colour conversion)."""
-    out = {"lpips": 0, "ssim": 0, "psnr": 0}
+    (a PSNR-like pass: squared errors, 8-bit quantisation, colour conversion), each metric's as
+    registered (its ``cost``, :mod:`harness.metrics.registry`)."""
+    from harness.metrics.registry import METRICS, PASS_KINDS
+
+    out = dict.fromkeys(PASS_KINDS, 0)
     for n in names:
-        out["lpips" if n == "lpips" else "ssim" if "ssim" in n else "psnr"] += 1
+        out[METRICS.get(n).cost] += 1
     return out
 
 
@@ -285,73 +288,100 @@ def _score_cost(mv, spec, n: int, train, units: UnitCosts, notes: set) -> tuple[
     return (k or 0.0) * renders * units.render(n, px), renders
 
 
+@dataclass
+class _Costing:
+    """What every scene of an estimate is costed with: unit costs, the metric passes per pixel of a
+    measured image (``per_px``), of a reference's LPIPS features (``ref_px``) and against a photo
+    (``gt_px``: the passes again but the LPIPS trunk, shared, plus OM-PSNR), and the notes."""
+
+    u: UnitCosts
+    per_px: float
+    ref_px: float
+    gt_px: float
+    notes: set
+
+
 def estimate(config: RunConfig, infos: list[SceneInfo], units: UnitCosts | None) -> Estimate:
     """Counts per stage of a cold run of ``config`` on ``infos``; with ``units`` also core-seconds
     and the longest single task of each stage (``units=None``: counts only)."""
-    from methods.registry import get_pruner
-
     u = units or UnitCosts(0, 0, 0, 0, 0, 0, 0, 0, {}, {})
     passes = metric_passes(config.protocol.metrics)
-    per_px = passes["lpips"] * u.lpips_px + passes["ssim"] * u.ssim_px + passes["psnr"] * u.psnr_px
-    ref_px = u.lpips_ref_px if passes["lpips"] else 0.0
+    cost = _Costing(u, passes["lpips"] * u.lpips_px + passes["ssim"] * u.ssim_px + passes["psnr"] * u.psnr_px,
+                    u.lpips_ref_px if passes["lpips"] else 0.0,
+                    passes["ssim"] * u.ssim_px + (passes["psnr"] + 1) * u.psnr_px, set())
     st = {n: Stage(n) for n in STAGES}
     st["score"].detail = {"training_renders": 0, "camera_aware_tasks": 0}
     st["render+metrics"].detail = {"view_tasks": 0, **{f"{k}_passes": 0 for k in passes}}
-    notes: set[str] = set()
     rows = []
     specs = {s.name: s for s in config.scenes}
-    gt_px = passes["ssim"] * u.ssim_px + (passes["psnr"] + 1) * u.psnr_px  # against the photo (+ OM-PSNR)
     for info in infos:
-        spec = specs[info.name]
-        tasks: dict[str, tuple] = {}  # distinct score tasks: (method, params) -> (variant, pruner, ratios)
-        for mv in (m for m in config.methods if m.scenes is None or spec.name in m.scenes):
-            pruner = get_pruner(mv.method)
-            if "cameras" in pruner.needs and not (info.train or info.real_train):
-                notes.add(f"{spec.name}: {mv.method} needs training cameras and is skipped")
-                continue
-            key = f"{mv.method}|{sorted(mv.params.to_dict().items())!r}"
-            prev = tasks.get(key, (mv, pruner, ()))
-            tasks[key] = (prev[0], pruner, tuple(dict.fromkeys(prev[2] + tuple(mv.ratios))))
+        tasks = _score_tasks(config, specs[info.name], info, cost.notes)
         keeps = [1.0 - r for _, _, rs in tasks.values() for r in rs]
-        n_sets = len(keeps)
-        # training sets (harness.run.plan): the rig's, and the capture's for the real protocol
-        sets = [(train, views, False) for train, views in ((info.train, info.views),) if views] \
-            + [(info.real_train, info.real_views, True)] * bool(info.real_views)
         before = {k: (s.units, s.core_s) for k, s in st.items()}
         for n in info.splats:
-            st["load"].add(1, u.read_splat * n)
-            for j, (train, views, photos) in enumerate(sets):
-                for mv, pruner, rs in tasks.values():
-                    aware = "cameras" in pruner.needs
-                    if j and not aware:
-                        continue  # a camera-free pruner's scores serve every training set
-                    if aware and not train:
-                        continue
-                    cost, renders = _score_cost(mv, pruner, n, train, u, notes)
-                    st["score"].add(1, cost, cost)
-                    st["score"].detail["training_renders"] += renders
-                    st["score"].detail["camera_aware_tasks"] += aware
-                    st["prune"].add(len(rs), u.select_splat * n * len(rs), u.select_splat * n)
-                for w, h in views:
-                    px = w * h
-                    st["render_ref"].add(1, u.render(n, px), u.render(n, px))
-                    if not n_sets:
-                        continue
-                    extra = gt_px * px if photos else 0.0
-                    image = [u.render(n * k, px) + per_px * px + extra + IMAGE_OVERHEAD_S for k in keeps]
-                    ref_cost = ref_px * px + (extra + 2 * ref_px * px) * photos  # + photo features, gt
-                    task = ref_cost + sum(image)  # one task per view
-                    st["render+metrics"].add(n_sets, task, task)
-                    st["render+metrics"].detail["view_tasks"] += 1
+            _cost_frame(st, n, info, tasks, keeps, cost)
         for k, v in passes.items():
             st["render+metrics"].detail[f"{k}_passes"] = v * st["render+metrics"].units
-        images = st["render+metrics"].units - before["render+metrics"][0]
-        sizes = sorted(set(info.views + info.real_views))
-        rows.append({"scene": info.name, "status": info.status, "note": info.note, "frames": len(info.splats),
-                     "splats": round(sum(info.splats) / max(1, len(info.splats))),
-                     "views": len(info.views) + len(info.real_views),
-                     "train_views": len(info.train) + len(info.real_train),
-                     "size": "/".join(f"{w}×{h}" for w, h in sizes[:3]) + ("/…" if len(sizes) > 3 else ""),
-                     "score_tasks": st["score"].units - before["score"][0], "sets": n_sets, "images": images,
-                     "core_s": sum(s.core_s - before[k][1] for k, s in st.items())})
-    return Estimate(st, rows, passes, sorted(notes))
+        rows.append(_scene_row(info, st, before, len(keeps)))
+    return Estimate(st, rows, passes, sorted(cost.notes))
+
+
+def _score_tasks(config: RunConfig, spec, info: SceneInfo, notes: set) -> dict[str, tuple]:
+    """The distinct score tasks of a scene: (method, params) -> (variant, pruner, ratios); a
+    camera-aware pruner without training cameras is skipped (a note says so)."""
+    from methods.registry import get_pruner
+
+    tasks: dict[str, tuple] = {}
+    for mv in (m for m in config.methods if m.scenes is None or spec.name in m.scenes):
+        pruner = get_pruner(mv.method)
+        if "cameras" in pruner.needs and not (info.train or info.real_train):
+            notes.add(f"{spec.name}: {mv.method} needs training cameras and is skipped")
+            continue
+        key = f"{mv.method}|{sorted(mv.params.to_dict().items())!r}"
+        prev = tasks.get(key, (mv, pruner, ()))
+        tasks[key] = (prev[0], pruner, tuple(dict.fromkeys(prev[2] + tuple(mv.ratios))))
+    return tasks
+
+
+def _cost_frame(st: dict, n: int, info: SceneInfo, tasks: dict, keeps: list, cost: _Costing) -> None:
+    """Add one frame of ``n`` splats to the stages: its load; per training set (the rig's, and the
+    capture's for the real protocol: :mod:`harness.run.plan`) its score tasks and selections; per
+    held-out view its reference render and one view task measuring every pruned set."""
+    u = cost.u
+    sets = [(train, views, False) for train, views in ((info.train, info.views),) if views] \
+        + [(info.real_train, info.real_views, True)] * bool(info.real_views)
+    st["load"].add(1, u.read_splat * n)
+    for j, (train, views, photos) in enumerate(sets):
+        for mv, pruner, rs in tasks.values():
+            aware = "cameras" in pruner.needs
+            if (j and not aware) or (aware and not train):
+                continue  # a camera-free pruner's scores serve every training set
+            core_s, renders = _score_cost(mv, pruner, n, train, u, cost.notes)
+            st["score"].add(1, core_s, core_s)
+            st["score"].detail["training_renders"] += renders
+            st["score"].detail["camera_aware_tasks"] += aware
+            st["prune"].add(len(rs), u.select_splat * n * len(rs), u.select_splat * n)
+        for w, h in views:
+            px = w * h
+            st["render_ref"].add(1, u.render(n, px), u.render(n, px))
+            if not keeps:
+                continue
+            extra = cost.gt_px * px if photos else 0.0
+            image = [u.render(n * k, px) + cost.per_px * px + extra + IMAGE_OVERHEAD_S for k in keeps]
+            ref_cost = cost.ref_px * px + (extra + 2 * cost.ref_px * px) * photos  # + photo features, gt
+            task = ref_cost + sum(image)  # one task per view
+            st["render+metrics"].add(len(keeps), task, task)
+            st["render+metrics"].detail["view_tasks"] += 1
+
+
+def _scene_row(info: SceneInfo, st: dict, before: dict, n_sets: int) -> dict:
+    """The scene's row of the estimate: what was read or assumed, and its share of each stage."""
+    sizes = sorted(set(info.views + info.real_views))
+    return {"scene": info.name, "status": info.status, "note": info.note, "frames": len(info.splats),
+            "splats": round(sum(info.splats) / max(1, len(info.splats))),
+            "views": len(info.views) + len(info.real_views),
+            "train_views": len(info.train) + len(info.real_train),
+            "size": "/".join(f"{w}×{h}" for w, h in sizes[:3]) + ("/…" if len(sizes) > 3 else ""),
+            "score_tasks": st["score"].units - before["score"][0], "sets": n_sets,
+            "images": st["render+metrics"].units - before["render+metrics"][0],
+            "core_s": sum(s.core_s - before[k][1] for k, s in st.items())}

@@ -3,23 +3,33 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 from harness.core.errors import InputError
-from harness.run.config_checks import choice, expand_env, mapping, num, only, string
+from harness.core.params import param
+from harness.run.config_checks import expand_env, mapping, string
+from harness.run.schema import read_section
 
 EXECUTORS = ("local", "ray")
+
+
+def _address(v, key, src):
+    return None if v is None else expand_env(string(v, key, src))
 
 
 @dataclass(frozen=True)
 class ExecutorSpec:
     """Where the work units run (:mod:`harness.run.executors`)."""
 
-    name: str = "local"
-    address: str | None = None  # ray: None = start a local cluster; "auto", "HOST:PORT", "ray://HOST:10001"
-    cpus_per_task: int | None = None  # ray: CPUs (= threads) per task; default cores // workers locally, 1 on a cluster
-    gpus_per_task: float = 1.0  # ray: GPU share of a render/metrics/camera-aware task when protocol.device is CUDA
-    max_retries: int = 2  # ray: re-runs of a task whose worker process died (never of a task that raised)
+    name: str = param("local", choices=EXECUTORS, doc="local (a process pool) or ray")
+    address: str | None = param(None, parse=_address,
+                                doc="ray: none = start a local cluster; auto, HOST:PORT or ray://HOST:10001")
+    cpus_per_task: int | None = param(None, ge=1, le=1024,
+                                      doc="ray: CPUs (= threads) per task; default cores // workers locally, 1 on a "
+                                          "cluster")
+    gpus_per_task: float = param(1.0, ge=0.01, le=64,
+                                 doc="ray: GPU share of a render/metrics/camera-aware task when protocol.device is CUDA")
+    max_retries: int = param(2, ge=0, le=100,
+                             doc="ray: re-runs of a task whose worker process died (never of a task that raised)")
 
 
 def parse_executor(v, src) -> ExecutorSpec:
@@ -29,17 +39,6 @@ def parse_executor(v, src) -> ExecutorSpec:
     if isinstance(v, str):
         v = {"name": v}
     d = mapping(v, "executor", src)
-    only(d, set(ExecutorSpec.__dataclass_fields__), "executor", src)
-    name = choice(d.get("name", "local"), EXECUTORS, "executor.name", src)
-    if name == "local" and set(d) - {"name"}:
-        raise InputError(src, f"executor: {', '.join(sorted(set(d) - {'name'}))} go with `name: ray`")
-    kw: dict[str, Any] = {"name": name}
-    if d.get("address") is not None:
-        kw["address"] = expand_env(string(d["address"], "executor.address", src))
-    if d.get("cpus_per_task") is not None:
-        kw["cpus_per_task"] = num(d["cpus_per_task"], "executor.cpus_per_task", src, lo=1, hi=1024, integer=True)
-    if "gpus_per_task" in d:
-        kw["gpus_per_task"] = float(num(d["gpus_per_task"], "executor.gpus_per_task", src, lo=0.01, hi=64))
-    if "max_retries" in d:
-        kw["max_retries"] = num(d["max_retries"], "executor.max_retries", src, lo=0, hi=100, integer=True)
-    return ExecutorSpec(**kw)
+    if d.get("name", "local") == "local" and set(d) - {"name"}:
+        raise InputError(src, f"executor: {', '.join(sorted(set(d) - {'name'}, key=str))} go with `name: ray`")
+    return ExecutorSpec(**read_section(ExecutorSpec, d, "executor", src))

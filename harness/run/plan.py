@@ -30,7 +30,6 @@ mean"); an optional one is recorded as skipped with the reason.
 from __future__ import annotations
 
 import glob
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -56,7 +55,6 @@ class SceneItem:
     rig: str
     train: list[Camera]
     test: list[Camera]
-    load_s: float = 0.0
     ply_base: int = 0  # size model of the pruned .ply (harness.io.plysize): base + digits + N·row
     ply_row: int = 0
     #: held-out views of the other rig protocols (the rig protocol's are ``test``)
@@ -165,7 +163,7 @@ def check_sources(config: RunConfig, toolkit: Toolkit, base: Path, *, names_only
     skips, problems = [], []
     for i, spec in enumerate(config.scenes):
         _, reason = resolve_paths(spec, toolkit, base)
-        reason = reason or _cameras_missing(spec, base)
+        reason = reason or cameras_missing(spec, base)
         if reason is None:
             continue
         if spec.optional:
@@ -180,14 +178,14 @@ def check_sources(config: RunConfig, toolkit: Toolkit, base: Path, *, names_only
     return skips
 
 
-def _cameras_missing(spec: SceneSpec, base: Path) -> str | None:
+def cameras_missing(spec: SceneSpec, base: Path) -> str | None:
     if spec.cameras is None:
         return None
     p = Path(spec.cameras.path)
     return None if (p if p.is_absolute() else base / p).exists() else f"cameras not found: {spec.cameras.path}"
 
 
-def _select_test(cams: list[Camera], spec) -> tuple[list[Camera], list[Camera]]:
+def select_test(cams: list[Camera], spec) -> tuple[list[Camera], list[Camera]]:
     """Split cameras from a file: named test views, else every ``test_every``-th (LLFF convention)."""
     if spec.test:
         test = [c for c in cams if c.name in spec.test or Path(c.name).stem in spec.test]
@@ -220,7 +218,7 @@ def scene_views(item_spec: SceneSpec, scene, path: Path, protocol, cache: StageC
         return hit["rig"], [Camera.from_dict(c) for c in hit["train"]], [Camera.from_dict(c) for c in hit["test"]]
     if item_spec.cameras is not None:
         cams = [c.resized(p.longest_side) for c in toolkit.load_cameras(str(cpath))]
-        train, test = _select_test(cams, item_spec.cameras)
+        train, test = select_test(cams, item_spec.cameras)
         if not test:
             from harness.core.errors import InputError
 
@@ -263,7 +261,7 @@ def _sequence_views(spec: SceneSpec, cache: StageCache, versions: Versions, base
         return hit["rig"], [Camera.from_dict(c) for c in hit["train"]], [Camera.from_dict(c) for c in hit["test"]]
     cams = sequence_cameras(seq, spec.width, spec.height)
     if spec.test or spec.test_every:
-        train, test = _select_test(cams, spec)
+        train, test = select_test(cams, spec)
         if not test:
             from harness.core.errors import InputError
 
@@ -305,7 +303,7 @@ def load_items(config: RunConfig, cache: StageCache, toolkit: Toolkit, versions:
     for spec in config.scenes:
         views, reason = captures[spec.name]
         frames, missing = resolve_paths(spec, toolkit, base)
-        missing = missing or _cameras_missing(spec, base)
+        missing = missing or cameras_missing(spec, base)
         if not missing and real is not None and views is None and not _measures_rig(config):
             missing = f"the {real.name} protocol measures it only, and {reason}"
         if missing:
@@ -338,7 +336,6 @@ def _scene_items(spec, frames, config, cache, toolkit, versions, base, real=None
 
     items, views, shifted = [], None, None
     for frame, path in frames:
-        t0 = time.perf_counter()
         digest = digest_json({"file": cache.files.scene(path), "lod": spec.lod})
         scene = _LazyScene(toolkit, str(path), spec.lod)
         key = cache.key("load", scene=digest, code=versions.reader)
@@ -360,7 +357,7 @@ def _scene_items(spec, frames, config, cache, toolkit, versions, base, real=None
         if shifted is None:
             shifted = shifted_views(spec, scene, config, cache, toolkit, versions, digest, rig)
         items.append(SceneItem(spec, frame, str(path), digest, info["n_splats"], info["sh_degree"], rig,
-                               train, test, time.perf_counter() - t0, info["ply_base"], info["ply_row"], shifted,
+                               train, test, info["ply_base"], info["ply_row"], shifted,
                                real, measure_rig=not isinstance(config.protocols[0], CaptureProtocol)))
     return items
 

@@ -16,6 +16,7 @@ result under the previous code's key. Rerun with ``--force`` after such edits.
 
 from __future__ import annotations
 
+import functools
 import os
 import time
 from dataclasses import dataclass, field
@@ -23,7 +24,6 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.core import ratios
 from harness.run.cache import StageCache, digest_json, digest_mask
 from harness.run.config import RunConfig
 from harness.run.executors import Bars, Executor, LocalExecutor, Stage
@@ -174,7 +174,6 @@ class Runner:
         """{(item index, method key, training set): (score key, record)}, one per training set of the
         item's protocols (:meth:`SceneItem.train_sets`; a method that ignores cameras has one key for
         all of them, computed once); camera-aware without cameras -> skip."""
-        p = self.config.protocol
         out, skips, tasks, pending, hits = {}, [], [], {}, {}
         for i, item in enumerate(items):
             for mv in variants_for(item, self.config.methods):
@@ -193,35 +192,37 @@ class Runner:
                         continue
                     if key not in pending:
                         pending[key] = []
-                        tasks.append(ScoreTask(
-                            self.cache.location, key, item.path, item.spec.lod, item.digest, mv.method,
-                            mv.params, p.seed, [c.to_dict() for c in train] if spec.wants_cameras(mv.params) else None,
-                            p.device, self.toolkit, label=f"{_where(item)} {mv.key}" + (f" ({ts} cameras)" if
-                                                                                        ts != "rig" else "")))
+                        tasks.append(self._score_task(key, item, mv, spec, ts, train))
                     pending[key].append((i, mv.key, ts))
         if self.executor.parallel:  # camera-aware (rendering) and big scenes first, so the pool ends together
             cost = {k: items[ik[0][0]].n_splats * (10 if t.train else 1) for t, (k, ik) in zip(tasks, pending.items())}
             tasks.sort(key=lambda t: -cost[t.key])
-
-        def who(key: str) -> str:  # every (scene, method, ratios) that a score entry serves
-            mvs = {m.key: m for m in self.config.methods}
-            return "; ".join(f"{_where(items[i])} {mk} (ratios {', '.join(format(r, 'g') for r in mvs[mk].ratios)})"
-                             for i, mk in dict.fromkeys((i, mk) for i, mk, _ in pending[key]))
-
         for res in self._map("score", run_score, tasks):
-            if res["error"]:
-                self.errors.append(f"score {who(res['key'])} [{res['key'][:12]}]: {res['error']}")
-                for ik in pending[res["key"]]:
-                    out[ik] = (res["key"], {"error": res["error"]})
-                continue
-            n = items[pending[res["key"]][0][0]].n_splats
-            rec = self.cache.load_json("score", res["key"], check=score_record_check(n))
-            if rec is None or self.cache.load_array("score", res["key"], check=score_array_check(n)) is None:
-                rec = {"error": "the stored scores failed verification"}
-                self.errors.append(f"score {who(res['key'])} [{res['key'][:12]}]: {rec['error']}")
+            rec = self._stored_scores(res, items[pending[res["key"]][0][0]].n_splats, items, pending[res["key"]])
             for ik in pending[res["key"]]:
                 out[ik] = (res["key"], rec)
         return out, skips
+
+    def _score_task(self, key: str, item: SceneItem, mv, spec, ts: str, train) -> ScoreTask:
+        p = self.config.protocol
+        return ScoreTask(self.cache.location, key, item.path, item.spec.lod, item.digest, mv.method, mv.params, p.seed,
+                         [c.to_dict() for c in train] if spec.wants_cameras(mv.params) else None, p.device,
+                         self.toolkit, label=f"{_where(item)} {mv.key}" + (f" ({ts} cameras)" if ts != "rig" else ""))
+
+    def _stored_scores(self, res: dict, n: int, items, serves) -> dict:
+        """The record of a score task that ran: its stored record when it and the array verify, else
+        an ``error`` record (the error also listed with every (scene, method, ratios) it serves)."""
+        rec = {"error": res["error"]} if res["error"] else self.cache.load_json(
+            "score", res["key"], check=score_record_check(n))
+        if not res["error"] and (rec is None or self.cache.load_array(
+                "score", res["key"], check=score_array_check(n)) is None):
+            rec = {"error": "the stored scores failed verification"}
+        if "error" in rec:
+            mvs = {m.key: m for m in self.config.methods}
+            who = "; ".join(f"{_where(items[i])} {mk} (ratios {', '.join(format(r, 'g') for r in mvs[mk].ratios)})"
+                            for i, mk in dict.fromkeys((i, mk) for i, mk, _ in serves))
+            self.errors.append(f"score {who} [{res['key'][:12]}]: {rec['error']}")
+        return rec
 
     def _cached_scores(self, key: str, n: int):
         """The score record when both it and its array pass verification (a hit), else None (a
@@ -230,7 +231,7 @@ class Runner:
                                                                 check=score_record_check(n))
         if rec is not None and self.cache.load_array("score", key, check=score_array_check(n)) is None:
             rec = None
-        self.cache._count("score", rec is not None)
+        self.cache.count("score", rec is not None)
         return rec
 
     def _prune_stage(self, items, scores):
@@ -255,7 +256,7 @@ class Runner:
                 if rec is not None and self.cache.load_array(
                         "masks", rec["mask"], check=mask_check(n, rec["splats_out"], rec["mask"])) is None:
                     rec = None  # its mask was missing or bad (discarded): recompute both
-                self.cache._count("prune", rec is not None)
+                self.cache.count("prune", rec is not None)
                 if rec is None:
                     if arr is None:
                         arr = self.cache.load_array("score", skey, check=score_array_check(n))
@@ -274,23 +275,23 @@ class Runner:
                 out[(i, mk, ts, r)] = done[(skey, r)] = rec
         return out
 
-    def _ref_key(self, item: SceneItem, cam) -> str:
+    def ref_key(self, item: SceneItem, cam) -> str:
         p = self.config.protocol
         return self.cache.key("render_ref", scene=item.digest, camera=cam.to_dict(), renderer=p.renderer,
                               code=self.versions.renderer, background=list(p.background))
 
-    def _metrics_key(self, ref_key: str, mask: str, photo: str | None = None) -> str:
+    def metrics_key(self, ref_key: str, mask: str, photo: str | None = None) -> str:
         """A view with a photo keys on its sha256 too (its entry holds the ``gt_`` metrics)."""
         extra = {"photo": photo} if photo else {}  # keys of views without a photo are unchanged
         return self.cache.key("metrics", ref=ref_key, mask=mask, metrics=list(self.config.protocol.metrics),
                               code=self.versions.metrics, **extra)
 
-    def _gt_key(self, ref_key: str, photo: str) -> str:
+    def gt_key(self, ref_key: str, photo: str) -> str:
         """The unpruned render of a view against its photo (and the photo's PNG at the render size)."""
         return self.cache.key("gt", ref=ref_key, photo=photo, metrics=list(self.config.protocol.metrics),
                               code=self.versions.metrics)
 
-    def _measured_names(self, photo) -> tuple[str, ...]:
+    def measured_names(self, photo) -> tuple[str, ...]:
         p = self.config.protocol
         return tuple(p.metrics) + (gt_names(p.metrics) if photo else ())
 
@@ -313,53 +314,29 @@ class Runner:
         pruned sets (each chunk computes its view's reference features and projection again). A view
         with a photo also measures its unpruned render against the photo (its first task, or a task
         of its own when every pruned set is measured)."""
-        p = self.config.protocol
         refs, chunks = [], []
         views: dict[str, str] = {}  # ref key -> "scene[/frame] view NAME" (error messages)
         users: dict[str, str] = {}  # metrics key -> the methods and ratios that keep those splats
         for i, item in enumerate(items):
             masks = self._masks(i, item, prunes)
             for proto, v, cam in item.views(self.primary):
-                ref_key = self._ref_key(item, cam)
+                ref_key = self.ref_key(item, cam)
                 views[ref_key] = f"{_where(item)} {proto} view {cam.name or f'view{v:02d}'}"
                 photo = item.photo(cam.name)
-                digest = photo[1] if photo else None
                 # the first view of the primary protocol and of the real one keep their renders as images
                 first = v == 0 and (proto == self.primary or photo is not None)
-                names = self._measured_names(photo)
-                jobs = []
-                for mask, kept in masks.get(item.train_set(proto), {}).items():
-                    mkey = self._metrics_key(ref_key, mask, digest)
-                    users[mkey] = ", ".join(kept)
-                    measured = self.cache.get_json("metrics", mkey, check=metrics_check(names)) is not None
-                    if not measured or (first and not self.cache.has("images", mkey, "png")):
-                        jobs.append(MaskJob(mkey, mask, first))
+                jobs = self._view_jobs(ref_key, masks.get(item.train_set(proto), {}), photo, first, users)
+                gt_key = self._gt_to_measure(ref_key, photo, v)
+                task = functools.partial(self._view_task, ref_key, item, cam, photo, views[ref_key])
+                ref_png = not self.cache.has("images", ref_key, "png")  # contact sheets and figures
                 have_ref = self.cache.get_json("render_ref", ref_key,
                                                check=render_ref_record_check(cam.width, cam.height)) is not None
-                gt_key = self._gt_key(ref_key, digest) if photo else None
-                if gt_key and self.cache.get_json("gt", gt_key, check=gt_check(gt_names(p.metrics))) is not None \
-                        and (v or self.cache.has("images", gt_key, "png")):
-                    gt_key = None  # measured (and the figure's photo kept)
-
-                def task(jobs_, render_ref=False, ref_png=False, ref_key=ref_key, item=item, cam=cam, gt=None,
-                         photo=photo):
-                    return ViewTask(self.cache.location, ref_key, item.path, item.spec.lod, item.digest,
-                                    item.n_splats, cam.to_dict(), p.renderer, p.device, p.background, p.metrics,
-                                    jobs_, render_ref=render_ref, ref_png=ref_png, toolkit=self.toolkit,
-                                    label=views[ref_key], photo=photo[0] if photo else None,
-                                    gt=gt_names(p.metrics) if photo else (), gt_key=gt)
-
-                ref_png = not self.cache.has("images", ref_key, "png")  # contact sheets and figures
                 if not have_ref or ref_png:
                     refs.append(task([], render_ref=not have_ref, ref_png=ref_png))
                 if jobs or gt_key:  # LPIPS pass + render (N); a photo adds its comparisons
                     cost = max(len(jobs) * (1.0 + item.n_splats / 5e5) * (1.6 if photo else 1.0), 1.0)
                     chunks.append((cost, jobs, task, gt_key))
-        slots = BALANCE * self.workers if self.executor.parallel else 1
-        n_views = len(chunks)
-        chunks = [(cost * max(len(part), 1) / max(len(jobs), 1), task(part, gt=gt if c == 0 else None))
-                  for cost, jobs, task, gt in chunks
-                  for c, part in enumerate(view_parts(jobs, n_views, slots))]
+        chunks = self._split_views(chunks)
         if self.executor.parallel:  # longest first; in-process order keeps a view's chunks together
             refs.sort(key=lambda t: -t.n_splats)
             chunks.sort(key=lambda ct: -ct[0])
@@ -373,77 +350,47 @@ class Runner:
                 self.errors.append(f"render {what}" + ("" if key is None else f" pruned by {users.get(key) or '?'} "
                                                        f"[{key[:12]}]") + f": {err}")
 
+    def _view_jobs(self, ref_key: str, kept_by: dict, photo, first: bool, users: dict) -> list[MaskJob]:
+        """The pruned sets of a view still to measure (or whose image the figures still need)."""
+        names = self.measured_names(photo)
+        jobs = []
+        for mask, kept in kept_by.items():
+            mkey = self.metrics_key(ref_key, mask, photo[1] if photo else None)
+            users[mkey] = ", ".join(kept)
+            measured = self.cache.get_json("metrics", mkey, check=metrics_check(names)) is not None
+            if not measured or (first and not self.cache.has("images", mkey, "png")):
+                jobs.append(MaskJob(mkey, mask, first))
+        return jobs
+
+    def _gt_to_measure(self, ref_key: str, photo, v: int) -> str | None:
+        """The ``gt`` key of a view with a photo whose unpruned render is still to measure against it
+        (or, for the first view, whose photo the figures still need); else None."""
+        if not photo:
+            return None
+        gt_key = self.gt_key(ref_key, photo[1])
+        measured = self.cache.get_json("gt", gt_key, check=gt_check(gt_names(self.config.protocol.metrics))) is not None
+        return None if measured and (v or self.cache.has("images", gt_key, "png")) else gt_key
+
+    def _view_task(self, ref_key: str, item: SceneItem, cam, photo, label: str, jobs: list, render_ref=False,
+                   ref_png=False, gt=None) -> ViewTask:
+        p = self.config.protocol
+        return ViewTask(self.cache.location, ref_key, item.path, item.spec.lod, item.digest, item.n_splats,
+                        cam.to_dict(), p.renderer, p.device, p.background, p.metrics, jobs, render_ref=render_ref,
+                        ref_png=ref_png, toolkit=self.toolkit, label=label, photo=photo[0] if photo else None,
+                        gt=gt_names(p.metrics) if photo else (), gt_key=gt)
+
+    def _split_views(self, chunks: list) -> list[tuple[float, ViewTask]]:
+        """``(cost, task)`` per view, or per chunk of a view when there are too few views to fill the
+        workers (:func:`view_parts`); the view's ``gt`` measurement goes with its first chunk."""
+        slots = BALANCE * self.workers if self.executor.parallel else 1
+        n_views = len(chunks)
+        return [(cost * max(len(part), 1) / max(len(jobs), 1), task(part, gt=gt if c == 0 else None))
+                for cost, jobs, task, gt in chunks
+                for c, part in enumerate(view_parts(jobs, n_views, slots))]
+
     # ------------------------------------------------------------------ aggregate
     def _rows(self, items, scores, prunes, skips):
-        """Tidy rows (one per scene, frame, method, variant, ratio, view); a view measures the masks
-        of its protocol's training set, and a view with a photo carries the ``gt_`` metrics of the
-        pruned render and (``unpruned_gt_*``) of the unpruned one. Also the images the figures show:
-        the first view of the primary protocol, and of the ``real`` one (with its photo)."""
-        from harness.run.cache import canonical_json
+        """Tidy rows and the figures' images (:func:`harness.run.rows.tidy_rows`)."""
+        from harness.run.rows import tidy_rows
 
-        p = self.config.protocol
-        rows, images, failed = [], {}, set()
-        base = {"run": self.config.name, "renderer": p.renderer}
-        for sk in skips:
-            spec = next((s for s in self.config.scenes if s.name == sk.scene), None)
-            rows.append({**base, "scene": sk.scene, "label": spec.label if spec else sk.scene,
-                         "kind": spec.kind if spec else "", "frame": sk.frame, "method": sk.method,
-                         "variant": sk.variant, "status": sk.status, "reason": sk.reason})
-        for i, item in enumerate(items):
-            views = [(proto, v, cam, self._ref_key(item, cam), item.photo(cam.name))
-                     for proto, v, cam in item.views(self.primary)]
-            ref_recs = {rk: self.cache.load_json("render_ref", rk, check=render_ref_record_check(c.width, c.height))
-                        or {} for _, _, c, rk, _ in views}
-            gt_ok = gt_check(gt_names(p.metrics))
-            unpruned = {rk: {f"unpruned_{k}": v for k, v in (self.cache.load_json(
-                "gt", self._gt_key(rk, ph[1]), check=gt_ok) or {}).items() if k != "seconds"}
-                for _, _, _, rk, ph in views if ph}
-            for proto, v, cam, rk, ph in views:
-                if v == 0 and (proto == self.primary or ph):
-                    frame = item.frame if proto == self.primary else "/".join(x for x in (item.frame, proto) if x)
-                    images[(item.spec.name, frame, "input", "", 0.0)] = self.cache.path("images", rk, "png")
-                    if ph:
-                        images[(item.spec.name, frame, "photo", "", 0.0)] = \
-                            self.cache.path("images", self._gt_key(rk, ph[1]), "png")
-            for mv in variants_for(item, self.config.methods):
-                ident = {**base, "scene": item.spec.name, "label": item.spec.label, "kind": item.spec.kind,
-                         "frame": item.frame, "method": mv.method, "variant": mv.variant,
-                         "params": canonical_json(mv.params.to_dict()), "splats_in": item.n_splats}
-                for ts in item.train_sets():
-                    if (i, mv.key, ts) not in scores:
-                        continue  # recorded as a skip
-                    skey, srec = scores[(i, mv.key, ts)]
-                    for r in mv.ratios:
-                        row0 = {**ident, "ratio": r, "keep": ratios.to_keep(r)}
-                        prec = prunes.get((i, mv.key, ts, r))
-                        if "error" in srec or prec is None:  # one row per failed (scores, ratio)
-                            if (skey, r) not in failed:
-                                failed.add((skey, r))
-                                rows.append({**row0, "status": "error", "reason": srec.get(
-                                    "error", "pruning failed (see run.json errors)")})
-                            continue
-                        row0.update(splats_out=prec["splats_out"], bytes=item.ply_bytes(prec["splats_out"]),
-                                    tau=prec["tau"], tau_quantile=prec["tau_quantile"],
-                                    score_s=srec["seconds"], prune_s=prec["seconds"])
-                        for proto, v, cam, rk, ph in views:
-                            if item.train_set(proto) != ts:
-                                continue
-                            mkey = self._metrics_key(rk, prec["mask"], ph[1] if ph else None)
-                            names = self._measured_names(ph)
-                            m = self.cache.load_json("metrics", mkey, check=metrics_check(names))
-                            row = {**row0, "protocol": proto, "view": cam.name or f"view{v:02d}",
-                                   "width": cam.width, "height": cam.height,
-                                   "render_ref_s": ref_recs[rk].get("seconds")}
-                            if m is None:
-                                row.update(status="error", reason="render or metrics failed (see run.json errors)")
-                            else:
-                                row.update(status="ok", render_s=m["render_s"], metrics_s=m["metrics_s"],
-                                           **{k: m[k] for k in (*names, "occupancy") if k in m},
-                                           **unpruned.get(rk, {}))
-                                if v == 0 and (proto == self.primary or ph):
-                                    frame = item.frame if proto == self.primary else \
-                                        "/".join(x for x in (item.frame, proto) if x)
-                                    images[(item.spec.name, frame, mv.method, mv.variant, r)] = \
-                                        self.cache.path("images", mkey, "png")
-                            rows.append(row)
-        return rows, images
+        return tidy_rows(self, items, scores, prunes, skips)

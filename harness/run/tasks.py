@@ -29,6 +29,7 @@ from harness.core.cameras import Camera
 from harness.core.params import Params
 from harness.run.cache import StageCache
 from harness.run.toolkit import Toolkit
+from renderers import ALPHA, PACK, capabilities
 
 _STATE: dict = {}
 
@@ -80,7 +81,7 @@ def _renderer(toolkit: Toolkit, name: str, device: str):
     key = (toolkit.make_renderer, name, device)  # another toolkit (tests' fakes) never gets this one's renderer
     if _STATE.get("renderer_key") != key:
         old = _STATE.get("renderer")
-        if old is not None and hasattr(old, "close"):
+        if old is not None:
             old.close()
         _STATE["renderer"] = toolkit.make_renderer(name, device)
         _STATE["renderer_key"] = key
@@ -192,9 +193,9 @@ class ViewTask:
 
 
 def render_alpha(renderer, scene, cam: Camera, background) -> tuple[np.ndarray, np.ndarray]:
-    """(image, alpha) of a render; a renderer without ``render_with_alpha`` renders twice (black and
-    white backgrounds: image(bg) = C + (1 − alpha)·bg)."""
-    if hasattr(renderer, "render_with_alpha"):
+    """(image, alpha) of a render; a renderer without the :data:`renderers.ALPHA` capability renders
+    twice (black and white backgrounds: image(bg) = C + (1 − alpha)·bg)."""
+    if ALPHA in capabilities(renderer):
         img, alpha = renderer.render_with_alpha(scene, cam, background=background)
         return np.asarray(img, np.float32), np.asarray(alpha, np.float32)
     img = np.asarray(renderer.render(scene, cam, background=background), np.float32)
@@ -207,7 +208,7 @@ class ViewRenders:
     """Renders of one view of a scene, whole or pruned: ``self(keep)`` -> ``(image, alpha or None)``
     (``keep``: bool per splat, None = every splat; alpha when ``with_alpha``).
 
-    A renderer that packs views (``pack``/``draw``: the GL renderer) projects, sorts and packs the
+    A renderer that packs views (the :data:`renderers.PACK` capability: the GL renderer) projects, sorts and packs the
     scene once, on first use, and draws each pruned set as its splats filtered from that packing,
     bit for bit the render of ``scene.subset(keep)`` (:meth:`renderers.gl.PackedView.kept`); others
     render every subset. ``pack_s``: seconds the packing took (0 before :meth:`prepare`).
@@ -222,7 +223,7 @@ class ViewRenders:
     def prepare(self) -> None:
         """Pack the view now (when the renderer packs views; once)."""
         r = self.renderer
-        if self._packed is None and hasattr(r, "pack") and hasattr(r, "draw"):
+        if self._packed is None and PACK in capabilities(r):
             t0 = time.perf_counter()
             self._packed = r.pack(self.scene, self.cam)
             self.pack_s = time.perf_counter() - t0
@@ -250,77 +251,30 @@ def run_view(task: ViewTask, progress=None, scene=None, ref=None, keep_ref: bool
     the loaded scene, ``ref``: ``(image, alpha or None)`` of the reference rendered by an earlier
     task of this run, when the executor has them (else they are loaded / read from the cache).
     """
+    from harness.metrics.registry import needs_alpha
+
     cache = _cache(task.cache_root)
     out = {"ref_key": task.ref_key, "errors": [], "done": 0}
     cam = Camera.from_dict(task.camera)
-    todo = task.masks
-    measure = bool(todo) or task.gt_key is not None
+    measure = bool(task.masks) or task.gt_key is not None
     try:
         if scene is None:
             scene = _scene(task.toolkit, task.path, task.lod, task.scene_digest)
-        renderer = _renderer(task.toolkit, task.renderer, task.device)
-        from harness.metrics.registry import needs_alpha
-        from harness.run.verify import alpha_check, image_check, mask_check
-
         om = needs_alpha(task.metrics)  # OM metrics: occupancy from both renders (stored with the reference)
         alpha = om or task.photo is not None  # a photo's OM metrics: the reference's occupancy
-        renders = ViewRenders(renderer, scene, cam, task.background, alpha)
-        given = ref if ref is not None and not task.render_ref and image_check(cam.width, cam.height)(ref[0]) is None \
-            else None
-        # a cached reference that fails its checksum or shape is discarded and rendered again
-        ref = None if task.render_ref else given[0] if given is not None else \
-            cache.get_array("render_ref", task.ref_key, count=False, check=image_check(cam.width, cam.height))
-        ref_alpha = None
-        if alpha and measure and ref is not None:
-            ref_alpha = given[1] if given is not None and given[1] is not None else \
-                cache.get_array("render_alpha", task.ref_key, count=False, check=alpha_check(cam.width, cam.height))
-        if ref is None or (alpha and measure and ref_alpha is None):
-            t0 = time.perf_counter()
-            ref, ref_alpha = renders()
-            if alpha:
-                cache.put_array("render_alpha", task.ref_key, ref_alpha)
-            ref_rec = {"seconds": time.perf_counter() - t0, "height": int(ref.shape[0]), "width": int(ref.shape[1])}
-            cache.put_array("render_ref", task.ref_key, ref)
-            cache.put_json("render_ref", task.ref_key, ref_rec)
+        renders = ViewRenders(_renderer(task.toolkit, task.renderer, task.device), scene, cam, task.background, alpha)
+        ref_img, ref_alpha = _reference(task, cache, renders, cam, ref, alpha and measure)
         if task.ref_png:
-            put_png(cache, task.ref_key, ref)
+            put_png(cache, task.ref_key, ref_img)
         if keep_ref:
-            out["ref_images"] = (ref, ref_alpha)
+            out["ref_images"] = (ref_img, ref_alpha)
         if measure:
-            suite = _metrics(task.toolkit, task.metrics, task.device)
-            t0 = time.perf_counter()
-            extra = {"alpha": ref_alpha} if alpha else {}
-            if task.photo is not None:
-                from pathlib import Path
-
-                from harness.io.photos import read_photo
-
-                extra["photo"] = photo = read_photo(Path(task.photo), cam.width, cam.height)
-            suite.reference(task.ref_key, ref, **extra)
-            feat_s = time.perf_counter() - t0
-            if task.gt_key is not None:
-                put_png(cache, task.gt_key, photo)
-                cache.put_json("gt", task.gt_key, {**suite.photo_scores(task.ref_key), "seconds": feat_s})
-            if todo:
+            suite, feat_s = _register_reference(task, cache, cam, ref_img, ref_alpha if alpha else None, alpha)
+            if task.masks:
                 renders.prepare()
-            for job in todo:
+            for job in task.masks:
                 try:
-                    packed = cache.get_array("masks", job.mask_key, count=False,
-                                             check=mask_check(task.n_splats, digest=job.mask_key))
-                    if packed is None:
-                        raise RuntimeError(f"mask {job.mask_key[:12]} is missing or failed verification")
-                    keep = np.unpackbits(packed, count=task.n_splats).astype(bool)
-                    t0 = time.perf_counter()
-                    img, img_alpha = renders(keep)
-                    t1 = time.perf_counter()
-                    values = suite.score(task.ref_key, img, alpha=img_alpha) if om else suite.score(task.ref_key, img)
-                    t2 = time.perf_counter()
-                    if job.png:
-                        put_png(cache, job.metrics_key, img)
-                    rec = {k: float(values[k]) for k in (*task.metrics, *task.gt, "occupancy") if k in values}
-                    # render_s: this set's own render (its share of the view's projection is view_pack_s)
-                    rec.update(render_s=t1 - t0, metrics_s=t2 - t1, ref_features_s=feat_s, view_pack_s=renders.pack_s)
-                    cache.put_json("metrics", job.metrics_key, rec)
+                    _measure_set(task, cache, suite, renders, job, feat_s, om)
                     out["done"] += 1
                     if progress:
                         progress(1)
@@ -330,3 +284,72 @@ def run_view(task: ViewTask, progress=None, scene=None, ref=None, keep_ref: bool
         out["errors"].append((None, f"{type(err).__name__}: {err}"))
         out["trace"] = traceback.format_exc(limit=6)
     return out
+
+
+def _reference(task: ViewTask, cache: StageCache, renders: ViewRenders, cam: Camera, given, want_alpha: bool):
+    """The view's reference ``(image, alpha or None)``: handed in by the executor (when it passes
+    its checks), else read from the cache, else rendered and stored (image, alpha, record). A cached
+    reference that fails its checksum or shape is discarded and rendered again."""
+    from harness.run.verify import alpha_check, image_check
+
+    if given is not None and (task.render_ref or image_check(cam.width, cam.height)(given[0]) is not None):
+        given = None
+    ref = None if task.render_ref else given[0] if given is not None else \
+        cache.get_array("render_ref", task.ref_key, count=False, check=image_check(cam.width, cam.height))
+    ref_alpha = None
+    if want_alpha and ref is not None:
+        ref_alpha = given[1] if given is not None and given[1] is not None else \
+            cache.get_array("render_alpha", task.ref_key, count=False, check=alpha_check(cam.width, cam.height))
+    if ref is None or (want_alpha and ref_alpha is None):
+        t0 = time.perf_counter()
+        ref, ref_alpha = renders()
+        if renders.with_alpha:
+            cache.put_array("render_alpha", task.ref_key, ref_alpha)
+        ref_rec = {"seconds": time.perf_counter() - t0, "height": int(ref.shape[0]), "width": int(ref.shape[1])}
+        cache.put_array("render_ref", task.ref_key, ref)
+        cache.put_json("render_ref", task.ref_key, ref_rec)
+    return ref, ref_alpha
+
+
+def _register_reference(task: ViewTask, cache: StageCache, cam: Camera, ref, ref_alpha, alpha: bool):
+    """The metric suite with the view's reference registered (its features, its side of every
+    metric; the photo and the unpruned render's ``gt`` entry where the view has a photo), and the
+    seconds that took."""
+    suite = _metrics(task.toolkit, task.metrics, task.device)
+    t0 = time.perf_counter()
+    extra = {"alpha": ref_alpha} if alpha else {}
+    if task.photo is not None:
+        from pathlib import Path
+
+        from harness.io.photos import read_photo
+
+        extra["photo"] = read_photo(Path(task.photo), cam.width, cam.height)
+    suite.reference(task.ref_key, ref, **extra)
+    feat_s = time.perf_counter() - t0
+    if task.gt_key is not None:
+        put_png(cache, task.gt_key, extra["photo"])
+        cache.put_json("gt", task.gt_key, {**suite.photo_scores(task.ref_key), "seconds": feat_s})
+    return suite, feat_s
+
+
+def _measure_set(task: ViewTask, cache: StageCache, suite, renders: ViewRenders, job: MaskJob, feat_s: float,
+                 om: bool) -> None:
+    """Render one pruned set of the view (its splats filtered from the view's packing), score it
+    against the reference (and the photo), store the metrics entry (and its PNG when asked)."""
+    from harness.run.verify import mask_check
+
+    packed = cache.get_array("masks", job.mask_key, count=False, check=mask_check(task.n_splats, digest=job.mask_key))
+    if packed is None:
+        raise RuntimeError(f"mask {job.mask_key[:12]} is missing or failed verification")
+    keep = np.unpackbits(packed, count=task.n_splats).astype(bool)
+    t0 = time.perf_counter()
+    img, img_alpha = renders(keep)
+    t1 = time.perf_counter()
+    values = suite.score(task.ref_key, img, alpha=img_alpha) if om else suite.score(task.ref_key, img)
+    t2 = time.perf_counter()
+    if job.png:
+        put_png(cache, job.metrics_key, img)
+    rec = {k: float(values[k]) for k in (*task.metrics, *task.gt, "occupancy") if k in values}
+    # render_s: this set's own render (its share of the view's projection is view_pack_s)
+    rec.update(render_s=t1 - t0, metrics_s=t2 - t1, ref_features_s=feat_s, view_pack_s=renders.pack_s)
+    cache.put_json("metrics", job.metrics_key, rec)

@@ -86,13 +86,18 @@ def make_metrics(names: tuple[str, ...], device: str):
 
 
 def check_metrics(names: tuple[str, ...]) -> None:
-    """Fail before any work when a metric cannot run: LPIPS-VGG weights not fetched -> InputError."""
-    if "lpips" in names:
-        from harness.core.errors import InputError
-        from harness.metrics.lpips_weights import FETCH_HINT, weights_path
+    """Fail before any work when a metric cannot run (its registered ``check``: LPIPS-VGG weights
+    not fetched -> InputError)."""
+    from harness.metrics.registry import check_available
 
-        if not weights_path().is_file():
-            raise InputError(weights_path(), f"LPIPS-VGG backbone weights are missing; {FETCH_HINT}")
+    check_available(names)
+
+
+def _reader_modules() -> tuple[str, ...]:
+    """Every registered scene format's reading code (:func:`harness.io.formats.reader_modules`)."""
+    from harness.io.formats import reader_modules
+
+    return reader_modules()
 
 
 @dataclass(frozen=True)
@@ -106,9 +111,7 @@ class Toolkit:
     make_metrics: Callable = make_metrics
     check_metrics: Callable = check_metrics
     #: module names whose source versions each stage (cache-key "code" component)
-    reader_modules: tuple[str, ...] = ("harness.io.scenes", "harness.io.ply", "harness.io.splat", "harness.io.sog",
-                                       "harness.io.detect", "harness.io.codecs", "harness.io.compressed_ply",
-                                       "harness.io.spz", "harness.io.ksplat")
+    reader_modules: tuple[str, ...] = field(default_factory=lambda: _reader_modules())
     rig_modules: tuple[str, ...] = ("harness.views.rigs", "harness.core.cameras")
     #: whole packages: renderers and metrics import their shared code lazily, inside functions, so a
     #: module-level import closure would miss it (over-invalidation is the safe side)

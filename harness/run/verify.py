@@ -186,23 +186,18 @@ def alpha_check(width: int, height: int):
 
 
 def _metric_problem(rec: dict, names) -> str | None:
-    """Why the values ``names`` of a metrics record are unusable: numbers; PSNR (and its photo twin)
-    +inf for identical images, else >= 0; everything else finite, SSIM in [-1, 1], LPIPS and the MPEG
-    PSNRs >= 0 (their photo twins alike)."""
+    """Why the values ``names`` of a metrics record are unusable: numbers, each within its metric's
+    registered ``valid_range`` (+inf only for a metric registered ``inf_if_identical``, PSNR's
+    identical images; :mod:`harness.metrics.registry`)."""
+    from harness.metrics.registry import METRICS
+
     for k in names:
         v = rec.get(k)
         if not _real(v) or math.isnan(v):
             return f"{k} {v!r} is not a number"
-        base = k.removeprefix("gt_")
-        if base.startswith("psnr"):  # psnr and its per-channel variants: +inf for identical images
-            if v < 0:
-                return f"{k} {v!r} is negative (images in [0, 1] give PSNR >= 0)"
-        elif not math.isfinite(v):
-            return f"{k} {v!r} is not finite"
-        elif base == "ssim" and not -1.0 <= v <= 1.0:
-            return f"{k} {v!r} is outside [-1, 1]"
-        elif (base == "lpips" or "psnr" in base) and v < 0:
-            return f"{k} {v!r} is negative"
+        problem = METRICS.get(k).problem(v)
+        if problem:
+            return problem
     return None
 
 

@@ -114,6 +114,16 @@ def project_closure(module_name: str, roots=PROJECT_PACKAGES) -> set[str]:
     return seen
 
 
+def plugin_metric_modules() -> tuple[str, ...]:
+    """The modules of registered metrics that live outside :mod:`harness.metrics` (third-party
+    packages, :mod:`harness.metrics.registry`): their source versions the metrics they compute."""
+    from harness.metrics.registry import FAMILIES, METRICS
+
+    fns = [f for m in METRICS for f in (m.compute, m.prepare)] + [f.compute for f in FAMILIES.values()]
+    mods = {f.__module__ for f in fns if f is not None and getattr(f, "__module__", None)}
+    return tuple(sorted(m for m in mods if m != "harness.metrics" and not m.startswith("harness.metrics.")))
+
+
 @dataclass
 class Versions:
     """Code digests that version each stage's results, taken when a run starts."""
@@ -128,7 +138,7 @@ class Versions:
     def of(cls, toolkit) -> Versions:
         return cls(reader=module_versions(toolkit.reader_modules), rigs=module_versions(toolkit.rig_modules),
                    renderer=module_versions(toolkit.renderer_modules),
-                   metrics=module_versions(toolkit.metric_modules))
+                   metrics=module_versions(tuple(toolkit.metric_modules) + plugin_metric_modules()))
 
     def pruner(self, name: str) -> str:
         """Digest of the code a pruner runs: its module and every project module it imports,

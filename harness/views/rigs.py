@@ -287,3 +287,13 @@ def scene_rig(dataset: str | None, scene: GaussianScene, rig: str = "default", *
                       if v is not None}
     kwargs.update({k: v for k, v in overrides.items() if v is not None})
     return make_rig(rig, scene, **kwargs)
+
+
+def training_views(name: str, scene: GaussianScene, *, n_train: int = 16, n_test: int = 12,
+                   longest_side: int = 384, seed: int = 0) -> list:
+    """The training cameras of the default rig of the scene given by ``name`` (a dataset name or a
+    path: :func:`harness.io.datasets.identify`), as ``harness run`` builds them."""
+    from harness.io.datasets import identify
+
+    return list(scene_rig(identify(name), scene, n_train=n_train, n_test=n_test, longest_side=longest_side,
+                          seed=seed).train)

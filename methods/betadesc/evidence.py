@@ -48,10 +48,6 @@ PRESETS: dict[str, Coefficients] = {
 }
 
 
-#: presets whose values are the paper's (the rest are ours)
-PAPER_PRESETS = ("baseline",)
-
-
 def preset(name: str, order: str = "eq4") -> Coefficients:
     """The coefficients of preset ``name``; ``order="prose"`` swaps b_s and b_ℓ (module docstring)."""
     try:

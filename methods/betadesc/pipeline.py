@@ -28,6 +28,7 @@ from methods.betadesc.grid import build_grid
 from methods.betadesc.hsfh import compute_hsfh
 from methods.betadesc.interpolate import interpolate_to_splats
 from methods.betadesc.nodesc import splat_statistics
+from methods.betadesc.params import BetaParams
 from methods.betadesc.scores import beta_score
 from methods.betadesc.statistics import opacity_statistic, voxel_statistics
 
@@ -94,7 +95,8 @@ def components(scene: GaussianScene, params, cameras=None, *, descriptors: bool 
 
         with stage("views"):
             edge, edge_weight = edge_proxy(scene, cameras, o), params.view_weight
-    prior = getattr(params, "prior", 1.0)  # the Beta-free ablations: A − B does not depend on it
+    # the Beta-free ablations have no prior (A − B does not depend on it): the declared default
+    prior = params.prior if isinstance(params, BetaParams) else BetaParams().prior
     with stage("scores"):
         a, b = ev.evidence(s, ell, o, u, w, coefficients(params, descriptors), prior=prior,
                            edge=edge, edge_weight=edge_weight)

@@ -56,4 +56,6 @@ def confsplat_score(scene, ctx: PruneContext) -> np.ndarray:
     """Confident Splatting Beta confidence α/(α+β), learned with frozen geometry to match the unpruned render."""
     from methods.confsplat.train import optimise_confidence
 
+    if len(scene) == 0:  # nothing to learn a confidence for (the renders have no splats to weigh)
+        return np.zeros(0, np.float64)
     return optimise_confidence(scene, ctx.cameras, ctx.params, seed=ctx.seed, device=ctx.device).confidence

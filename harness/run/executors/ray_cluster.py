@@ -259,7 +259,7 @@ class RayExecutor(Executor):
                                                         first_view[(jobs[i].scene_key, jobs[i].ref_key)], i))
         return [jobs[i] for i in order]
 
-    def _options(self, job: _Job) -> dict:
+    def options(self, job: _Job) -> dict:
         """Resources of a task: CPUs always; a GPU share for renders/metrics and camera-aware scores
         when the run's device is CUDA (camera-agnostic scoring is numpy/numba: CPU only)."""
         o = {"num_cpus": self.threads, "max_retries": self.max_retries, "retry_exceptions": False,
@@ -269,74 +269,34 @@ class RayExecutor(Executor):
         return o
 
     def run(self, stages: Sequence[Stage], bars: Bars) -> list[list[dict]]:
+        """Every task of ``stages``, at most a window of them in flight (twice the task slots), in
+        :meth:`_jobs` order; results per stage, bars advanced as each ends. Ctrl-C, SIGTERM or a bug
+        cancels what is in flight."""
         results: list[list[dict]] = [[] for _ in stages]
         if not any(s.tasks for s in stages):
             return results
         ray = self.start()
-        setup = (self.threads, tuple(self.toolkit.imports), tuple(self.toolkit.preload))
-        call = ray.remote(_ray_call)
-        call_keep = ray.remote(num_returns=2)(_ray_call_keep_ref)
-        load = ray.remote(_ray_load_scene)
         index = {id(s): i for i, s in enumerate(stages)}
         for s in stages:
             if s.tasks:
                 bars.start(s.name, sum(s.weight(t) for t in s.tasks))
         jobs = self._jobs(stages)
-        # consumers left to submit per scene / per view: the driver's handle goes after the last
-        left_scene: dict = {}
-        left_view: dict = {}
-        for j in jobs:
-            left_scene[j.scene_key] = left_scene.get(j.scene_key, 0) + 1
-            if j.ref_key is not None and not j.provides_ref:
-                left_view[j.ref_key] = left_view.get(j.ref_key, 0) + 1
-        scenes: dict = {}  # scene digest -> ObjectRef of the loaded scene
-        views: dict = {}  # ref key -> ObjectRef of (image, alpha) rendered in this call
-        res = ray.cluster_resources()
-        window = self.window or max(4, 2 * int(res.get("CPU", 1) // self.threads))
+        pipe = _Pipeline(ray, self, jobs)
+        window = self.window or max(4, 2 * int(ray.cluster_resources().get("CPU", 1) // self.threads))
         pending: dict = {}  # summary ObjectRef -> job
-        queue = list(jobs)
-        queue.reverse()
+        queue = list(reversed(jobs))
         try:
             while queue or pending:
                 while queue and len(pending) < window:
                     j = queue.pop()
-                    scene_ref = None
-                    if j.scene_key is not None:
-                        scene_ref = scenes.get(j.scene_key)
-                        if scene_ref is None:
-                            t = j.task
-                            scene_ref = scenes[j.scene_key] = load.options(
-                                num_cpus=1, max_retries=self.max_retries, retry_exceptions=False,
-                                name=f"load[{getattr(t, 'label', '') or t.path}]").remote(
-                                setup, t.toolkit, t.path, t.lod)
-                        left_scene[j.scene_key] -= 1
-                        if not left_scene[j.scene_key]:
-                            del scenes[j.scene_key]  # submitted tasks keep it alive until they end
-                    view_ref = None
-                    if j.ref_key is not None and not j.provides_ref:
-                        view_ref = views.get(j.ref_key)
-                        left_view[j.ref_key] -= 1
-                        if not left_view[j.ref_key]:
-                            views.pop(j.ref_key, None)
-                    opts = self._options(j)
-                    if j.provides_ref:
-                        summary, images = call_keep.options(**opts).remote(j.stage.fn, setup, j.task, scene_ref, None)
-                        if left_view.get(j.ref_key):
-                            views[j.ref_key] = images
-                    else:
-                        summary = call.options(**opts).remote(j.stage.fn, setup, j.task, scene_ref, view_ref)
-                    pending[summary] = j
+                    pending[pipe.submit(j)] = j
                 ready, _ = ray.wait(list(pending), num_returns=1, timeout=1.0)
                 for r in ready:
                     j = pending.pop(r)
                     results[index[id(j.stage)]].append(self._result(ray, r, j))
                     bars.advance(j.stage.name, j.stage.weight(j.task))
         except BaseException:  # Ctrl-C / SIGTERM / a bug here: nothing keeps running for this run
-            for r in pending:
-                try:
-                    ray.cancel(r, force=True)
-                except Exception:
-                    pass
+            _cancel(ray, pending)
             raise
         for s in stages:
             if s.tasks:
@@ -367,3 +327,65 @@ class RayExecutor(Executor):
                                    f"of memory or crashed): {type(err).__name__}: {first[0] if first else ''}")
 
 
+def _cancel(ray, pending) -> None:
+    for r in pending:
+        try:
+            ray.cancel(r, force=True)
+        except Exception:  # noqa: BLE001 - a task that ended meanwhile
+            pass
+
+
+class _Pipeline:
+    """Submits jobs with their inputs by reference: a scene is loaded once, by one task, into the
+    object store for every job of that scene; a view's reference render, returned by the job that
+    renders it, goes to the jobs that measure the view's pruned sets. The driver drops its handle
+    of a scene or view once its last consumer is submitted (submitted tasks keep it alive)."""
+
+    def __init__(self, ray, executor: RayExecutor, jobs: list[_Job]):
+        self.ray, self.ex = ray, executor
+        self.setup = (executor.threads, tuple(executor.toolkit.imports), tuple(executor.toolkit.preload))
+        self.call = ray.remote(_ray_call)
+        self.call_keep = ray.remote(num_returns=2)(_ray_call_keep_ref)
+        self.load = ray.remote(_ray_load_scene)
+        self.scenes: dict = {}  # scene digest -> ObjectRef of the loaded scene
+        self.views: dict = {}  # ref key -> ObjectRef of (image, alpha) rendered in this call
+        self.left_scene: dict = {}  # consumers left to submit per scene / per view
+        self.left_view: dict = {}
+        for j in jobs:
+            self.left_scene[j.scene_key] = self.left_scene.get(j.scene_key, 0) + 1
+            if j.ref_key is not None and not j.provides_ref:
+                self.left_view[j.ref_key] = self.left_view.get(j.ref_key, 0) + 1
+
+    def _scene(self, j: _Job):
+        if j.scene_key is None:
+            return None
+        ref = self.scenes.get(j.scene_key)
+        if ref is None:
+            t = j.task
+            ref = self.scenes[j.scene_key] = self.load.options(
+                num_cpus=1, max_retries=self.ex.max_retries, retry_exceptions=False,
+                name=f"load[{getattr(t, 'label', '') or t.path}]").remote(self.setup, t.toolkit, t.path, t.lod)
+        self.left_scene[j.scene_key] -= 1
+        if not self.left_scene[j.scene_key]:
+            del self.scenes[j.scene_key]
+        return ref
+
+    def _view(self, j: _Job):
+        if j.ref_key is None or j.provides_ref:
+            return None
+        ref = self.views.get(j.ref_key)
+        self.left_view[j.ref_key] -= 1
+        if not self.left_view[j.ref_key]:
+            self.views.pop(j.ref_key, None)
+        return ref
+
+    def submit(self, j: _Job):
+        """Submit ``j``; the ObjectRef of its summary."""
+        scene, view = self._scene(j), self._view(j)
+        opts = self.ex.options(j)
+        if not j.provides_ref:
+            return self.call.options(**opts).remote(j.stage.fn, self.setup, j.task, scene, view)
+        summary, images = self.call_keep.options(**opts).remote(j.stage.fn, self.setup, j.task, scene, None)
+        if self.left_view.get(j.ref_key):
+            self.views[j.ref_key] = images
+        return summary

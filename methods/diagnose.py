@@ -17,6 +17,9 @@ For a scene, a pruner (and its parameters) and a pruning ratio R:
 
 Random pruning removes ≈ R of the significance and of o·V and almost never empties a voxel; a good
 pruner removes far less significance than R.
+
+It lives beside the pruners it runs (it reads BetaDesc's components and grid); the training views
+come from the caller (``harness diagnose``: :func:`harness.views.rigs.training_views`).
 """
 
 from __future__ import annotations
@@ -123,16 +126,6 @@ def diagnose(scene: GaussianScene, method: str, params: dict, ratio: float, sign
     for k, v in removal(scene, ~sel.keep, significance, voxel).items():
         setattr(d, k, v)
     return d
-
-
-def training_views(name: str, scene: GaussianScene, *, n_train: int = 16, n_test: int = 12,
-                   longest_side: int = 384, seed: int = 0):
-    """The training cameras of the scene's default rig (as ``harness run`` builds them)."""
-    from harness.io.datasets import identify
-    from harness.views.rigs import scene_rig
-
-    return list(scene_rig(identify(name), scene, n_train=n_train, n_test=n_test, longest_side=longest_side,
-                          seed=seed).train)
 
 
 def lightgs_significance(scene: GaussianScene, cameras, *, longest_side: int = 512,
