@@ -21,7 +21,7 @@ import numpy as np
 
 NAME = "methods"
 HELP = "scoring seconds of every registered pruner on bonsai-7k-mini (+ --quality: PSNR of 30 % pruned renders)"
-QUALITY_METHODS = ("lightgs", "confsplat", "opacity", "random", "betadesc")
+QUALITY_METHODS = ("lightgs", "confsplat", "opacity", "random", "betadesc", "virtual-rig")
 
 
 def add_arguments(parser) -> None:
