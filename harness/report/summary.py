@@ -38,7 +38,9 @@ def summarise(df: pd.DataFrame) -> pd.DataFrame:
 PRIMARY_PROTOCOL = "rig"
 PROTOCOL_NOTES = {"rig": "held-out views of the rig the camera-aware methods train on",
                   "shifted": "held-out views from another camera distribution (higher rings, narrower field of "
-                             "view, other azimuths) than the camera-aware methods' training views"}
+                             "view, other azimuths) than the camera-aware methods' training views",
+                  "independent": "random held-out views (positions, look-at jitter, fields of view, close-ups) "
+                                 "defined independently of the training rig and of any virtual rig"}
 
 
 def protocol_subsets(df: pd.DataFrame) -> list[tuple[str, str, pd.DataFrame]]:
