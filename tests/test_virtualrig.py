@@ -17,8 +17,8 @@ from harness.run.versions import project_closure
 from methods import PruneContext, get_pruner
 from methods.lightgs.significance import resolve_backend, significance, volume_factor
 from methods.virtualrig import VirtualRigParams, virtual_cameras
-from methods.virtualrig.rig import farthest_points, shell_multipliers
-from methods.virtualrig.shape import analyse, ray_enclosure, weighted_quantile
+from methods.virtualrig.rig import MIN_CELLS, REACH_SHARE, farthest_points, shell_multipliers
+from methods.virtualrig.shape import analyse, free_reach, ray_enclosure, weighted_quantile
 from renderers.projection import project_gaussians
 from tests.scene_factory import random_scene
 from tests.test_lightgs import _cams, _scene, dense_significance
@@ -105,14 +105,27 @@ def test_ray_enclosure_by_hand():
     assert ray_enclosure(np.ones((3, 3, 3), bool), np.array([[1.5, 1.5, 1.5]]), dirs)[0] == 1.0
 
 
+def test_free_reach_by_hand():
+    occ = np.zeros((9, 9, 9), bool)
+    occ[4, 4, 4] = True  # the subject's own cell: within the spare ball, not an obstacle
+    occ[8, :, :] = True  # a wall at x = 8
+    start = np.array([4.5, 4.5, 4.5])
+    dirs = np.array([[1.0, 0, 0], [-1.0, 0, 0]])
+    # +x: free up to the last half-step before cell 8 (t = 3.0 → x = 7.5); −x: in cell 0 up to x = 0.0 (t = 4.5)
+    np.testing.assert_allclose(free_reach(occ, start, dirs, spare=1.5), [3.0, 4.5])
+    # without the spare ball the −x ray stops at its first step, x = 4.0, in the occupied cell 4
+    np.testing.assert_allclose(free_reach(occ, start, dirs, spare=0.0), [3.0, 0.0])
+
+
 def test_an_object_is_seen_from_outside_and_a_room_from_inside():
     ball = analyse(_scene_from(_solid_ball(), 0.05))
     assert ball.kind == "object" and ball.enclosure < 0.8
     assert np.linalg.norm(ball.center) < 0.05 and 0.8 < ball.radius < 1.0  # P95 of r: 0.95^(1/3) ≈ 0.983
     room = analyse(_scene_from(_room(), 0.15))
     assert room.kind == "room" and room.enclosure >= 0.9
-    assert len(room.interior) > 0 and np.all(np.abs(room.interior) < 4.0)  # inside the walls
-    assert np.all(np.diff(room.interior_clearance) <= 0)  # most clearance first
+    assert len(room.probes) > 0 and np.all(np.abs(room.probes) < 4.0)  # inside the walls
+    assert np.all(np.diff(room.probe_clearance) <= 0)  # most clearance first
+    assert np.linalg.norm(room.peak) < 2 * room.cell  # the subject: the dense object at the centre
 
 
 def test_analysis_rejects_an_empty_scene():
@@ -137,9 +150,21 @@ def test_outside_in_rig_frames_the_bounding_sphere():
     np.testing.assert_allclose(shell_multipliers(3, 0.25, 1.0), [1.0, 0.5, 0.25])
 
 
-def test_inside_out_rig_is_cubes_of_views_from_free_space():
+def test_inside_out_rig_circles_the_subject_inside_the_room():
     scene = _scene_from(_room(), 0.15)
-    shape, cams = virtual_cameras(scene, VirtualRigParams(views=14, resolution=32))
+    shape, cams = virtual_cameras(scene, VirtualRigParams(views=24, resolution=32, fov_deg=50.0))
+    assert shape.kind == "room" and len(cams) == 24
+    dist = np.array([np.linalg.norm(c.center - shape.peak) for c in cams])
+    assert np.all(dist >= MIN_CELLS * shape.cell - 1e-9) and np.all(np.abs([c.center for c in cams]) < 4.0)
+    assert np.median(dist) > REACH_SHARE * 2.0  # the walls are ≥ 4 away in every direction: cameras stand off
+    for c in cams:
+        to_peak = (shape.peak - c.center) / np.linalg.norm(shape.peak - c.center)
+        assert c.forward @ to_peak == pytest.approx(1.0) and math.degrees(c.fov_y) == pytest.approx(50.0)
+
+
+def test_enclosed_inside_out_rig_is_cubes_of_views_from_free_space():
+    scene = _scene_from(_room(), 0.15)
+    shape, cams = virtual_cameras(scene, VirtualRigParams(views=14, resolution=32, positions="enclosed"))
     assert shape.kind == "room" and len(cams) == 18  # ⌈14 / 6⌉ = 3 positions × 6 faces
     for k in range(3):
         face = cams[6 * k: 6 * k + 6]
@@ -157,9 +182,9 @@ def test_farthest_points_spreads_out():
     assert farthest_points(pts, 10).tolist() == [0, 2, 3, 1]
 
 
-def test_forcing_inside_out_without_free_space_is_one_clear_error():
+def test_forcing_enclosed_inside_out_without_free_space_is_one_clear_error():
     with pytest.raises(ValueError, match="no enclosed free space"):
-        virtual_cameras(_scene_from(_solid_ball(), 0.05), VirtualRigParams(rig="inside-out"))
+        virtual_cameras(_scene_from(_solid_ball(), 0.05), VirtualRigParams(rig="inside-out", positions="enclosed"))
 
 
 # ------------------------------------------------------------------ the pruner

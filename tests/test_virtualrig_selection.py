@@ -71,6 +71,7 @@ def test_budget_and_the_shipped_rule():
     raw = yaml.safe_load((REPO / "ctc_configs" / "virtualrig.yaml").read_text())
     space = rs.search_space(raw, "virtual-rig", {"method": "lightgs"}, prefix="vr")
     assert [a.name for a in space.axes] == ["resolution", "views", "fov_deg", "radius_min", "early_stop"]
-    assert [a.values[0] for a in space.axes] == [256, 48, 60.0, 0.6, True]  # the committed defaults first
+    # the defaults first: since the outcome, resolution 384 (the rule started from 256)
+    assert [a.values[0] for a in space.axes] == [384, 48, 60.0, 0.6, True]
     beta = rs.search_space(raw, "betadesc-vr", {"method": "lightgs"}, prefix="bvr")
     assert [(a.name, a.values) for a in beta.axes] == [("vr_weight", (1.0, 0.25, 4.0))]

@@ -35,9 +35,14 @@ class VirtualRigParams(Params):
     radius_min: float = param(0.6, gt=0, le=10, doc="outside-in: distance of the closest shell, a multiple of "
                               "the fit distance R/sin(fov/2) (R: weighted P95 distance to the centre)")
     radius_max: float = param(1.0, gt=0, le=10, doc="outside-in: distance of the farthest shell (same unit)")
-    fov_deg: float = param(60.0, ge=5, le=150, doc="outside-in field of view (inside-out cube faces: 90°)")
-    resolution: int = param(256, ge=16, le=4096, doc="side of the square virtual views (px)")
+    fov_deg: float = param(60.0, ge=5, le=150, doc="field of view (inside-out enclosed cube faces: 90°)")
+    resolution: int = param(384, ge=16, le=4096, doc="side of the square virtual views (px; 384 by the "
+                            "pre-registered selection, results/virtualrig/selection.md)")
     grid: int = param(32, ge=8, le=256, doc="occupancy-grid cells along the content's longest side")
+    positions: Literal["around", "enclosed"] = param(
+        "around", doc="inside-out cameras: around = in the room's free space all around the subject (the "
+        "opacity peak), looking at it (fov_deg); enclosed = cubes of six 90° views from the enclosed central "
+        "free space (the pre-registered first version: on bonsai-7k all below the table top)")
     room_enclosure: float = param(0.8, gt=0, le=1, doc="median share of blocked rays from the central free "
                                   "space from which the scene is a room (inside-out)")
     rig_seed: int = param(0, ge=0, doc="seed of the rig's rotations and probe subsample (not the run's seed)")
@@ -54,7 +59,8 @@ def virtual_cameras(scene, p: VirtualRigParams):
     shape = analyse(scene, grid=p.grid, room_enclosure=p.room_enclosure, seed=p.rig_seed)
     kind = {"auto": "inside-out" if shape.kind == "room" else "outside-in"}.get(p.rig, p.rig)
     if kind == "inside-out":
-        return shape, rig.inside_out(shape, views=p.views, resolution=p.resolution, seed=p.rig_seed)
+        return shape, rig.inside_out(shape, views=p.views, resolution=p.resolution, seed=p.rig_seed,
+                                     positions=p.positions, room_enclosure=p.room_enclosure, fov_deg=p.fov_deg)
     return shape, rig.outside_in(shape, views=p.views, shells=p.shells, radius_min=p.radius_min,
                                  radius_max=p.radius_max, fov_deg=p.fov_deg, resolution=p.resolution,
                                  seed=p.rig_seed)

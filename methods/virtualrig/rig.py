@@ -10,10 +10,17 @@ seeded random rotation (no two shells share directions, and no axis of the scene
 favoured); every camera looks at ``center``. The full sphere of directions, below the content as
 well: which way is up cannot be told from splats.
 
-**Inside-out** (``room``): ``⌈views / 6⌉`` positions picked from the enclosed free-space probes by
-farthest-point sampling (the first the one with the most clearance, each next the farthest from
-those chosen), each the centre of a cube of six 90° views turned by a seeded random rotation, so
-every direction is seen from every position.
+**Inside-out** (``room``): the cameras stand inside the room, in its free space. ``positions="around"``
+(default): along each of ``views`` Fibonacci directions (seeded rotation) from the subject (the
+opacity peak of :mod:`.shape`), at :data:`REACH_SHARE` of the free run of that ray (how far it gets
+before an occupied cell that is not the subject's own; at least :data:`MIN_CELLS` cells out),
+looking back at the subject with ``fov_deg``: a capture circles its subject from wherever the room
+leaves space. ``"enclosed"`` (the first, pre-registered version): ``⌈views / 6⌉`` positions by
+farthest-point sampling over the central probes whose own enclosure reaches the room threshold
+(the first the one with the most clearance), each the centre of a cube of six 90° views turned by a
+seeded random rotation. On bonsai-7k those positions all lie below the table top, hidden from the
+bonsai, and its selection run pruned worse than random (``results/virtualrig/selection.md``): the
+open space a capture is taken from is the *less* enclosed part of a room.
 
 Images are square, ``resolution`` px; focal length from the field of view.
 """
@@ -26,9 +33,11 @@ import numpy as np
 
 from harness.core.cameras import Camera
 from harness.core.sphere import fibonacci_sphere, random_rotation
-from methods.virtualrig.shape import Shape
+from methods.virtualrig.shape import SUBJECT_CELLS, Shape, free_reach
 
 CUBE_FOV = 90.0
+REACH_SHARE = 0.7
+MIN_CELLS = 2.0
 
 
 def _camera(eye, forward, *, fov_deg: float, resolution: int, name: str) -> Camera:
@@ -70,15 +79,31 @@ def farthest_points(points: np.ndarray, k: int) -> np.ndarray:
     return np.array(chosen, np.int64)
 
 
-def inside_out(shape: Shape, *, views: int, resolution: int, seed: int) -> list[Camera]:
+def around_subject(shape: Shape, *, views: int, fov_deg: float, resolution: int, seed: int) -> list[Camera]:
+    """The room rig with ``positions="around"`` (module docstring)."""
+    rng = np.random.default_rng(seed)
+    dirs = fibonacci_sphere(views) @ random_rotation(rng).T
+    reach = free_reach(shape.occupied, (shape.peak - shape.origin) / shape.cell, dirs, SUBJECT_CELLS)
+    dist = np.maximum(REACH_SHARE * reach, MIN_CELLS) * shape.cell
+    return [_camera(shape.peak + d * u, -u, fov_deg=fov_deg, resolution=resolution, name=f"vr_around_{i:03d}")
+            for i, (u, d) in enumerate(zip(dirs, dist))]
+
+
+def inside_out(shape: Shape, *, views: int, resolution: int, seed: int, positions: str = "around",
+               room_enclosure: float = 0.8, fov_deg: float = 60.0) -> list[Camera]:
     """The room rig (module docstring)."""
-    if len(shape.interior) == 0:
+    if positions == "around":
+        return around_subject(shape, views=views, fov_deg=fov_deg, resolution=resolution, seed=seed)
+    if positions != "enclosed":
+        raise ValueError(f"unknown inside-out positions {positions!r}; known: around, enclosed")
+    where = shape.probes[shape.probe_enclosure >= room_enclosure]
+    if len(where) == 0:
         raise ValueError("inside-out virtual rig: the scene has no enclosed free space to stand in")
     rng = np.random.default_rng(seed)
     cams = []
-    for p, idx in enumerate(farthest_points(shape.interior, -(-views // 6))):
+    for p, idx in enumerate(farthest_points(where, -(-views // 6))):
         rot = random_rotation(rng)
         for f, forward in enumerate(np.concatenate([rot.T, -rot.T])):
-            cams.append(_camera(shape.interior[idx], forward, fov_deg=CUBE_FOV, resolution=resolution,
+            cams.append(_camera(where[idx], forward, fov_deg=CUBE_FOV, resolution=resolution,
                                 name=f"vr_pos{p}_{f}"))
     return cams
