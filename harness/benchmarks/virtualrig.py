@@ -10,8 +10,10 @@ verbatim), and a quick confirmation on the other scenes (``ctc_configs/virtualri
 ``shifted`` and ``independent`` protocols, values over the scoring budget ruled out, axes that do not
 apply to a scene (identical renders) judged on the scenes they change. Then ``betadesc-vr``'s
 ``vr_weight`` axis on the selected rig. Writes ``results/virtualrig/selection.md`` and ``.json``.
-``confirm`` writes ``results/virtualrig/confirmation.md``: per protocol, paired differences against
-LightGS, opacity and the significance alone, with the goal's verdict at 30 %.
+``confirm`` writes ``results/virtualrig/<config name>.md`` (``virtualrig-confirm.md``; the
+development run on the selection scenes, ``--config ctc_configs/virtualrig_dev.yaml``:
+``virtualrig-dev.md``): per protocol, paired differences against LightGS, opacity and the
+significance alone.
 """
 
 from __future__ import annotations
@@ -89,8 +91,9 @@ def confirm(args) -> int:
               ("vs the significance alone (virtual-rig)", vr,
                [("betadesc-vr", bvr), ("betadesc-vr without descriptors",
                                        {"method": "betadesc-vr", "variant": "nodesc"})])]
-    md = ["D = mean paired per-view PSNR difference (dB) [95 % bootstrap CI] (views used/excluded); "
-          "a quick confirmation at 384 px, PSNR only — not the pre-registered evaluation.", ""]
+    side = raw.get("protocol", {}).get("longest_side", "?")
+    md = [f"`{raw['name']}` ({Path(args.config).name}): a quick run at {side} px, PSNR only — not the pre-registered "
+          "evaluation. D = mean paired per-view PSNR difference (dB) [95 % bootstrap CI] (views used/excluded).", ""]
     for proto in dict.fromkeys(df["protocol"].dropna()):
         if not proto:
             continue
@@ -99,7 +102,7 @@ def confirm(args) -> int:
             md += [f"### {proto}: {title}", "", rs.confirmation_markdown(sub, scenes, ratios, sides, reference)]
     text = "\n".join(md)
     OUT.mkdir(parents=True, exist_ok=True)
-    (OUT / "confirmation.md").write_text(text)
+    (OUT / f"{raw['name']}.md").write_text(text)
     print(text)
     if seconds is not None:
         print(f"run time {seconds:.0f} s")
