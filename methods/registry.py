@@ -29,10 +29,12 @@ from harness.core.registry import Registry
 
 ENTRY_POINT_GROUP = "harness.pruners"
 #: registration order is display order within a group (tables, plots, `harness methods`)
-BUILTIN_MODULES = ("methods.confsplat", "methods.lightgs", "methods.simple", "methods.betadesc")
+BUILTIN_MODULES = ("methods.confsplat", "methods.lightgs", "methods.virtualrig", "methods.simple", "methods.betadesc",
+                   "methods.betadesc.vr")
 KNOWN_NEEDS = frozenset({"cameras"})
 #: comparison-table groups, in column order, with their titles
-GROUPS = {"camera-aware": "Camera-Aware Methods", "baseline": "Simple Baselines", "ours": "Our Method",
+GROUPS = {"camera-aware": "Camera-Aware Methods", "camera-free": "Camera-Free (virtual rig)",
+          "baseline": "Simple Baselines", "ours": "Our Method",
           "ablation": "Ablations", "other": "Other Methods"}
 
 

@@ -102,7 +102,8 @@ def test_greedy_walk_adopts_only_clear_wins_on_both_scenes():
     assert rs.label(space, rs.with_value(inc, "prior", 2.0)) == "lit+o_norm=rank+prior=2"
     assert rs.overrides(space, inc) == {"reading": "paper-literal", "o_norm": "rank"}
     md = rs.selection_markdown(space, [step, step2], {rs.METHOD: inc})
-    assert "**adopted**" in md and "not adopted" in md and "| betadesc | `o_norm` | `rank` |" in md
+    assert "**adopted**" in md and "not adopted" in md
+    assert "| axis | value |" in md and "| `o_norm` | `rank` |" in md  # one searched method: a row per axis
     assert "percentile-bootstrap" in md  # round one's rule names the bootstrap
 
 
@@ -138,7 +139,7 @@ def test_round_two_walk_joint_axis_then_single_axes_then_the_ablation():
     from harness.core.paths import REPO_ROOT
 
     raw = yaml.safe_load((REPO_ROOT / "ctc_configs" / "reading2.yaml").read_text())
-    space = rs.search_space(raw, interval="t", searched=rs.SEARCHED)
+    space = rs.search_space(raw, interval="t", searched=rs.SEARCHED, prefix="r1")
     rng = np.random.default_rng(0)
     noise = rng.normal(0, 0.05, 8)
 
@@ -167,7 +168,7 @@ def test_round_two_walk_joint_axis_then_single_axes_then_the_ablation():
     # nbhd-var gains 0.6 on luigi but leaves the joint reading (-1.0): evaluated with the others at the incumbent
     assert steps[1].delta["luigi"].mean == pytest.approx(-0.4, abs=0.05) and steps[1].delta["luigi"].n == 8
     assert incumbents["betadesc-nodesc"]["nodesc_def"] == "param-stats"
-    assert rs.label(space, incumbents["betadesc"], "betadesc", "r1") == "r1+ell_def=dims-peak+s_def=dims-peak+u_def=spread-hsfh"
+    assert rs.label(space, incumbents["betadesc"], "betadesc") == "r1+ell_def=dims-peak+s_def=dims-peak+u_def=spread-hsfh"
     md = rs.selection_markdown(space, steps, incumbents)
     assert "Student-t" in md and "of `betadesc-nodesc`" in md and "| betadesc-nodesc | `nodesc_def` | `param-stats` |" in md
     assert "(incumbent `nbhd-std, dims-var, std-hsfh`)" in md

@@ -10,7 +10,6 @@ nothing: the folder's earlier results, tables and page stay, and only its record
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -74,12 +73,10 @@ def run_study(config_or_path, *, out=None, executor: str | None = None, address:
     from harness.core.devices import check_device
     from harness.core.paths import cache_dir
     from harness.io.files import make_output_folder, sweep_stale_temps
-    from harness.report.outputs import publish
-    from harness.report.record import contact_sheets, copy_images, summary_lines, write_run_json
-    from harness.report.results import to_frame, write_results
     from harness.run.cache import is_url
     from harness.run.captured import check_captures
     from harness.run.executors import make_executor, preflight
+    from harness.run.finish import finish_run
     from harness.run.plan import check_sources
     from harness.run.progress import StageProgress
     from harness.run.runner import Runner
@@ -116,29 +113,9 @@ def run_study(config_or_path, *, out=None, executor: str | None = None, address:
         runner = Runner(config, out_dir=out_dir, cache_root=cache_root, workers=workers, force=force,
                         progress=progress, log=log, base_dir=Path.cwd(), executor=pool)
         result = runner.run()
-    df = to_frame(result.rows)
-    if not (df["status"] == "ok").any():  # keep the folder's earlier results and outputs; add this record
-        record = write_run_json(out_dir, config, result, workers=workers, cache_root=cache_root, argv=argv,
-                                latest=False)
-        lines = summary_lines(result, df, {"run record": record})
-        lines.append(f"nothing measured: the earlier results, tables and page in {out_dir} are left as they were")
-        return Study(df, out_dir, lines, errors=list(result.errors), measured=False)
-    pq, csv = write_results(df, out_dir)
-    images = copy_images(result.images, out_dir)
-    sheets = contact_sheets(runner.items, runner.cache, runner._ref_key, out_dir, config.protocol.background)
-    run_json = write_run_json(out_dir, config, result, workers=workers, cache_root=cache_root, argv=argv)
-    published = publish(out_dir, df, json.loads(run_json.read_text()))
-    paths = {"results": pq, "results (csv)": csv, "tables": out_dir / "tables", "plots": out_dir / "plots",
-             "images": images,
-             "contact sheets": f"{out_dir / 'contact_sheets'} (coverage per view: "
-                               + "; ".join(f"{k} " + " ".join(f"{100 * c:.0f}%" for c in v) for k, v in sheets.items())
-                               + ")",
-             "run record": run_json,
-             "report page": published.page,
-             "stage cache": cache_root}
-    written = published.written
-    return Study(df, out_dir, summary_lines(result, df, paths), warnings=written.warnings + written.missing,
-                 written=len(written.paths), errors=list(result.errors))
+    done = finish_run(out_dir, config, runner, result, workers=workers, cache_root=cache_root, argv=argv)
+    return Study(done.frame, out_dir, done.summary, warnings=done.warnings, written=done.written,
+                 errors=list(result.errors), measured=done.measured)
 
 
 def evaluate(config_or_path, out=None, executor: str | None = "local", **options):

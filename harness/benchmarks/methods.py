@@ -30,7 +30,7 @@ import numpy as np
 
 NAME = "methods"
 HELP = "scoring seconds of every registered pruner on bonsai-7k-mini (+ --quality: PSNR of 30 % pruned renders)"
-QUALITY_METHODS = ("lightgs", "confsplat", "opacity", "random", "betadesc")
+QUALITY_METHODS = ("lightgs", "confsplat", "opacity", "random", "betadesc", "virtual-rig")
 
 
 OVERHEAD_SCENES = "bonsai-7k,bonsai-7k-mini,luigi,grape-small,playbot"

@@ -1,6 +1,7 @@
 """`harness bench NAME`: run one benchmark (modules in :mod:`harness.benchmarks`).
 
 Each benchmark module defines ``NAME``, ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``
+(and ``OUT_SUB`` when it writes into a sub-folder of the default ``--out``)
 and writes its results (JSON + markdown) into ``--out DIR``, which every benchmark takes: default
 ``runs/bench`` (git-ignored, so trying a benchmark never rewrites the committed numbers); ``--out
 results/bench`` updates the committed results, and the benchmark then says that it did. Speed goals
@@ -35,7 +36,7 @@ def _fill(p, mod) -> None:
     mod.add_arguments(p)
     p.add_argument("--out", default=None, metavar="DIR",
                    help=help_text(f"folder for the results (default {DEFAULT_OUT}"
-                                  f"{'/reading' if mod.NAME == 'reading' else ''}, outside the tracked tree; "
+                                  f"{'/' + mod.OUT_SUB if hasattr(mod, 'OUT_SUB') else ''}, outside the tracked tree; "
                                   "--out results/bench updates the committed results and says so)"))
     p.set_defaults(_bench=mod.run)
 

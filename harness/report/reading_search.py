@@ -1,21 +1,29 @@
-"""The pre-registered greedy selection of BetaDescPrune's reading (round one: ``ctc_configs/reading.yaml``,
-round two: ``ctc_configs/reading2.yaml``; each rule is in its file's header).
+"""The pre-registered greedy selection of a pruner's parameters: BetaDescPrune's reading (round one:
+``ctc_configs/reading.yaml``, round two: ``ctc_configs/reading2.yaml``) and the virtual rig's
+geometry and betadesc-vr's weight (``ctc_configs/virtualrig.yaml``); each rule is in its file's header.
 
-Pure functions over a run config's raw mapping and the tidy results of its runs; the driver that
-runs the stages is ``harness bench reading`` (:mod:`harness.benchmarks.reading`; named
-tools/reading_search.py when round one was pre-registered in commit 70c2edb).
+Pure functions over a run config's raw mapping and the tidy results of its runs; the drivers that
+run the stages are ``harness bench reading`` (:mod:`harness.benchmarks.reading`; named
+tools/reading_search.py when round one was pre-registered in commit 70c2edb) and ``harness bench
+virtualrig`` (:mod:`harness.benchmarks.virtualrig`).
 
 * :func:`search_space` reads the rule's start (the ``params`` of the first sweep entry of each
-  searched method: ``betadesc``, and in round two ``betadesc-nodesc``) and the axes (one per sweep
-  entry, in file order). An axis sweeps one parameter (its values, the start's value first) or, in
-  round two, several at once: a *joint* axis whose values are the tuples of the sweep's combinations
-  (the start's tuple first), named ``a+b+c``.
+  searched method: ``betadesc``; in round two also ``betadesc-nodesc``; ``virtual-rig``, then
+  ``betadesc-vr``, for the virtual rig) and the axes (one per sweep entry, in file order). An axis
+  sweeps one parameter (its values, the start's value first) or, in round two, several at once: a
+  *joint* axis whose values are the tuples of the sweep's combinations (the start's tuple first),
+  named ``a+b+c``. The space also holds the rule's reference side (``random``; ``lightgs`` for the
+  virtual rig), the view protocols it reads (all; ``shifted`` and ``independent`` pooled for the
+  virtual rig), its interval and the variant-name prefix of the stage configs.
 * :func:`evaluate_axis` computes, for one axis on the current incumbent of its method, D (vs the
   reference) with its 95 % interval for every value on every selection scene, the candidate
   (highest mean D over the scenes among the non-incumbent values) and the paired candidate −
   incumbent difference with its interval; the candidate is adopted iff that mean exceeds the
-  interval's half-width on every selection scene. The interval is the round's: the percentile
-  bootstrap in round one (its rule), the t interval in round two (:mod:`harness.report.paired`).
+  interval's half-width on every selection scene (with ``ignore_unchanged``, the virtual rig's rule:
+  on every scene where the candidate changes anything — an exactly zero difference with a zero-width
+  interval means the axis does not apply there — and on at least one). The interval is the round's:
+  the percentile bootstrap in round one and for the virtual rig (their rules), the t interval in
+  round two (:mod:`harness.report.paired`).
 * :func:`selection_markdown` and :func:`confirmation_markdown` write the report tables.
 """
 
@@ -31,7 +39,7 @@ import pandas as pd
 from harness.report.paired import Paired, compare
 
 METHOD = "betadesc"
-#: the methods whose sweep entries are axes (round one used only the first)
+#: the methods whose sweep entries are axes in round two (round one used only the first)
 SEARCHED = ("betadesc", "betadesc-nodesc")
 #: the interval each round's rule names
 INTERVAL = {1: "bootstrap", 2: "t"}
@@ -56,13 +64,20 @@ class Axis:
 
 @dataclass(frozen=True)
 class SearchSpace:
-    start: dict[str, Any]  # the start's params as written (e.g. {"reading": "paper-literal"})
+    starts: dict[str, dict[str, Any]]  # searched method -> its start params as written
     axes: tuple[Axis, ...]
     scenes: tuple[str, ...]
     ratio: float
-    reference: dict[str, Any]  # {"method": "random"}
-    interval: str = "bootstrap"  # the round's interval (:data:`INTERVAL`)
-    starts: dict[str, dict[str, Any]] = field(default_factory=dict)  # method -> start params as written
+    reference: dict[str, Any] = field(default_factory=lambda: {"method": "random"})
+    interval: str = "bootstrap"  # the rule's interval (:data:`INTERVAL`)
+    method: str = METHOD  # the searched method the rule is about (the report names the others)
+    prefix: str = "lit"  # variant-name prefix of the searched readings in stage configs
+    protocols: tuple[str, ...] = ()  # the view protocols the rule reads, pooled (empty: every view)
+
+    @property
+    def start(self) -> dict[str, Any]:
+        """The start params of :attr:`method` as written (e.g. ``{"reading": "paper-literal"}``)."""
+        return self.starts[self.method]
 
 
 @dataclass
@@ -93,19 +108,27 @@ def resolved(params: Mapping[str, Any], method: str = METHOD) -> dict[str, Any]:
     return get_pruner(method).parse_params(dict(params)).to_dict()
 
 
-def search_space(raw: Mapping[str, Any], method: str = METHOD, interval: str = "bootstrap",
-                 searched: tuple[str, ...] = (METHOD,)) -> SearchSpace:
-    """The start(s) and axes encoded in a reading config (see the module docstring); ``searched``:
-    the methods whose sweep entries are axes (round one: betadesc only)."""
+def search_space(raw: Mapping[str, Any], method: str = METHOD, *, reference: Mapping[str, Any] | None = None,
+                 prefix: str = "lit", interval: str = "bootstrap", searched: tuple[str, ...] | None = None,
+                 protocols: tuple[str, ...] = ()) -> SearchSpace:
+    """The start(s) and axes encoded in a selection config (see the module docstring); ``searched``:
+    the methods whose sweep entries are axes (default: ``method`` alone, as round one and the virtual rig)."""
+    searched = searched or (method,)
     entries = [m for m in raw["methods"] if isinstance(m, Mapping) and m.get("name") in searched and m.get("sweep")]
     if not any(m["name"] == method for m in entries):
         raise ValueError(f"no sweep entries of {method} in the config")
     starts: dict[str, dict[str, Any]] = {}
+    for m in entries:  # the start: every entry's params agree (an entry leaves out the parameter it sweeps)
+        start = starts.setdefault(m["name"], {})
+        for k, v in dict(m.get("params") or {}).items():
+            if start.setdefault(k, v) != v:
+                raise ValueError(f"every axis entry of {m['name']} must sweep on the same start params ({k})")
     axes = []
     for m in entries:
-        start = starts.setdefault(m["name"], dict(m.get("params") or {}))
-        if dict(m.get("params") or {}) != start:
-            raise ValueError(f"every axis entry of {m['name']} must sweep on the same start params")
+        start = starts[m["name"]]
+        if set(start) - set(m.get("params") or {}) - set(m["sweep"]):
+            raise ValueError(f"every axis entry of {m['name']} must sweep on the same start params "
+                             f"(missing {sorted(set(start) - set(m.get('params') or {}) - set(m['sweep']))})")
         base = resolved(start, m["name"])
         names = tuple(m["sweep"])
         if len(names) == 1:
@@ -115,8 +138,8 @@ def search_space(raw: Mapping[str, Any], method: str = METHOD, interval: str = "
         axes.append(Axis("+".join(names), tuple([tuple(base[n] for n in names), *combos]), names, m["name"]))
     scenes = tuple(s["name"] if isinstance(s, Mapping) else s for s in raw["scenes"])
     ratios = raw.get("ratios") or [0.3]
-    return SearchSpace(starts[method], tuple(axes), scenes, float(ratios[0]), {"method": "random"},
-                       interval, starts)
+    return SearchSpace(starts, tuple(axes), scenes, float(ratios[0]), dict(reference or {"method": "random"}),
+                       interval, method, prefix, tuple(protocols))
 
 
 def with_value(incumbent: Mapping[str, Any], axis: str | Axis, value) -> dict[str, Any]:
@@ -126,25 +149,30 @@ def with_value(incumbent: Mapping[str, Any], axis: str | Axis, value) -> dict[st
     return {**incumbent, (axis.name if isinstance(axis, Axis) else axis): value}
 
 
-def _start(space: SearchSpace, method: str) -> dict[str, Any]:
-    return space.starts.get(method, space.start) if space.starts else space.start
-
-
 def _params_of(space: SearchSpace, method: str) -> list[str]:
     return list(dict.fromkeys(p for a in space.axes if a.method == method for p in a.swept))
 
 
-def overrides(space: SearchSpace, params: Mapping[str, Any], method: str = METHOD) -> dict[str, Any]:
-    """``params`` as the start plus the axis values that differ from the start's (config form)."""
-    base = resolved(_start(space, method), method)
-    return {**_start(space, method), **{p: params[p] for p in _params_of(space, method) if params[p] != base[p]}}
+def selected_values(space: SearchSpace, incumbents: Mapping[str, Mapping[str, Any]]) -> dict[str, dict[str, Any]]:
+    """method -> {searched parameter: its value in ``incumbents[method]``} (full params per method)."""
+    return {m: {p: incumbents[m][p] for p in _params_of(space, m)} for m in space.starts}
 
 
-def label(space: SearchSpace, params: Mapping[str, Any], method: str = METHOD, prefix: str = "lit") -> str:
-    """A short, stable variant name: ``prefix`` + the axis values that differ from the start."""
+def overrides(space: SearchSpace, params: Mapping[str, Any], method: str | None = None) -> dict[str, Any]:
+    """``params`` of ``method`` (default: the space's) as its start plus the searched values that differ
+    from the start's (config form)."""
+    method = method or space.method
+    start = space.starts[method]
+    base = resolved(start, method)
+    return {**start, **{p: params[p] for p in _params_of(space, method) if params[p] != base[p]}}
+
+
+def label(space: SearchSpace, params: Mapping[str, Any], method: str | None = None) -> str:
+    """A short, stable variant name: the space's prefix + the searched values that differ from the start."""
+    method = method or space.method
     extra = overrides(space, params, method)
     diff = [f"{p}={_fmt(extra[p])}" for p in _params_of(space, method) if p in extra]
-    return prefix + ("+" + "+".join(diff) if diff else "")
+    return space.prefix + ("+" + "+".join(diff) if diff else "")
 
 
 def _fmt(v) -> str:
@@ -153,30 +181,41 @@ def _fmt(v) -> str:
     return format(v, "g") if isinstance(v, float) else str(v)
 
 
-def _match(params: Mapping[str, Any], space: SearchSpace) -> dict[str, Any]:
+def _match(params: Mapping[str, Any]) -> dict[str, Any]:
     """The row-matching subset of full params: every value but the ``reading`` label (two rows with the
     same values and different bundle names are the same reading)."""
     return {k: v for k, v in params.items() if k != "reading"}
 
 
 def missing(df: pd.DataFrame, space: SearchSpace, wanted: list[dict[str, Any]],
-            method: str = METHOD) -> list[dict[str, Any]]:
-    """The wanted full param dicts of ``method`` that have no ok rows on some selection scene."""
+            method: str | None = None) -> list[dict[str, Any]]:
+    """The wanted full param dicts of ``method`` (default: the space's) that have no ok rows on some
+    selection scene."""
+    method = method or space.method
     rows = df[(df["status"] == "ok") & (df["method"] == method) & ((df["ratio"] - space.ratio).abs() < 1e-9)]
-    have = {(r.scene, json.dumps(_match(json.loads(r.params), space), sort_keys=True))
+    have = {(r.scene, json.dumps(_match(json.loads(r.params)), sort_keys=True))
             for r in rows[["scene", "params"]].drop_duplicates().itertuples()}
     out = []
     for p in wanted:
-        key = json.dumps(_match(p, space), sort_keys=True)
+        key = json.dumps(_match(p), sort_keys=True)
         if any((s, key) not in have for s in space.scenes) and p not in out:
             out.append(p)
     return out
 
 
-def evaluate_axis(df: pd.DataFrame, space: SearchSpace, axis: Axis, incumbent: dict[str, Any]) -> AxisResult:
-    """One step of the rule (module docstring); ``incumbent`` holds the full params of ``axis.method``."""
+def _unchanged(p: Paired) -> bool:
+    """Every view's PSNR identical on both sides: the axis does not apply to the scene."""
+    return p.n > 0 and p.mean == 0 and p.half_width == 0
+
+
+def evaluate_axis(df: pd.DataFrame, space: SearchSpace, axis: Axis, incumbent: dict[str, Any], *,
+                  ignore_unchanged: bool = False) -> AxisResult:
+    """One step of the rule (module docstring) on the views of the space's protocols; ``incumbent``
+    holds the full params of ``axis.method``."""
+    if space.protocols:
+        df = df[df["protocol"].isin(space.protocols)]
     res = AxisResult(axis.name, dict(incumbent), method=axis.method, axis_def=axis)
-    side = {v: {"method": axis.method, "params": _match(with_value(incumbent, axis, v), space)} for v in axis.values}
+    side = {v: {"method": axis.method, "params": _match(with_value(incumbent, axis, v))} for v in axis.values}
     current = axis.value_of(incumbent)
 
     def cmp(s, cand, ref):
@@ -190,7 +229,8 @@ def evaluate_axis(df: pd.DataFrame, space: SearchSpace, axis: Axis, incumbent: d
     res.candidate = max(others, key=lambda v: (mean_d[v], -others.index(v)))
     for s in space.scenes:
         res.delta[s] = cmp(s, side[res.candidate], side[current])
-    res.adopted = all(p.n > 0 and p.mean > p.half_width for p in res.delta.values())
+    judged = [p for p in res.delta.values() if not (ignore_unchanged and _unchanged(p))]
+    res.adopted = bool(judged) and all(p.n > 0 and p.mean > p.half_width for p in judged)
     return res
 
 
@@ -198,12 +238,22 @@ INTERVAL_TEXT = {"bootstrap": "95 % percentile-bootstrap CI (10,000 resamples of
                  "t": "95 % Student-t interval (mean ± t₀.₉₇₅,ₙ₋₁·s/√n over the n views)"}
 
 
+def _views_text(protocols: tuple[str, ...]) -> str:
+    if not protocols:
+        return ""
+    names = protocols[0] if len(protocols) == 1 else ", ".join(protocols[:-1]) + " and " + protocols[-1]
+    return f" over the held-out views of the {names} protocol" + ("s pooled" if len(protocols) > 1 else "")
+
+
 def selection_markdown(space: SearchSpace, steps: list[AxisResult], selected: Mapping[str, Mapping[str, Any]]) -> str:
-    """The selection report; ``selected``: method -> the full params it ends with."""
-    lines = [f"Criterion: D = mean paired per-view PSNR difference vs random at {space.ratio:.0%} pruning "
-             f"(dB), with its {INTERVAL_TEXT[space.interval]}; `n` views used (`x` excluded at >= 100 dB).", ""]
+    """The selection report; ``selected``: method -> the full params it ends with. The selected values:
+    a row per axis when one method is searched, a row per method and parameter when several are."""
+    ref = space.reference.get("method", "the reference")
+    lines = [f"Criterion: D = mean paired per-view PSNR difference vs {ref} at {space.ratio:.0%} pruning "
+             f"(dB){_views_text(space.protocols)}, with its {INTERVAL_TEXT[space.interval]}; `n` views used "
+             "(`x` excluded at >= 100 dB).", ""]
     for i, st in enumerate(steps, 1):
-        of = "" if st.method == METHOD else f" of `{st.method}`"
+        of = "" if st.method == space.method else f" of `{st.method}`"
         lines += [f"### Axis {i}: `{st.axis}`{of} (incumbent `{_fmt(st.current)}`)", "",
                   "| value | " + " | ".join(f"D {s} [CI] (n/x)" for s in space.scenes) + " |",
                   "|---|" + "---|" * len(space.scenes)]
@@ -215,9 +265,14 @@ def selection_markdown(space: SearchSpace, steps: list[AxisResult], selected: Ma
         deltas = "; ".join(f"{s}: {p.text()} (half-width {p.half_width:.2f})" for s, p in st.delta.items())
         verdict = "**adopted**" if st.adopted else "not adopted (incumbent kept)"
         lines += ["", f"Candidate `{_fmt(st.candidate)}` − incumbent: {deltas} → {verdict}.", ""]
-    lines += ["### Selected reading", "", "| method | parameter | value |", "|---|---|---|"]
-    for method in dict.fromkeys(a.method for a in space.axes):
-        lines += [f"| {method} | `{p}` | `{_fmt(selected[method][p])}` |" for p in _params_of(space, method)]
+    lines += ["### Selected " + ("reading" if space.method == METHOD else "parameters"), ""]
+    if len(space.starts) == 1:
+        lines += ["| axis | value |", "|---|---|"]
+        lines += [f"| `{a.name}` | `{_fmt(a.value_of(selected[a.method]))}` |" for a in space.axes]
+    else:
+        lines += ["| method | parameter | value |", "|---|---|---|"]
+        for method in space.starts:
+            lines += [f"| {method} | `{p}` | `{_fmt(selected[method][p])}` |" for p in _params_of(space, method)]
     return "\n".join(lines) + "\n"
 
 

@@ -48,7 +48,9 @@ PROTOCOL_NOTES = {"rig": "held-out views of the rig the camera-aware methods tra
                   "shifted": "held-out views from another camera distribution (higher rings, narrower field of "
                              "view, other azimuths) than the camera-aware methods' training views",
                   "real": "the real capture's held-out cameras; camera-aware methods train on its training cameras; "
-                          "'vs photo' metrics compare with the captured photos, the others with the unpruned render"}
+                          "'vs photo' metrics compare with the captured photos, the others with the unpruned render",
+                  "independent": "random held-out views (positions, look-at jitter, fields of view, close-ups) "
+                                 "defined independently of the training rig and of any virtual rig"}
 
 
 def protocol_subsets(df: pd.DataFrame) -> list[tuple[str, str, pd.DataFrame]]:

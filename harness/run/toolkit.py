@@ -54,11 +54,16 @@ def make_rig(rig: str, scene, *, kind: str, dataset: str | None, n_train: int, n
 def protocol_views(rig: str, scene, protocol, *, kind: str, dataset: str | None, n_test: int, longest_side: int,
                    aspect: float | None, seed: int):
     """The held-out views of a shifted protocol: the scene's rig with the protocol's camera
-    distribution (higher rings, another field of view, other azimuths; no training views)."""
-    from harness.views import rigs
+    distribution (higher rings, another field of view, other azimuths; no training views), or the
+    random views of :mod:`harness.views.independent` (``distribution="independent"``)."""
+    from harness.views import independent, rigs
 
     if rig == "default" and dataset not in rigs.SCENE_RIGS and kind == "forward-facing":
         rig = "forward"
+    if protocol.distribution == "independent":
+        cams = independent.independent_views(dataset, scene, rig, n_test=n_test, longest_side=longest_side,
+                                             aspect=aspect, seed=seed + protocol.seed_offset)
+        return [replace(c, name=f"{protocol.name}/{c.name}") for c in cams]
     views = rigs.scene_rig(dataset, scene, rig, n_train=0, n_test=n_test, longest_side=longest_side,
                            aspect=aspect, seed=seed + protocol.seed_offset,
                            fov_deg=rigs.FOV_DEG * protocol.fov_scale, rings_above=protocol.rings_above)
@@ -112,7 +117,8 @@ class Toolkit:
     check_metrics: Callable = check_metrics
     #: module names whose source versions each stage (cache-key "code" component)
     reader_modules: tuple[str, ...] = field(default_factory=lambda: _reader_modules())
-    rig_modules: tuple[str, ...] = ("harness.views.rigs", "harness.core.cameras")
+    rig_modules: tuple[str, ...] = ("harness.views.rigs", "harness.views.independent", "harness.views.placement",
+                                    "harness.core.cameras", "harness.core.sphere")
     #: whole packages: renderers and metrics import their shared code lazily, inside functions, so a
     #: module-level import closure would miss it (over-invalidation is the safe side)
     renderer_modules: tuple[str, ...] = ("renderers",)

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.core.scene import GaussianScene, opacities
+from harness.core.sphere import fibonacci_sphere
 
 DEFAULT_UP = (0.0, -1.0, 0.0)
 SAMPLE_SIZE = 20000
@@ -99,15 +100,6 @@ def placement(scene: GaussianScene, up=None, sample_size: int = SAMPLE_SIZE) -> 
     if not np.all(np.isfinite(up)) or np.linalg.norm(up) == 0:
         raise ValueError("up must be a finite non-zero vector")
     return Placement(center, _density_peak(points), up / np.linalg.norm(up), max(radius, 1e-6), points)
-
-
-def fibonacci_sphere(n: int) -> np.ndarray:
-    """``n`` nearly uniform unit vectors (golden-angle spiral)."""
-    i = np.arange(n) + 0.5
-    z = 1.0 - 2.0 * i / n
-    phi = np.pi * (3.0 - np.sqrt(5.0)) * i
-    r = np.sqrt(1.0 - z * z)
-    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
 
 
 def enclosure(place: Placement, n_dirs: int = 64, eye_fraction: float = 0.3, share: float = 0.05) -> float:

@@ -128,7 +128,7 @@ def held_out_indices(n_total: int, n_test: int) -> list[int]:
     return [int((j + 0.5) * n_total / n_test) for j in range(n_test)]
 
 
-def _look(target, direction, d: float, *, up, width, height, fov_deg, name="") -> Camera:
+def look_from(target, direction, d: float, *, up, width, height, fov_deg, name="") -> Camera:
     """The camera at ``target + d·direction`` looking at ``target``, ``fov_deg`` across the long side."""
     f = max(width, height) / (2.0 * math.tan(math.radians(fov_deg) / 2.0))
     fov_y = math.degrees(2.0 * math.atan(height / (2.0 * f)))
@@ -140,7 +140,7 @@ def fit_distance(target, direction, points, *, up, width, height, fov_deg, fill)
     """Smallest distance putting the content points inside the central ``fill`` of the frame
     (99th percentile of the per-point bounds, module docstring)."""
     target = np.asarray(target, np.float64)
-    probe = _look(target, direction, 1.0, up=up, width=width, height=height, fov_deg=fov_deg)
+    probe = look_from(target, direction, 1.0, up=up, width=width, height=height, fov_deg=fov_deg)
     q = (points - target) @ probe.rotation.T
     need = np.maximum.reduce([
         probe.fx * np.abs(q[:, 0]) / (fill * width / 2.0) - q[:, 2],
@@ -241,7 +241,7 @@ def make_rig(name: str, scene: GaussianScene, *, n_train: int = N_TRAIN, n_test:
     dist = np.array([fit_distance(target, u, points, fill=fill, **common) for u in dirs])
     dist = np.minimum(np.maximum(dist, np.median(dist)), np.inf if max_d is None else max_d)
     digits = max(3, len(str(n - 1)))  # names sort in path order (RigViews.all)
-    cams = [_look(target, u, float(d), name=f"{name}_{i:0{digits}d}", **common)
+    cams = [look_from(target, u, float(d), name=f"{name}_{i:0{digits}d}", **common)
             for i, (u, d) in enumerate(zip(dirs, dist))]
     return _split(cams, n_test, name)
 
@@ -249,25 +249,44 @@ def make_rig(name: str, scene: GaussianScene, *, n_train: int = N_TRAIN, n_test:
 @dataclass(frozen=True)
 class ViewProtocol:
     """Where the held-out views come from. ``rig``: the rig the camera-aware methods train on (its
-    held-out views interleave with the training views). Any other protocol builds its test views
-    from the same rig kind with a different camera distribution: rings ``rings_above`` degrees above
-    the training rig's highest ring (outside its band), a field of view ``fov_scale`` times as wide
-    (the distance fit moves the cameras back accordingly) and other azimuths (seed + ``seed_offset``)
-    — so "camera-aware" is not the same as "trained on the test distribution"."""
+    held-out views interleave with the training views). A ``distribution="rig"`` protocol other than
+    that builds its test views from the same rig kind with a different camera distribution: rings
+    ``rings_above`` degrees above the training rig's highest ring (outside its band), a field of view
+    ``fov_scale`` times as wide (the distance fit moves the cameras back accordingly) and other
+    azimuths (seed + ``seed_offset``) — so "camera-aware" is not the same as "trained on the test
+    distribution". ``distribution="independent"``: random views of :mod:`harness.views.independent`,
+    defined without the training rig's path, rings or field of view (and without any virtual rig)."""
 
     name: str
     rings_above: tuple[float, ...] = ()
     fov_scale: float = 1.0
     seed_offset: int = 0
+    distribution: str = "rig"
 
     @property
     def shifted(self) -> bool:
-        return (self.rings_above, self.fov_scale, self.seed_offset) != ((), 1.0, 0)
+        return (self.rings_above, self.fov_scale, self.seed_offset, self.distribution) != ((), 1.0, 0, "rig")
 
 
-#: named protocols a config can list (``protocols: [rig, shifted]``)
+#: named protocols a config can list (``protocols: [rig, shifted, independent]``)
 PROTOCOLS = {"rig": ViewProtocol("rig"),
-             "shifted": ViewProtocol("shifted", rings_above=(15.0, 30.0), fov_scale=0.6, seed_offset=1000)}
+             "shifted": ViewProtocol("shifted", rings_above=(15.0, 30.0), fov_scale=0.6, seed_offset=1000),
+             "independent": ViewProtocol("independent", seed_offset=2000, distribution="independent")}
+
+
+def resolve_rig(dataset: str | None, rig: str = "default") -> tuple[str, dict]:
+    """(rig name, :func:`make_rig` keywords) of ``rig`` for a scene: ``default`` is the
+    :data:`SCENE_RIGS` entry of the named dataset (its rig, up axis, aspect and elevations), ``auto``
+    for any other scene; an explicit rig comes with no keywords."""
+    if rig not in RIG_CHOICES:
+        raise ValueError(f"unknown rig {rig!r}; known: {', '.join(RIG_CHOICES)}")
+    if rig != "default":
+        return rig, {}
+    d = SCENE_RIGS.get(dataset or "")
+    if d is None:
+        return "auto", {}
+    return d.rig, {k: v for k, v in (("up", d.up), ("aspect", d.aspect), ("elevations", d.elevations))
+                   if v is not None}
 
 
 def scene_rig(dataset: str | None, scene: GaussianScene, rig: str = "default", **overrides) -> RigViews:
@@ -276,15 +295,7 @@ def scene_rig(dataset: str | None, scene: GaussianScene, rig: str = "default", *
     (``orbit``, ``room``, ``forward``, ``auto``) uses only what it is given: the same flags give the
     same rig whatever the scene or its file is called. Keyword arguments of :func:`make_rig` that are
     not None override everything (an explicit ``aspect`` wins over the table's)."""
-    if rig not in RIG_CHOICES:
-        raise ValueError(f"unknown rig {rig!r}; known: {', '.join(RIG_CHOICES)}")
-    kwargs = {}
-    if rig == "default":
-        d = SCENE_RIGS.get(dataset or "")
-        rig = d.rig if d is not None else "auto"
-        if d is not None:
-            kwargs = {k: v for k, v in (("up", d.up), ("aspect", d.aspect), ("elevations", d.elevations))
-                      if v is not None}
+    rig, kwargs = resolve_rig(dataset, rig)
     kwargs.update({k: v for k, v in overrides.items() if v is not None})
     return make_rig(rig, scene, **kwargs)
 

@@ -86,8 +86,9 @@ def coefficients(params, descriptors: bool) -> ev.Coefficients:
 
 
 def components(scene: GaussianScene, params, cameras=None, *, descriptors: bool = True,
-               beta: bool = True) -> Components:
-    """Every per-splat quantity of the run (:class:`Components`); ``score`` is what :func:`run` returns."""
+               beta: bool = True, retention: np.ndarray | None = None) -> Components:
+    """Every per-splat quantity of the run (:class:`Components`); ``score`` is what :func:`run` returns.
+    ``retention`` (N,): extra retention evidence added to A (``betadesc-vr``: :mod:`methods.betadesc.vr`)."""
     s, ell, o, u, w, voxel = statistics(scene, params, descriptors)
     edge, edge_weight = 0.0, 0.0
     if cameras and params.view_weight > 0:
@@ -100,6 +101,8 @@ def components(scene: GaussianScene, params, cameras=None, *, descriptors: bool 
     with stage("scores"):
         a, b = ev.evidence(s, ell, o, u, w, coefficients(params, descriptors), prior=prior,
                            edge=edge, edge_weight=edge_weight)
+        if retention is not None:
+            a = a + retention
         if not beta:
             score = a - b
         else:

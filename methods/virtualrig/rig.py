@@ -1,0 +1,109 @@
+"""Virtual cameras from a :class:`~methods.virtualrig.shape.Shape`: nothing here knows any real or
+test camera, only the splats' centre, bounding sphere and free space.
+
+**Outside-in** (``object``): ``shells`` spheres around ``center`` at distances ``m·d_fit``, the
+multipliers ``m`` spaced geometrically from ``radius_max`` down to ``radius_min``, where
+``d_fit = radius / sin(fov/2)`` puts the whole bounding sphere inside the view cone (m = 1: the
+object fills the frame; m < 1: closer views of its middle, where most detail is seen close up).
+Each shell holds an equal share of ``views`` directions from a Fibonacci sphere turned by its own
+seeded random rotation (no two shells share directions, and no axis of the scene's frame is
+favoured); every camera looks at ``center``. The full sphere of directions, below the content as
+well: which way is up cannot be told from splats.
+
+**Inside-out** (``room``): the cameras stand inside the room, in its free space. ``positions="around"``
+(default): along each of ``views`` Fibonacci directions (seeded rotation) from the subject (the
+opacity peak of :mod:`.shape`), at :data:`REACH_SHARE` of the free run of that ray (how far it gets
+before an occupied cell that is not the subject's own; at least :data:`MIN_CELLS` cells out),
+looking back at the subject with ``fov_deg``: a capture circles its subject from wherever the room
+leaves space. ``"enclosed"`` (the first, pre-registered version): ``⌈views / 6⌉`` positions by
+farthest-point sampling over the central probes whose own enclosure reaches the room threshold
+(the first the one with the most clearance), each the centre of a cube of six 90° views turned by a
+seeded random rotation. On bonsai-7k those positions all lie below the table top, hidden from the
+bonsai, and its selection run pruned worse than random (``results/virtualrig/selection.md``): the
+open space a capture is taken from is the *less* enclosed part of a room.
+
+Images are square, ``resolution`` px; focal length from the field of view.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from harness.core.cameras import Camera
+from harness.core.sphere import fibonacci_sphere, random_rotation
+from methods.virtualrig.shape import SUBJECT_CELLS, Shape, free_reach
+
+CUBE_FOV = 90.0
+REACH_SHARE = 0.7
+MIN_CELLS = 2.0
+
+
+def _camera(eye, forward, *, fov_deg: float, resolution: int, name: str) -> Camera:
+    """A square camera at ``eye`` looking along ``forward`` (roll: the world axis least along it is up)."""
+    forward = np.asarray(forward, np.float64)
+    up = np.eye(3)[int(np.argmin(np.abs(forward)))]
+    return Camera.look_at(eye, eye + forward, up, fov_y_deg=fov_deg, width=resolution, height=resolution, name=name)
+
+
+def shell_multipliers(shells: int, radius_min: float, radius_max: float) -> np.ndarray:
+    """Distance multipliers of the shells, geometric from ``radius_max`` to ``radius_min``."""
+    return np.geomspace(radius_max, radius_min, shells) if shells > 1 else np.array([radius_max])
+
+
+def outside_in(shape: Shape, *, views: int, shells: int, radius_min: float, radius_max: float,
+               fov_deg: float, resolution: int, seed: int) -> list[Camera]:
+    """The object rig (module docstring)."""
+    rng = np.random.default_rng(seed)
+    d_fit = shape.radius / math.sin(math.radians(fov_deg) / 2.0)
+    counts = np.full(shells, views // shells) + (np.arange(shells) < views % shells)
+    cams = []
+    for s, (m, n) in enumerate(zip(shell_multipliers(shells, radius_min, radius_max), counts)):
+        dirs = fibonacci_sphere(int(n)) @ random_rotation(rng).T
+        for i, u in enumerate(dirs):
+            cams.append(_camera(shape.center + m * d_fit * u, -u, fov_deg=fov_deg, resolution=resolution,
+                                name=f"vr_shell{s}_{i:03d}"))
+    return cams
+
+
+def farthest_points(points: np.ndarray, k: int) -> np.ndarray:
+    """Indices of ``k`` points by farthest-point sampling from point 0."""
+    k = min(k, len(points))
+    chosen = [0]
+    d = np.linalg.norm(points - points[0], axis=1)
+    while len(chosen) < k:
+        nxt = int(np.argmax(d))
+        chosen.append(nxt)
+        d = np.minimum(d, np.linalg.norm(points - points[nxt], axis=1))
+    return np.array(chosen, np.int64)
+
+
+def around_subject(shape: Shape, *, views: int, fov_deg: float, resolution: int, seed: int) -> list[Camera]:
+    """The room rig with ``positions="around"`` (module docstring)."""
+    rng = np.random.default_rng(seed)
+    dirs = fibonacci_sphere(views) @ random_rotation(rng).T
+    reach = free_reach(shape.occupied, (shape.peak - shape.origin) / shape.cell, dirs, SUBJECT_CELLS)
+    dist = np.maximum(REACH_SHARE * reach, MIN_CELLS) * shape.cell
+    return [_camera(shape.peak + d * u, -u, fov_deg=fov_deg, resolution=resolution, name=f"vr_around_{i:03d}")
+            for i, (u, d) in enumerate(zip(dirs, dist))]
+
+
+def inside_out(shape: Shape, *, views: int, resolution: int, seed: int, positions: str = "around",
+               room_enclosure: float = 0.8, fov_deg: float = 60.0) -> list[Camera]:
+    """The room rig (module docstring)."""
+    if positions == "around":
+        return around_subject(shape, views=views, fov_deg=fov_deg, resolution=resolution, seed=seed)
+    if positions != "enclosed":
+        raise ValueError(f"unknown inside-out positions {positions!r}; known: around, enclosed")
+    where = shape.probes[shape.probe_enclosure >= room_enclosure]
+    if len(where) == 0:
+        raise ValueError("inside-out virtual rig: the scene has no enclosed free space to stand in")
+    rng = np.random.default_rng(seed)
+    cams = []
+    for p, idx in enumerate(farthest_points(where, -(-views // 6))):
+        rot = random_rotation(rng)
+        for f, forward in enumerate(np.concatenate([rot.T, -rot.T])):
+            cams.append(_camera(where[idx], forward, fov_deg=CUBE_FOV, resolution=resolution,
+                                name=f"vr_pos{p}_{f}"))
+    return cams
