@@ -153,7 +153,12 @@ def build_pairs(proj: Projected) -> PixelPairs:
     w, h = int(proj.width), int(proj.height)
     cpu = lambda t: t.detach().to("cpu", torch.float32).numpy()
     order = torch.sort(proj.depths.detach(), stable=True).indices.cpu().numpy()
-    m2d, con, rad, omax = cpu(proj.means2d)[order], cpu(proj.conics)[order], cpu(proj.radii)[order], cpu(proj.opacities)[order]
+    m2d, con, rad, omax = (
+        cpu(proj.means2d)[order],
+        cpu(proj.conics)[order],
+        cpu(proj.radii)[order],
+        cpu(proj.opacities)[order],
+    )
     hx, hy = candidate_extent(con, omax, rad)
     x0 = np.maximum(np.ceil(m2d[:, 0] - hx), 0).astype(np.int64)
     x1 = np.minimum(np.floor(m2d[:, 0] + hx), w - 1).astype(np.int64)

@@ -34,8 +34,10 @@ def test_import_harness_is_cheap_and_lists_the_api():
     code = ("import sys, harness; heavy = [m for m in ('numpy', 'torch', 'pandas', 'harness.api') if m in sys.modules];"
             " print(heavy, sorted(harness.__all__), callable(harness.prune))")
     out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, check=True).stdout
-    assert out.startswith("[] ['HarnessError', 'Pruned', 'Scene', 'cameras', 'compare', 'evaluate', 'info', 'load', 'methods', "
-                          "'prune', 'render', 'save', 'score'] True"), out
+    assert out.startswith(
+        "[] ['HarnessError', 'Pruned', 'Scene', 'cameras', 'compare', 'evaluate', 'info', 'load', 'methods', "
+        "'prune', 'render', 'save', 'score'] True"
+    ), out
     with pytest.raises(AttributeError, match="no attribute 'nope'"):
         harness.nope  # noqa: B018
 

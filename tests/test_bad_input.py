@@ -195,9 +195,12 @@ def test_transforms_json_frame_image_bomb_is_one_line(tmp_path, capsys):
     def chunk(kind, data):
         return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
 
-    (tmp_path / "a.png").write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 20000, 20000, 8, 0, 0,
-                                                                                     0, 0))
-                                     + chunk(b"IDAT", raw) + chunk(b"IEND", b""))
+    (tmp_path / "a.png").write_bytes(
+        b"\x89PNG\r\n\x1a\n"
+        + chunk(b"IHDR", struct.pack(">IIBBBBB", 20000, 20000, 8, 0, 0, 0, 0))
+        + chunk(b"IDAT", raw)
+        + chunk(b"IEND", b"")
+    )
     (tmp_path / "transforms.json").write_text(json.dumps({"camera_angle_x": 0.8, "frames": [
         {"file_path": "a.png", "transform_matrix": np.eye(4).tolist()}]}))
     rc = main(["render", str(tmp_path / "s.ply"), "--cameras", str(tmp_path / "transforms.json"),

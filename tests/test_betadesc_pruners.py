@@ -88,7 +88,8 @@ from tests.scene_factory import random_scene
 from methods import PruneContext, get_pruner
 scene = random_scene(4000, sh_degree=3, seed=14)
 for name in {names!r}:
-    s = get_pruner(name).score(scene, PruneContext(params={params!r} if name in ("betadesc", "betadesc-nobeta") else {{}}))
+    own = {params!r} if name in ("betadesc", "betadesc-nobeta") else {{}}
+    s = get_pruner(name).score(scene, PruneContext(params=own))
     print(name, hashlib.sha256(s.tobytes()).hexdigest())
 """
 

@@ -276,7 +276,9 @@ def test_audit_lists_every_entry_and_its_problem(tmp_path):
     c.path("metrics", "a", "json").write_bytes(c.path("metrics", "a", "json").read_bytes()[:-1])
     audit = c.audit()
     assert sorted(audit) == ["images/a/a.png", "metrics/a/a.json", "score/a/a.npy"]
-    assert audit["images/a/a.png"] is None and audit["score/a/a.npy"] is None and "checksum" in audit["metrics/a/a.json"]
+    assert (
+        audit["images/a/a.png"] is None and audit["score/a/a.npy"] is None and "checksum" in audit["metrics/a/a.json"]
+    )
     assert c.path("metrics", "a", "json").exists()  # an audit deletes nothing
 
 

@@ -136,7 +136,9 @@ def test_a_damaged_copy_is_refused(tmp_path, monkeypatch):
     photo.write_bytes(bytes(data))
     monkeypatch.setenv("HARNESS_SHARED_DATA", str(tmp_path / "shared"))
     monkeypatch.setenv("HARNESS_CACHE", str(tmp_path / "cache"))
-    with pytest.raises(InputError, match=r"DSCF5573.png: sha256 .* differs from the pinned .*harness fetch bonsai-capture"):
+    with pytest.raises(
+        InputError, match=r"DSCF5573.png: sha256 .* differs from the pinned .*harness fetch bonsai-capture"
+    ):
         cap.load_capture(cap.named_spec("bonsai-7k"))
 
 
@@ -206,8 +208,14 @@ def rejected(capsys, tmp_path, doc, *phrases) -> str:
 
 def test_camera_names_that_match_no_photo(capsys, tmp_path):
     c = write_capture(tmp_path / "cap", names=[f"DSC_{i:04d}" for i in range(6)])
-    rejected(capsys, tmp_path, run_config(tmp_path, c), "cameras.json", "camera names (img0, img2, img4, ...) match no photo",
-             "DSC_0000")
+    rejected(
+        capsys,
+        tmp_path,
+        run_config(tmp_path, c),
+        "cameras.json",
+        "camera names (img0, img2, img4, ...) match no photo",
+        "DSC_0000",
+    )
 
 
 def test_a_held_out_camera_without_its_photo(capsys, tmp_path):

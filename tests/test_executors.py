@@ -176,7 +176,10 @@ def test_cache_the_workers_cannot_see_is_refused(cluster, tmp_path):
     """memory:// lives inside one process: to the workers it is like a folder of another machine."""
     from harness.core.errors import InputError
 
-    with _ray(cache_location="memory://harness-probe/cache") as ex, pytest.raises(InputError, match="not usable from Ray node"):
+    with (
+        _ray(cache_location="memory://harness-probe/cache") as ex,
+        pytest.raises(InputError, match="not usable from Ray node"),
+    ):
         ex.start()
     with _ray(cache_location=str(tmp_path)) as ex:  # a folder all (here: one) nodes see
         ex.start()

@@ -122,7 +122,14 @@ def test_thin_rotated_splats_keep_every_pixel(gl):
 
 def test_huge_tiny_and_extreme_opacities(gl):
     w, h = 40, 30
-    covs = [np.eye(2) * 1e6, np.eye(2) * 0.3, [[5e4, 4.99e4], [4.99e4, 5e4]], np.eye(2) * 4, np.eye(2) * 4, np.eye(2) * 4]
+    covs = [
+        np.eye(2) * 1e6,
+        np.eye(2) * 0.3,
+        [[5e4, 4.99e4], [4.99e4, 5e4]],
+        np.eye(2) * 4,
+        np.eye(2) * 4,
+        np.eye(2) * 4,
+    ]
     means = [(20, 15), (7.3, 4.6), (-300, 10), (30, 20), (31, 21), (10, 25)]
     opac = [0.5, 1.0, 0.8, 0.0, 1.0 / 255.0 * 0.999, 1.0]
     p = make_projected(means, covs, [5, 1, 3, 0.5, 0.6, 0.7], np.full((6, 3), 0.7), opac, w, h)

@@ -52,7 +52,9 @@ def test_npy_float_and_uint8(tmp_path):
     assert np.array_equal(read_image(tmp_path / "u.npy"), np.ones((4, 6, 3), np.float32))
 
 
-@pytest.mark.parametrize("case", ["missing", "garbage", "truncated_png", "jpeg", "pickled_npy", "nan", "shape", "dtype"])
+@pytest.mark.parametrize(
+    "case", ["missing", "garbage", "truncated_png", "jpeg", "pickled_npy", "nan", "shape", "dtype"]
+)
 def test_bad_files_raise_input_error(tmp_path, case):
     p = tmp_path / ("x.npy" if case in ("pickled_npy", "nan", "shape", "dtype") else "x.png")
     if case == "garbage":

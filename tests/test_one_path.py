@@ -16,12 +16,11 @@ import shutil
 from collections import Counter
 
 import pytest
-
-from tests.gl_support import require_gl
 import yaml
 
 from harness.cli import main
 from tests import runner_fakes as fakes
+from tests.gl_support import require_gl
 
 _NUM = re.compile(r"[+-]?\d+\.\d+")
 

@@ -125,12 +125,17 @@ def test_round_two_config_encodes_the_registered_axes():
     assert space.starts == {"betadesc": {"reading": "round-one"}, "betadesc-nodesc": {"reading": "paper-literal"}}
     got = [(a.method, a.name, a.values) for a in space.axes]
     assert got == [
-        ("betadesc", "ell_def+s_def+u_def", (("nbhd-std", "dims-var", "std-hsfh"), ("dims-peak", "dims-peak", "spread-hsfh"))),
+        (
+            "betadesc",
+            "ell_def+s_def+u_def",
+            (("nbhd-std", "dims-var", "std-hsfh"), ("dims-peak", "dims-peak", "spread-hsfh")),
+        ),
         ("betadesc", "s_def", ("dims-var", "nbhd-var", "dims-peak")),
         ("betadesc", "u_def", ("std-hsfh", "spread-hsfh", "dispersion", "std-geo")),
         ("betadesc", "ell_def", ("nbhd-std", "dims-std", "dims-peak")),
         ("betadesc", "voxel", (0.01, 0.02, 0.03, 0.1, 0.2, 0.3)),
-        ("betadesc-nodesc", "nodesc_def", ("splat-params", "param-stats"))]
+        ("betadesc-nodesc", "nodesc_def", ("splat-params", "param-stats")),
+    ]
 
 
 def test_round_two_walk_joint_axis_then_single_axes_then_the_ablation():
@@ -168,7 +173,13 @@ def test_round_two_walk_joint_axis_then_single_axes_then_the_ablation():
     # nbhd-var gains 0.6 on luigi but leaves the joint reading (-1.0): evaluated with the others at the incumbent
     assert steps[1].delta["luigi"].mean == pytest.approx(-0.4, abs=0.05) and steps[1].delta["luigi"].n == 8
     assert incumbents["betadesc-nodesc"]["nodesc_def"] == "param-stats"
-    assert rs.label(space, incumbents["betadesc"], "betadesc") == "r1+ell_def=dims-peak+s_def=dims-peak+u_def=spread-hsfh"
+    assert (
+        rs.label(space, incumbents["betadesc"], "betadesc") == "r1+ell_def=dims-peak+s_def=dims-peak+u_def=spread-hsfh"
+    )
     md = rs.selection_markdown(space, steps, incumbents)
-    assert "Student-t" in md and "of `betadesc-nodesc`" in md and "| betadesc-nodesc | `nodesc_def` | `param-stats` |" in md
+    assert (
+        "Student-t" in md
+        and "of `betadesc-nodesc`" in md
+        and "| betadesc-nodesc | `nodesc_def` | `param-stats` |" in md
+    )
     assert "(incumbent `nbhd-std, dims-var, std-hsfh`)" in md

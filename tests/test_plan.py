@@ -36,10 +36,13 @@ def _tiny(tmp_path, metrics=("3dgs",), extra_methods=()):
     rig + shifted, 3 held-out and 4 training views per scene at 64 px."""
     for name, n in (("a", 100), ("b", 200)):
         write_ply(random_scene(n, seed=n), tmp_path / f"{name}.ply")
-    doc = {"protocol": {"longest_side": 64, "n_test": 3, "n_train": 4, "metrics": list(metrics)},
-           "protocols": ["rig", "shifted"], "ratios": [0.1, 0.3],
-           "scenes": [{"name": "a", "source": str(tmp_path / "a.ply")}, {"name": "b", "source": str(tmp_path / "b.ply")}],
-           "methods": ["opacity", "lightgs", *extra_methods]}
+    doc = {
+        "protocol": {"longest_side": 64, "n_test": 3, "n_train": 4, "metrics": list(metrics)},
+        "protocols": ["rig", "shifted"],
+        "ratios": [0.1, 0.3],
+        "scenes": [{"name": "a", "source": str(tmp_path / "a.ply")}, {"name": "b", "source": str(tmp_path / "b.ply")}],
+        "methods": ["opacity", "lightgs", *extra_methods],
+    }
     config = parse_config(doc, str(tmp_path / "tiny.yaml"))
     return config, [scene_info(s, config, Assumptions()) for s in config.scenes]
 

@@ -37,14 +37,18 @@ def world(tmp_path):
     rng = np.random.default_rng(1)
     for c in cams:
         img = fakes.PointRenderer().render(scene, c) + rng.normal(0, 0.03, (48, 64, 3))
-        Image.fromarray((np.clip(img, 0, 1) * 255 + 0.5).astype(np.uint8)).save(tmp_path / "cap" / "photos" / f"{c.name}.png")
+        Image.fromarray((np.clip(img, 0, 1) * 255 + 0.5).astype(np.uint8)).save(
+            tmp_path / "cap" / "photos" / f"{c.name}.png"
+        )
     capture = {"cameras": str(tmp_path / "cap" / "cameras.json"), "images": str(tmp_path / "cap" / "photos"),
                "test": ["img0", "img2", "img4"]}
     return tmp_path, scene, cams, capture
 
 
 def config(tmp_path, capture, protocols, methods=("fake-norm", "fake-aware"), extra_scene=None):
-    scenes = [{"name": "s", "source": str(tmp_path / "s.ply"), "capture": capture}] + ([extra_scene] if extra_scene else [])
+    scenes = [{"name": "s", "source": str(tmp_path / "s.ply"), "capture": capture}] + (
+        [extra_scene] if extra_scene else []
+    )
     return parse_config({"name": "t", "protocol": {"longest_side": 32, "metrics": ["psnr", "ssim"], "n_train": 3,
                                                    "n_test": 2},
                          "protocols": protocols, "ratios": [0.1, 0.3], "scenes": scenes, "methods": list(methods),

@@ -40,7 +40,9 @@ def test_ssim_reference_reused_equals_fresh():
     prep = SsimReference(ref[None], device="cpu")
     for border in ("zero", "valid"):
         for img in tests:
-            assert ssim_batch(prep, img[None], border=border) == ssim_batch(ref[None], img[None], border=border, device="cpu")
+            assert ssim_batch(prep, img[None], border=border) == ssim_batch(
+                ref[None], img[None], border=border, device="cpu"
+            )
 
 
 def test_suite_scores_equal_pairs_scored_from_scratch():

@@ -12,7 +12,9 @@ from harness.io.cameras import load_cameras, write_3dgs_cameras
 from harness.views.contact_sheet import coverage, to_uint8
 from tests.scene_factory import random_scene
 
-reference = pytest.importorskip("renderers.reference", reason="the reference renderer (renderers/reference.py) is not importable")
+reference = pytest.importorskip(
+    "renderers.reference", reason="the reference renderer (renderers/reference.py) is not importable"
+)
 
 
 @pytest.fixture(scope="module")

@@ -112,8 +112,10 @@ def test_page_in_headless_chromium(tmp_path):
         bad = b.evaluate("new Promise(r => setTimeout(() => r(Array.from(document.images)"
                          ".filter(i => !(i.complete && i.naturalWidth > 0)).map(i => i.alt)), 300))")
         n_img = b.evaluate("document.images.length")
-        clip = b.evaluate("(() => { const s = document.querySelector('.slider input'); s.value = 20;"
-                          " s.dispatchEvent(new Event('input')); return s.parentNode.querySelector('img').style.clipPath; })()")
+        clip = b.evaluate(
+            "(() => { const s = document.querySelector('.slider input'); s.value = 20;"
+            " s.dispatchEvent(new Event('input')); return s.parentNode.querySelector('img').style.clipPath; })()"
+        )
         shot = b.screenshot(tmp_path / "shot.png")
         errors = list(b.errors)
     assert errors == []
@@ -190,9 +192,11 @@ def test_no_table_is_wider_than_the_page_and_links_open_their_section(tmp_path, 
         b.evaluate("location.hash = 'img-sc.b'")
         opened = b.evaluate("new Promise(r => setTimeout(() => r(document.getElementById('img-sc.b').open), 200))")
         b.evaluate("document.querySelectorAll('details').forEach(d => d.open = true)")
-        over = b.evaluate("Array.from(document.querySelectorAll('.scroll, table')).filter(e => "
-                          "e.closest('.scroll') === e || !e.closest('.scroll')).map(e => e.getBoundingClientRect().right)"
-                          ".filter(r => r > window.innerWidth + 1).length")
+        over = b.evaluate(
+            "Array.from(document.querySelectorAll('.scroll, table')).filter(e => "
+            "e.closest('.scroll') === e || !e.closest('.scroll')).map(e => e.getBoundingClientRect().right)"
+            ".filter(r => r > window.innerWidth + 1).length"
+        )
         doc = b.evaluate("document.documentElement.scrollWidth")
         errors = list(b.errors)
     assert opened is True and over == 0 and doc == width and errors == []

@@ -100,8 +100,13 @@ def test_camera_aware_gets_train_views(scenes, tmp_path):
 
 
 def test_missing_scene_and_broken_pruner_do_not_stop_the_run(scenes, tmp_path):
-    cfg = _config([{"name": "s0", "source": scenes["s0"]},
-                   {"name": "gone", "source": str(tmp_path / "nope.ply"), "optional": True}], ["fake-broken", "opacity"])
+    cfg = _config(
+        [
+            {"name": "s0", "source": scenes["s0"]},
+            {"name": "gone", "source": str(tmp_path / "nope.ply"), "optional": True},
+        ],
+        ["fake-broken", "opacity"],
+    )
     res, df = _run(cfg, tmp_path)
     gone = df[df["scene"] == "gone"]
     assert len(gone) == 1 and gone.iloc[0]["status"] == "skipped" and "not found" in gone.iloc[0]["reason"]
@@ -196,7 +201,13 @@ def test_pruner_version_follows_imported_project_modules():
     from harness.run.versions import project_closure
 
     mods = project_closure("tests.runner_fakes", roots=("tests", "harness", "methods"))
-    assert {"tests.runner_fakes", "harness.core.cameras", "harness.core.scene", "methods.registry", "harness.run.toolkit"} <= mods
+    assert {
+        "tests.runner_fakes",
+        "harness.core.cameras",
+        "harness.core.scene",
+        "methods.registry",
+        "harness.run.toolkit",
+    } <= mods
     assert not any(m.startswith(("numpy", "renderers")) for m in mods)
     # imports inside functions count: betadesc's pipeline is imported when a variant runs
     full = project_closure("methods.betadesc")
@@ -255,8 +266,10 @@ def test_progress_lines_count_what_was_done(scenes, tmp_path, workers):
     with StageProgress(console) as progress:
         _run(_config(scenes, ["opacity"]), tmp_path, progress=progress, workers=workers)
     done = [line for line in buf.getvalue().splitlines() if ": done " in line]
-    assert done and all(line.split("done ")[1].split()[0].split("/")[0] == line.split("done ")[1].split()[0].split("/")[1]
-                        for line in done), done
+    assert done and all(
+        line.split("done ")[1].split()[0].split("/")[0] == line.split("done ")[1].split()[0].split("/")[1]
+        for line in done
+    ), done
     assert any(line.strip().startswith("render_ref: done 4/4") for line in done)
 
 
@@ -286,8 +299,12 @@ def test_protocol_config_errors():
     from harness.core.errors import InputError
 
     base = {"scenes": ["a"], "methods": ["opacity"], "ratios": [0.1]}
-    for protocols, msg in ((["shifted"], "first protocol must be the training rig"), (["rig", "tilted"], "unknown view protocol .tilted."),
-                           ([], "non-empty list"), (["rig", {"name": "x", "fov_scale": 9}], "fov_scale")):
+    for protocols, msg in (
+        (["shifted"], "first protocol must be the training rig"),
+        (["rig", "tilted"], "unknown view protocol .tilted."),
+        ([], "non-empty list"),
+        (["rig", {"name": "x", "fov_scale": 9}], "fov_scale"),
+    ):
         with pytest.raises(InputError, match=msg):
             parse_config({**base, "protocols": protocols}, "c.yaml")
     cfg = parse_config({**base, "protocols": ["rig", {"name": "steep", "rings_above": [40]}]}, "c.yaml")

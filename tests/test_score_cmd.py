@@ -79,7 +79,9 @@ def test_cameras_file_size_flags_and_csv(files, tmp_path, capsys):
 def test_text_output_and_errors(files, tmp_path, capsys):
     src, dst, scene, _ = files
     status, out, _ = _run(capsys, src, dst, "--renderer", "reference")
-    assert status == 0 and "3 cameras from source PLY header, 48x36" in out and out.splitlines()[-1].split()[0] == "mean"
+    assert (
+        status == 0 and "3 cameras from source PLY header, 48x36" in out and out.splitlines()[-1].split()[0] == "mean"
+    )
     write_ply(scene, tmp_path / "bare.ply")
     status, out, _ = _run(capsys, tmp_path / "bare.ply", tmp_path / "bare.ply", "--renderer", "reference",
                           "--width", 16, "--height", 12)
@@ -141,7 +143,9 @@ def test_centre_on_the_y_axis_is_refused(tmp_path, capsys):
 
 def test_views_flag_scores_the_placed_viewpoints(files, capsys):
     src, dst, a_scene, b_scene = files  # the header cameras are ignored when -n is given, as in the tool
-    status, out, err = _run(capsys, src, dst, "-n", 3, "--renderer", "reference", "--json", "--width", 40, "--height", 30)
+    status, out, err = _run(
+        capsys, src, dst, "-n", 3, "--renderer", "reference", "--json", "--width", 40, "--height", 30
+    )
     assert status == 0, err
     obj = json.loads(out)
     assert obj["cameras"].startswith("mpeg-gsc-metrics' own viewpoints (-n 3): radius-5 sphere")

@@ -98,6 +98,8 @@ def test_select_walks_the_rule_and_runs_only_what_it_needs(tmp_path, monkeypatch
     fov = next(s for s in record["steps"] if s["axis"] == "fov_deg")
     assert fov["adopted"] and fov["delta"]["bonsai-7k"]["mean"] == 0  # judged on luigi, where it changes renders
     md = (out / "selection.md").read_text()
-    assert "vs lightgs at 30% pruning (dB) over the held-out views of the shifted and independent protocols pooled" in md
+    assert (
+        "vs lightgs at 30% pruning (dB) over the held-out views of the shifted and independent protocols pooled" in md
+    )
     assert "percentile-bootstrap" in md and "### Selected parameters" in md and "| `fov_deg` | `40` |" in md
     assert "## betadesc-vr (on the selected rig)" in md and " of `" not in md

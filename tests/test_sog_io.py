@@ -129,7 +129,9 @@ def test_quaternions_unpack_to_the_encoded_rotation(tmp_path):
 
 def test_hand_picked_quaternion_codes(tmp_path):
     spec = SogSpec(4, seed=3)
-    spec.quat_codes = np.array([[128, 128, 128, 252], [0, 255, 128, 254], [255, 255, 255, 255], [9, 9, 9, 17]], np.uint8)
+    spec.quat_codes = np.array(
+        [[128, 128, 128, 252], [0, 255, 128, 254], [255, 255, 255, 255], [9, 9, 9, 17]], np.uint8
+    )
     spec.write(tmp_path / "h")
     q = read_sog(tmp_path / "h").quats
     s = (128 / 255 * 2 - 1) / SQRT2

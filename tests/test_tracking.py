@@ -21,12 +21,36 @@ def _rows(psnr=(30.0, 32.0), ssim=(0.95, 0.97), lpips=(0.05, 0.07), score_s=4.0,
     rows = []
     for m, ps, ss, lp in ((method, psnr, ssim, lpips), ("opacity", (25.0, 27.0), (0.9, 0.92), (0.1, 0.12))):
         for v, (p, s, lpv) in enumerate(zip(ps, ss, lp)):
-            rows.append({"run": "t", "scene": "grape", "label": "grape", "kind": "object-centric", "frame": "",
-                         "method": m, "variant": "default", "params": "{}", "ratio": 0.3, "keep": 0.7,
-                         "view": f"view{v:02d}", "status": status if m == method else "ok", "reason": "",
-                         "psnr": p, "ssim": s, "lpips": lpv, "splats_in": 100, "splats_out": 70,
-                         "score_s": score_s if m == method else 4.0, "prune_s": 0.01, "render_ref_s": 1.0, "render_s": render_s,
-                         "metrics_s": 0.5, "renderer": "gl", "width": 64, "height": 48})
+            rows.append(
+                {
+                    "run": "t",
+                    "scene": "grape",
+                    "label": "grape",
+                    "kind": "object-centric",
+                    "frame": "",
+                    "method": m,
+                    "variant": "default",
+                    "params": "{}",
+                    "ratio": 0.3,
+                    "keep": 0.7,
+                    "view": f"view{v:02d}",
+                    "status": status if m == method else "ok",
+                    "reason": "",
+                    "psnr": p,
+                    "ssim": s,
+                    "lpips": lpv,
+                    "splats_in": 100,
+                    "splats_out": 70,
+                    "score_s": score_s if m == method else 4.0,
+                    "prune_s": 0.01,
+                    "render_ref_s": 1.0,
+                    "render_s": render_s,
+                    "metrics_s": 0.5,
+                    "renderer": "gl",
+                    "width": 64,
+                    "height": 48,
+                }
+            )
     return rows
 
 

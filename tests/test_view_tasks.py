@@ -90,7 +90,9 @@ def _run(tmp_path, toolkit, name):
 
 def test_reference_features_and_projection_once_per_view(tmp_path):
     CALLS.clear()
-    df = _run(tmp_path, fakes.toolkit(make_renderer=make_packing_renderer, make_metrics=make_counting_metrics), "packed")
+    df = _run(
+        tmp_path, fakes.toolkit(make_renderer=make_packing_renderer, make_metrics=make_counting_metrics), "packed"
+    )
     assert len(df) == 3 * 11 and (df["status"] == "ok").all()
     assert CALLS["reference"] == 3  # one per view, not one per chunk of sets
     assert CALLS["pack"] == 3 + 3  # the reference render's task and the pruned sets' task of each view

@@ -39,7 +39,10 @@ def _triple(value, name: str):
 
 
 def _split_llff(cams):
-    return ([c for i, c in enumerate(cams) if i % LLFF_HOLD != 0], [c for i, c in enumerate(cams) if i % LLFF_HOLD == 0])
+    return (
+        [c for i, c in enumerate(cams) if i % LLFF_HOLD != 0],
+        [c for i, c in enumerate(cams) if i % LLFF_HOLD == 0],
+    )
 
 
 def _position_keys(scene) -> np.ndarray:

@@ -18,7 +18,8 @@ interleaved over the repeats, so a drift in the machine's load hits every varian
 
 Every run's ``results.csv`` must equal the first run's except the wall-clock columns; the table
 says whether it did. Results: ``results/bench/executors.{json,md}`` for ci.yaml,
-``executors-<config stem>.{json,md}`` for another ``--config`` (e.g. ``ctc_configs/scaling.yaml`` -> ``executors-scaling``, a
+``executors-<config stem>.{json,md}`` for another ``--config`` (e.g. ``ctc_configs/scaling.yaml`` ->
+``executors-scaling``, a
 larger workload where the fixed costs matter less).
 """
 
@@ -94,9 +95,12 @@ def summarise(walls: dict[tuple[str, int], list[float]], prefix: str = "") -> di
 
 def _markdown(config: str, threads: int, runs: list[dict], walls, stages, summary: dict, identical: bool) -> str:
     cores = os.cpu_count()
-    lines = [f"# harness bench executors ({config}, cold cache, {cores} cores, {threads} thread(s) per worker)", "",
-             "| executor | workers | wall s (median) | stages s (median) | serial part s (wall - stages) | runs (wall s) |",
-             "|---|---|---|---|---|---|"]
+    lines = [
+        f"# harness bench executors ({config}, cold cache, {cores} cores, {threads} thread(s) per worker)",
+        "",
+        "| executor | workers | wall s (median) | stages s (median) | serial part s (wall - stages) | runs (wall s) |",
+        "|---|---|---|---|---|---|",
+    ]
     for (e, w) in VARIANTS:
         if (e, w) not in walls:
             continue

@@ -7,7 +7,8 @@ points, normals, radius (``--radius-voxels`` × voxel) and max_nn, in the same p
 per repeat, so machine noise hits both alike. Reported: median and best wall and CPU seconds
 (``process_time``, all threads) of each, their ratios, the max |difference|, our per-stage split
 (search, SPFH, FPFH), ours again with one numba thread (on a loaded 2-core machine a
-second thread that is descheduled makes every parallel region wait), and the first call in a fresh process with an empty numba cache (compile) and
+second thread that is descheduled makes every parallel region wait), and the first call in a fresh process with an
+empty numba cache (compile) and
 with the on-disk cache (load). open3d is timed on a prebuilt ``PointCloud`` (its own threads);
 ours from numpy arrays, input checks included. The 1-minute load average is recorded because the
 machine is shared.

@@ -106,8 +106,10 @@ def _quality(scene, rig, scores: dict, ratio: float, n_views: int, renderer_name
 def _markdown(scene_name: str, n: int, n_train: int, timings: dict, quality: dict | None) -> str:
     lines = [f"# harness bench methods ({scene_name}, {n:,} splats, {n_train} training views)", "",
              "| method | needs | wall s | CPU s | load before |", "|---|---|---|---|---|"]
-    lines += [f"| {m} | {', '.join(t['needs']) or '-'} | {t['wall_s']:.2f} | {t['cpu_s']:.2f} | {t['load_before']:.1f} |"
-              for m, t in timings.items()]
+    lines += [
+        f"| {m} | {', '.join(t['needs']) or '-'} | {t['wall_s']:.2f} | {t['cpu_s']:.2f} | {t['load_before']:.1f} |"
+        for m, t in timings.items()
+    ]
     if quality:
         w, h = quality["resolution"]
         title = (f"PSNR (dB) of the {quality['ratio']:.0%}-pruned render vs the unpruned render, "
@@ -175,9 +177,11 @@ def _overhead_markdown(payload: dict) -> str:
              "|---|---|---|---|---|---|---|"]
     for r in payload["scenes"]:
         lo, hi = r["overhead_ci"]
-        lines.append(f"| {r['scene']} | {r['splats']:,} | {np.mean(r['full_cpu']):.3f} | {np.mean(r['nodesc_cpu']):.3f} "
-                     f"| {np.mean(r['full_wall']):.3f} / {np.mean(r['nodesc_wall']):.3f} | {r['added_s']:+.3f} "
-                     f"| {r['overhead_mean']:+.0f} [{lo:+.0f}, {hi:+.0f}] |")
+        lines.append(
+            f"| {r['scene']} | {r['splats']:,} | {np.mean(r['full_cpu']):.3f} | {np.mean(r['nodesc_cpu']):.3f} "
+            f"| {np.mean(r['full_wall']):.3f} / {np.mean(r['nodesc_wall']):.3f} | {r['added_s']:+.3f} "
+            f"| {r['overhead_mean']:+.0f} [{lo:+.0f}, {hi:+.0f}] |"
+        )
     return "\n".join(lines)
 
 

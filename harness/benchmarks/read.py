@@ -48,8 +48,12 @@ def run(args) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         ply = Path(tmp) / "scene.ply"
         t, samples = median_time(lambda: write_scene(scene, ply), args.repeats)
-        rows["write_ply"] = {"seconds": t, "samples": samples, "peak_alloc_mb": _peak_alloc_mb(lambda: write_scene(scene, ply)),
-                             "file_mb": ply.stat().st_size / 2**20}
+        rows["write_ply"] = {
+            "seconds": t,
+            "samples": samples,
+            "peak_alloc_mb": _peak_alloc_mb(lambda: write_scene(scene, ply)),
+            "file_mb": ply.stat().st_size / 2**20,
+        }
         t, samples = median_time(lambda: load_scene(ply), args.repeats)
         rows["read_ply"] = {"seconds": t, "samples": samples, "peak_alloc_mb": _peak_alloc_mb(lambda: load_scene(ply))}
     try:

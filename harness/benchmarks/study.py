@@ -45,7 +45,8 @@ GOALS = {"ci": ("cached", 5.0), "default": ("cached", 10.0)}
 PROBE = """
 import json, os, resource, sys
 def cpu():
-    return sum(r.ru_utime + r.ru_stime for r in map(resource.getrusage, (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)))
+    who = (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)
+    return sum(r.ru_utime + r.ru_stime for r in map(resource.getrusage, who))
 from harness.run import runner
 timed, stages = runner.Runner._timed, {}
 def probe(self, stage, fn, *args):
@@ -106,7 +107,9 @@ def _children_cpu() -> float:
     return r.ru_utime + r.ru_stime
 
 
-def _python(checkout: Path, code: str, args=(), env=None, timeout=600) -> tuple[subprocess.CompletedProcess, float, float]:
+def _python(
+    checkout: Path, code: str, args=(), env=None, timeout=600
+) -> tuple[subprocess.CompletedProcess, float, float]:
     """Run ``code`` with ``checkout``'s interpreter in its root: (process, wall s, CPU s of the tree)."""
     from harness.core.errors import InputError
 
@@ -124,7 +127,16 @@ def _python(checkout: Path, code: str, args=(), env=None, timeout=600) -> tuple[
 
 def _run(checkout: Path, config: Path, folder: Path, workers: int, timeout: float) -> dict:
     probe = folder / "probe.json"
-    args = ["run", str(config), "--workers", str(workers), "--cache", str(folder / "cache"), "--out", str(folder / "out")]
+    args = [
+        "run",
+        str(config),
+        "--workers",
+        str(workers),
+        "--cache",
+        str(folder / "cache"),
+        "--out",
+        str(folder / "out"),
+    ]
     _, wall, cpu = _python(checkout, PROBE, args, {"HARNESS_BENCH_PROBE": str(probe)}, timeout)
     measured = json.loads(probe.read_text())
     stages = {k: measured["stages"].get(k, 0.0) for k in STAGES}

@@ -27,9 +27,17 @@ HELP = "compare two images (PNG or .npy): PSNR, SSIM, LPIPS-VGG"
 def add_arguments(parser) -> None:
     parser.add_argument("a", metavar="A", help="first image (PNG or .npy; the reference)")
     parser.add_argument("b", metavar="B", help="second image (same size)")
-    parser.add_argument("--json", action="store_true", help="print one JSON object: psnr, ssim, lpips (an infinite PSNR is null with psnr_inf true)")
-    parser.add_argument("--yuv", action="store_true", help="also report float BT.709 Y/U/V PSNR and (6Y+U+V)/8 (video CTC style; "
-                        "the splat tool's YUV-PSNR is --metrics mpeg)")
+    parser.add_argument(
+        "--json",
+        action="store_true",
+        help="print one JSON object: psnr, ssim, lpips (an infinite PSNR is null with psnr_inf true)",
+    )
+    parser.add_argument(
+        "--yuv",
+        action="store_true",
+        help="also report float BT.709 Y/U/V PSNR and (6Y+U+V)/8 (video CTC style; "
+        "the splat tool's YUV-PSNR is --metrics mpeg)",
+    )
     parser.add_argument("--device", default=None, help="torch device for LPIPS/SSIM (default: cuda if present)")
     parser.add_argument("--metrics", default="3dgs", metavar="NAMES",
                         help="comma-separated metric or family names: 3dgs (psnr, ssim, lpips), mpeg (the "

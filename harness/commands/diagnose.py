@@ -32,8 +32,12 @@ def add_arguments(parser) -> None:
     parser.add_argument("--longest-side", type=int, default=384, help="rig view size (px, default 384)")
     parser.add_argument("--significance-side", type=int, default=512,
                         help="render size of the significance pass (px, default 512 = lightgs default)")
-    parser.add_argument("--voxel", type=float, default=None,
-                        help="voxel (fraction of the diagonal) of the region measure (default: the method's, else 0.01)")
+    parser.add_argument(
+        "--voxel",
+        type=float,
+        default=None,
+        help="voxel (fraction of the diagonal) of the region measure (default: the method's, else 0.01)",
+    )
     parser.add_argument("--no-references", action="store_true", help="do not add random, opacity, lightgs")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--device", default="cpu")

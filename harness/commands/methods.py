@@ -30,8 +30,14 @@ def run(args) -> int:
     for col in ("name", "group", "needs", "parameters", "summary"):
         table.add_column(col, overflow="fold")
     for r in rows:
-        params = "\n".join(f"{k} = {v['default']!r}  ({v['type']})" + (f"\n  [dim]{v['doc']}[/]" if args.docs or "reading" in v else "")
-                           for k, v in r["params"].items()) or "-"
+        params = (
+            "\n".join(
+                f"{k} = {v['default']!r}  ({v['type']})"
+                + (f"\n  [dim]{v['doc']}[/]" if args.docs or "reading" in v else "")
+                for k, v in r["params"].items()
+            )
+            or "-"
+        )
         table.add_row(f"{r['name']}\n[dim]{r['label']}[/]", r["group"], ", ".join(r["needs"]) or "-", params,
                       r["summary"])
     Console(width=160).print(table)

@@ -117,9 +117,19 @@ def run(args) -> int:
         raise InputError(out, "exists and is not a folder")
     scene = load_scene(args.scene)
     with naming(FLAGS):
-        origin, cams = views(scene, cameras=args.cameras, rig=args.rig, split=args.split, longest_side=args.longest_side,
-                             n_train=args.n_train, n_test=args.n_test, seed=args.seed, aspect=args.aspect, up=args.up,
-                             name=args.scene)
+        origin, cams = views(
+            scene,
+            cameras=args.cameras,
+            rig=args.rig,
+            split=args.split,
+            longest_side=args.longest_side,
+            n_train=args.n_train,
+            n_test=args.n_test,
+            seed=args.seed,
+            aspect=args.aspect,
+            up=args.up,
+            name=args.scene,
+        )
         renderer = start_renderer(args.backend, args.device)
     from harness.io.files import make_output_folder, refuse_inputs
 

@@ -1,4 +1,5 @@
-"""`harness run CONFIG [--workers N] [--threads T] [--executor local|ray] [--address A] [--out DIR] [--force] [--cache DIR|URL]`:
+"""`harness run CONFIG [--workers N] [--threads T] [--executor local|ray] [--address A] [--out DIR] [--force] [--cache
+DIR|URL]`:
 the CTC-style evaluation.
 
 Reads and validates the YAML config (:mod:`harness.run.config`) and resolves every scene before any
@@ -35,11 +36,18 @@ def add_arguments(parser) -> None:
                              "executor.cpus_per_task, else the same)")
     parser.add_argument("--out", default=None, help="output folder (default: the config's `output`)")
     parser.add_argument("--force", action="store_true", help="recompute every stage, ignoring cached results")
-    parser.add_argument("--cache", default=None,
-                        help="stage cache folder or fsspec URL such as s3://bucket/prefix (default: <harness "
-                             "cache>/stages, shared by all runs); with Ray on several nodes, a location every node reaches")
-    parser.add_argument("--executor", choices=("local", "ray"), default=None,
-                        help="where the work runs: local process pool (default) or Ray (default: the config's `executor`)")
+    parser.add_argument(
+        "--cache",
+        default=None,
+        help="stage cache folder or fsspec URL such as s3://bucket/prefix (default: <harness "
+        "cache>/stages, shared by all runs); with Ray on several nodes, a location every node reaches",
+    )
+    parser.add_argument(
+        "--executor",
+        choices=("local", "ray"),
+        default=None,
+        help="where the work runs: local process pool (default) or Ray (default: the config's `executor`)",
+    )
     parser.add_argument("--address", default=None,
                         help="Ray cluster to use: auto, HOST:PORT or ray://HOST:10001 (implies --executor ray; "
                              "without it Ray starts a local cluster of --workers workers on this machine)")

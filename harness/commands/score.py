@@ -59,8 +59,12 @@ def add_arguments(parser) -> None:
     views.add_argument("-n", "--views", type=int, metavar="N", help="place N viewpoints as mpeg-gsc-metrics -n N does "
                        f"(radius-5 sphere around the source's box centre, focal 2000 px; the tool's default is "
                        f"{DEFAULT_VIEWS}, used when no file has cameras)")
-    parser.add_argument("--width", type=int, help="render width in pixels (the tool's --width). The focal length is "
-                        "kept, so a smaller window is the centre crop of the view (as the tool does), not a scaled image")
+    parser.add_argument(
+        "--width",
+        type=int,
+        help="render width in pixels (the tool's --width). The focal length is "
+        "kept, so a smaller window is the centre crop of the view (as the tool does), not a scaled image",
+    )
     parser.add_argument("--height", type=int, help="render height in pixels (the tool's --height; crops like --width)")
     parser.add_argument("--renderer", default="gl", choices=RENDERERS.names(), help="renderer (default gl)")
     parser.add_argument("--device", default=None, help="torch device of the renderer/LPIPS (default: automatic)")

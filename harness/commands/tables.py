@@ -57,7 +57,10 @@ def run(args) -> int:
         print(f"harness: warning: {line}", file=sys.stderr)
     # what the command line named explicitly and could not be made fails the command; the run's
     # own defaults for the other kind (plots when only --tables was given, and so on) only warn
-    asked = {"table": args.tables is not None or args.plots is None, "plot": args.plots is not None or args.tables is None}
+    asked = {
+        "table": args.tables is not None or args.plots is None,
+        "plot": args.plots is not None or args.tables is None,
+    }
     failed = False
     for line in written.missing:
         kind = line.split(" ", 1)[0]

@@ -204,8 +204,9 @@ def atomic_write_with(path: str | Path, writer: Callable[[Path], None]) -> Path:
     except OSError as err:
         if tmp is not None:
             tmp.unlink(missing_ok=True)
-        raise InputError(path, "is a folder" if isinstance(err, IsADirectoryError) else f"cannot write: {_reason(err)}") \
-            from None
+        raise InputError(
+            path, "is a folder" if isinstance(err, IsADirectoryError) else f"cannot write: {_reason(err)}"
+        ) from None
     except BaseException:
         if tmp is not None:
             tmp.unlink(missing_ok=True)

@@ -85,9 +85,21 @@ class SceneFormat:
 FORMATS: Registry[SceneFormat] = Registry("scene format", group=ENTRY_POINT_GROUP)
 
 
-def register_format(kind: str, *, label: str, detect: Callable, read: Callable, modules: tuple[str, ...],
-                    lod_levels: Callable | None = None, ending: str | None = None, write: Callable | None = None, loses: str = "",
-                    endings: tuple[str, ...] = (), short: str = "", not_written: str = "") -> SceneFormat:
+def register_format(
+    kind: str,
+    *,
+    label: str,
+    detect: Callable,
+    read: Callable,
+    modules: tuple[str, ...],
+    lod_levels: Callable | None = None,
+    ending: str | None = None,
+    write: Callable | None = None,
+    loses: str = "",
+    endings: tuple[str, ...] = (),
+    short: str = "",
+    not_written: str = "",
+) -> SceneFormat:
     """Register scene format ``kind`` (module docstring)."""
     if (ending is None) != (write is None):
         raise ValueError(f"format {kind!r}: give both ending= and write=, or neither")

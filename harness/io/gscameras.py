@@ -5,7 +5,7 @@ reader; ISO/IEC, BSD; github.com/little-little-point-cloud-group/gscem @ c4a0c1c
 ``submodules/mpeg-gsc-tools/gsTools/source`` and ``submodules/mpeg-gsc-metrics/source``)::
 
     ply
-    comment camera_position_header  imageId cameraId  pos.x  pos.y  pos.z  quat.w  quat.x  quat.y  quat.z  focal.x  focal.y  name
+    comment camera_position_header imageId cameraId pos.x pos.y pos.z quat.w quat.x quat.y quat.z focal.x focal.y name
     comment camera_position  <imageId> <cameraId> <pos.xyz> <quat.wxyz> <focal.xy> <name>
     ...
     format binary_little_endian 1.0

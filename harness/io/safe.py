@@ -333,8 +333,11 @@ def _yaml_problem(err) -> str:
     import yaml
 
     if isinstance(err, yaml.reader.ReaderError):
-        return (f"character {err.character!r} (code {ord(err.character) if isinstance(err.character, str) else err.character})"
-                f" at byte {err.position} is not allowed in YAML (control character or NUL)")
+        return (
+            f"character {err.character!r} "
+            f"(code {ord(err.character) if isinstance(err.character, str) else err.character})"
+            f" at byte {err.position} is not allowed in YAML (control character or NUL)"
+        )
     return str(getattr(err, "problem", None) or err)
 
 

@@ -96,7 +96,9 @@ def sequence_cameras(seq: Sequence, width: int | None = None, height: int | None
         cams = load_cameras(seq.cameras)
     else:
         header = read_ply_header(seq.frames[0])
-        has_size = any(c.split(None, 1)[0:1] == ["camera_position_resolution"] for c in header.preamble + header.comments)
+        has_size = any(
+            c.split(None, 1)[0:1] == ["camera_position_resolution"] for c in header.preamble + header.comments
+        )
         w, h = (width, height) if width and height else ((None, None) if has_size else CTC_SIZE)
         cams = read_ply_cameras(seq.frames[0], w, h)
         if not cams:

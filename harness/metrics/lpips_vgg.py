@@ -88,7 +88,8 @@ class LpipsVGG:
     ``weights``: path of the converted trunk (default: the fetched one; missing -> InputError
     telling to run ``harness fetch --weights``). ``batch_size``: images per trunk pass in
     :meth:`distances` (default 1 on CPU, which bounds memory to one image's activations, about
-    1 GB at 1024x768; on CUDA as many as fit in a quarter of free memory, at most 16). Construction raises torch's thread count
+    1 GB at 1024x768; on CUDA as many as fit in a quarter of free memory, at most 16). Construction raises torch's
+    thread count
     to every core the process may use (:func:`use_all_cores`).
     """
 

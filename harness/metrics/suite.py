@@ -36,12 +36,17 @@ import os
 from collections import OrderedDict
 from functools import lru_cache
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from harness.metrics import registry as _registry
 from harness.metrics.images import as_image, check_same_size, read_image
 from harness.metrics.psnr import psnr, psnr_from_mse, summarize_psnr, yuv_psnr
+
+if TYPE_CHECKING:  # served lazily by __getattr__ (they import torch)
+    from harness.metrics.lpips_vgg import LpipsFeatures, LpipsVGG, load_features, save_features
+    from harness.metrics.ssim import ssim
 
 # LPIPS and SSIM run on torch (1-2 CPU-s to import): imported where they are computed, so that
 # PSNR and the MPEG set alone (`harness compare --metrics psnr`) never import it
@@ -264,7 +269,9 @@ class MetricSuite:
 
     def has_reference(self, view_key: str) -> bool:
         key = str(view_key)
-        return key in self._cache or (self.feature_dir is not None and self._stem(key).with_suffix(".ref.npy").is_file())
+        return key in self._cache or (
+            self.feature_dir is not None and self._stem(key).with_suffix(".ref.npy").is_file()
+        )
 
     def _get(self, key: str) -> tuple[np.ndarray, LpipsFeatures]:
         if key in self._cache:

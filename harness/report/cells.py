@@ -3,7 +3,8 @@
 Every cell is computed from the per-view results (``status == ok``) of one (scene, method, variant,
 ratio): the mean over its views (frames pooled), the median, the number of views and of
 near-identical views, and — against its reference row, the same scene and views — the mean paired
-difference Δ = cell − reference with its 95 % interval (:func:`harness.report.stats.mean_ci`). The metrics are every registered metric
+difference Δ = cell − reference with its 95 % interval (:func:`harness.report.stats.mean_ci`). The metrics are every
+registered metric
 the results carry (:func:`harness.report.catalog.display_metrics`: OM variants beside full-frame).
 
 * ``comparison`` (paper Table 1): each comparison-group method's default variant at Low/Mid/High =
@@ -246,7 +247,9 @@ def table_comparison(df: pd.DataFrame, reference: str | None = None):
     disp = pd.DataFrame("–", pd.MultiIndex.from_tuples(rows, names=["Dataset", "Metric"]), wide_cols)
     for (mk, h, dg) in mets:
         for _, r in tidy[tidy["metric"] == mk].iterrows():
-            col = next(c for c, (_, m, _, rr) in zip(wide_cols, cols) if m == r["method"] and ratios.key(rr) == r["ratio"])
+            col = next(
+                c for c, (_, m, _, rr) in zip(wide_cols, cols) if m == r["method"] and ratios.key(rr) == r["ratio"]
+            )
             disp.loc[(r["label"], h), col] = mean_text(r, dg)
             if mk == mets[0][0]:
                 for key, h2, _ in sizes:
@@ -312,7 +315,9 @@ def table_versus(df: pd.DataFrame, reference: str | None = None):
         return Missing(f"no method was measured at a ratio where {reference} was")
     tidy = cell_rows(ok, mets, cells, lambda c: (reference, "default", c[2]), "versus", pooled=True)
     scenes = [*dict.fromkeys(tidy.loc[tidy["scene"] != POOLED, "label"]), "all scenes"]
-    tidy["row"] = [f"{lab}{'' if v == 'default' else f' [{v}]'}" for lab, v in zip(tidy["method_label"], tidy["variant"])]
+    tidy["row"] = [
+        f"{lab}{'' if v == 'default' else f' [{v}]'}" for lab, v in zip(tidy["method_label"], tidy["variant"])
+    ]
     tidy["prune"] = [ratios.percent(r) for r in tidy["ratio"]]
     verdicts = {}
     for (row, pr, mk), t in tidy[tidy["scene"] != POOLED].groupby(["row", "prune", "metric"]):

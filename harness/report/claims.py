@@ -160,8 +160,10 @@ def _descriptor_gain(run: Run, res: Result, keeps) -> Result:
     if res.why:
         return res
     label = "with − without descriptors"
-    specs = [((label if len(rs) == 1 else f"{label}, keep {k:g}"), lambda s, r=r: (full, r), lambda s, r=r: (without, r))
-             for k, r in zip(keeps, rs)]
+    specs = [
+        ((label if len(rs) == 1 else f"{label}, keep {k:g}"), lambda s, r=r: (full, r), lambda s, r=r: (without, r))
+        for k, r in zip(keeps, rs)
+    ]
     return comparisons(run, res, specs).decide()
 
 
@@ -346,13 +348,15 @@ def table_claims(df: pd.DataFrame, overhead: dict | None = None):
     disp = pd.DataFrame(rows, columns=["claim", "paper", "at", "claimed band", "measured: pooled over scenes",
                                        "per scene (✓ holds, ✗ fails, ? unclear)", "verdict"])
     disp.index = pd.Index([r.key for r in found], name="key")
-    notes = [stats.interval_note(t["n"] for t in tidy if t["scene"] not in (cells.POOLED, "") and t["key"] != "runtime"),
-             "pooled = mean of the per-scene means, t interval over the scenes (n = scenes); per scene: the "
-             "comparison with the lowest mean where a claim has several",
-             "verdicts (harness/report/claims.py): per-scene claims hold if every scene holds, fail if every "
-             "scene fails, are mixed on a split, else inconclusive; average claims by the pooled interval; "
-             "a scene holds when its interval lies inside the claimed band, fails when it lies outside",
-             *[f"{r.key}: {r.note}" for r in found if r.note]]
+    notes = [
+        stats.interval_note(t["n"] for t in tidy if t["scene"] not in (cells.POOLED, "") and t["key"] != "runtime"),
+        "pooled = mean of the per-scene means, t interval over the scenes (n = scenes); per scene: the "
+        "comparison with the lowest mean where a claim has several",
+        "verdicts (harness/report/claims.py): per-scene claims hold if every scene holds, fail if every "
+        "scene fails, are mixed on a split, else inconclusive; average claims by the pooled interval; "
+        "a scene holds when its interval lies inside the claimed band, fails when it lies outside",
+        *[f"{r.key}: {r.note}" for r in found if r.note],
+    ]
     return Table(disp, notes, pd.DataFrame(tidy, columns=TIDY))
 
 

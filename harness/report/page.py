@@ -31,7 +31,7 @@ from harness.core import ratios
 from harness.report import catalog
 from harness.report.pagehtml import esc, html_table, kv_table
 from harness.report.pageimages import AMPLIFY, JPEG_QUALITY, file_uri, scene_images
-from harness.report.record import slug, read_records
+from harness.report.record import read_records, slug
 from harness.report.tabledata import Built, Missing, Table
 
 CSS = """
@@ -44,7 +44,8 @@ h2{border-bottom:2px solid #ccd5dd;padding-top:12px}h3{margin:14px 0 4px}h3 smal
 table{border-collapse:collapse;margin:6px 0 14px;font-size:12.5px;background:#fff}
 caption{caption-side:top;text-align:left;font-size:12px;color:#444;padding:2px 0 4px;white-space:normal}
 th,td{border:1px solid #d5dde3;padding:3px 7px;text-align:right;white-space:nowrap}
-th{background:#eef2f5;white-space:normal;min-width:3em;max-width:16em}td.k{text-align:left;font-weight:600}td small{color:#444}td.better{background:#dff3e1}td.worse{background:#f8dede}
+th{background:#eef2f5;white-space:normal;min-width:3em;max-width:16em}td.k{text-align:left;font-weight:600}
+td small{color:#444}td.better{background:#dff3e1}td.worse{background:#f8dede}
 table.kv td{text-align:left;white-space:normal}
 .notes{color:#555;font-size:12px;margin:0 0 10px}.warn{background:#fff4d6;border:1px solid #e8c96b;padding:8px 12px}
 ul.warn{margin:8px 0;padding-left:28px}
@@ -53,13 +54,16 @@ details{background:#fff;border:1px solid #d5dde3;margin:8px 0;padding:4px 10px;m
 summary{font-weight:600;cursor:pointer}summary small{font-weight:400;color:#555}
 details,h2,h3{scroll-margin-top:44px}table.records td{white-space:normal;text-align:left}
 .index a{margin-right:14px}
-table.imgs td,table.imgs th{vertical-align:top;text-align:left;white-space:normal;background:#fff}table.imgs th{width:150px;max-width:150px;vertical-align:middle}table.imgs tr:first-child th{vertical-align:bottom}table.imgs td figure{vertical-align:top}.cmp{margin:0;width:var(--w)}
+table.imgs td,table.imgs th{vertical-align:top;text-align:left;white-space:normal;background:#fff}
+table.imgs th{width:150px;max-width:150px;vertical-align:middle}table.imgs tr:first-child th{vertical-align:bottom}
+table.imgs td figure{vertical-align:top}.cmp{margin:0;width:var(--w)}
 .slider{position:relative;width:var(--w);background-size:100% 100%;border:1px solid #999;overflow:hidden}
 .slider img{position:absolute;inset:0;width:100%;height:100%;clip-path:inset(0 0 0 50%)}
 .slider .bar{position:absolute;top:0;bottom:0;left:50%;width:2px;background:#ffcc00;pointer-events:none}
 .slider input{position:absolute;left:0;right:0;bottom:4px;width:96%;margin:0 2%}
 .tag{position:absolute;top:3px;font-size:11px;background:rgba(0,0,0,.55);color:#fff;padding:0 4px}
-.tag.l{left:3px}.tag.r{right:3px}.diff{width:var(--w);display:block;image-rendering:pixelated;border:1px solid #999;margin-top:4px}
+.tag.l{left:3px}.tag.r{right:3px}
+.diff{width:var(--w);display:block;image-rendering:pixelated;border:1px solid #999;margin-top:4px}
 figcaption{font-size:12px;color:#333}.refimg{width:150px;border:1px solid #999}
 pre{background:#fff;border:1px solid #ddd;padding:8px;overflow-x:auto;font-size:12px;max-height:420px}
 """
@@ -129,8 +133,10 @@ def tables_html(built: dict[str, Built]) -> str:
     out = []
     for proto in dict.fromkeys(b.protocol for b in built.values()):
         if proto:
-            out.append(f"<h3>Held-out views: {esc(proto)} <small>({esc(PROTOCOL_NOTES.get(proto, 'a named view protocol'))})"
-                       "</small></h3>")
+            out.append(
+                f"<h3>Held-out views: {esc(proto)} <small>({esc(PROTOCOL_NOTES.get(proto, 'a named view protocol'))})"
+                "</small></h3>"
+            )
         for b in (b for b in built.values() if b.protocol == proto):
             tag = " <small>(not made from these results)</small>" if isinstance(b.table, Missing) else ""
             name = base_title(b.name) + (f" — {proto} views" if proto else "")
@@ -191,13 +197,16 @@ def images_html(scenes, protocol: str = "") -> str:
     if not scenes:
         return "<p class='warn'>no stored renders under images/</p>"
     index = " ".join(f"<a href='#img-{esc(slug(s.scene))}'>{esc(s.label)}</a>" for s in scenes)
-    out = [f"<p class='index'>Scenes: {index}</p>",
-           f"<p class='notes'>First held-out view{f' ({esc(protocol)})' if protocol else ''} of each scene. Slider: reference render (left) | pruned render "
-           f"(right), JPEG q{JPEG_QUALITY} viewing copies. Below: the largest |pruned − reference| of the R, G, B "
-           f"channels × {AMPLIFY}, from the lossless renders (black = identical; a difference of "
-           f"≥ {255 // AMPLIFY + 1} levels is white). "
-           f"PSNR: this 8-bit pair.</p><p><label>image width <input id='imgw' type='range' min='160' max='720' "
-           f"value='240'></label></p>"]
+    out = [
+        f"<p class='index'>Scenes: {index}</p>",
+        f"<p class='notes'>First held-out view{f' ({esc(protocol)})' if protocol else ''} of each scene. "
+        "Slider: reference render (left) | pruned render "
+        f"(right), JPEG q{JPEG_QUALITY} viewing copies. Below: the largest |pruned − reference| of the R, G, B "
+        f"channels × {AMPLIFY}, from the lossless renders (black = identical; a difference of "
+        f"≥ {255 // AMPLIFY + 1} levels is white). "
+        f"PSNR: this 8-bit pair.</p><p><label>image width <input id='imgw' type='range' min='160' max='720' "
+        f"value='240'></label></p>",
+    ]
     out += [_scene_html(s, f"ref-{slug(s.scene)}".replace(".", "_")) for s in scenes]
     return "\n".join(out)
 
@@ -257,7 +266,8 @@ def render_page(*, title: str, subtitle: str, warnings, summary: str, tables: st
     warn = ""
     if warnings:
         items = "".join(f"<li>{esc(w)}</li>" for w in warnings)
-        warn = f"<details class='warn'><summary>{len(warnings)} warning(s)</summary><ul class='warn'>{items}</ul></details>"
+        warn = (f"<details class='warn'><summary>{len(warnings)} warning(s)</summary>"
+                f"<ul class='warn'>{items}</ul></details>")
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><meta name="viewport" content="width=device-width,initial-scale=1">
 <title>{esc(title)}</title><link rel="icon" href="data:,"><style>{CSS}</style></head>

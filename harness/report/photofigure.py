@@ -18,7 +18,7 @@ import pandas as pd
 
 from harness.core import ratios
 from harness.report import catalog
-from harness.report.record import slug, image_name
+from harness.report.record import image_name, slug
 
 COLUMNS = 3
 PAD = 6

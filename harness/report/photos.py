@@ -89,7 +89,9 @@ def _column(r) -> str:
 
 def _sections(tidy: pd.DataFrame, mets) -> list[tuple[str, pd.DataFrame]]:
     out = []
-    cols = [UNPRUNED] + [f"prune {ratios.percent(r)}" for r in sorted(set(tidy.loc[tidy["method"] != UNPRUNED, "ratio"]))]
+    cols = [UNPRUNED] + [
+        f"prune {ratios.percent(r)}" for r in sorted(set(tidy.loc[tidy["method"] != UNPRUNED, "ratio"]))
+    ]
     for m in mets:
         t = tidy[tidy["metric"] == m]
         spec = catalog.METRICS.get(m)

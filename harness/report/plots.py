@@ -31,7 +31,7 @@ import pandas as pd
 from harness.core import ratios
 from harness.report import catalog, stats
 from harness.report.cells import prepare
-from harness.report.record import slug, image_name
+from harness.report.record import image_name, slug
 from harness.report.tabledata import Written
 
 #: the plots a config or ``harness tables --plots`` can name
@@ -136,7 +136,9 @@ def plot_curves(df: pd.DataFrame, out: Path, protocol: str = "") -> list[Path]:
             from matplotlib.lines import Line2D
 
             handles.append(Line2D([], [], marker="^", ms=8, color="0.35", ls="none"))
-            labels.append(f"every view ≥ {stats.NEAR_IDENTICAL_DB:g} dB\n(near-identical; off the\nscale, at the top edge)")
+            labels.append(
+                f"every view ≥ {stats.NEAR_IDENTICAL_DB:g} dB\n(near-identical; off the\nscale, at the top edge)"
+            )
         fig.legend(handles, labels, loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize=8, frameon=False)
         views = f"held-out views: {protocol}" if protocol else "held-out views"
         fig.suptitle(f"{scene}: pruned vs unpruned render, {views} (cell means)")
@@ -235,7 +237,9 @@ def write_plots(df: pd.DataFrame, run_dir: str | Path, names) -> Written:
             cols = [("unpruned", "input", "", 0.0)]
             for r in FIG1_RATIOS:
                 tv = [t for (_, rk), t in taus.items() if rk == ratios.key(r)]
-                rng = "" if not tv else f"\nτ = {min(tv):.3f}" + (f"–{max(tv):.3f}" if max(tv) - min(tv) >= 5e-4 else "")
+                rng = (
+                    "" if not tv else f"\nτ = {min(tv):.3f}" + (f"–{max(tv):.3f}" if max(tv) - min(tv) >= 5e-4 else "")
+                )
                 cols.append((f"{ratios.percent(r)} pruned{rng}", proposed, "default", r))
 
             def cap(scene, col):

@@ -69,7 +69,9 @@ def table_runtime(s: pd.DataFrame):
     if pair is not None and pair[0] in wide and pair[1] in wide:
         without, full = pair
         wide["desc. overhead (s)"] = wide[full] - wide[without]
-        wide["desc. overhead (%)"] = (100 * wide["desc. overhead (s)"] / wide[without]).where(wide[without] >= MIN_BASE_S)
+        wide["desc. overhead (%)"] = (100 * wide["desc. overhead (s)"] / wide[without]).where(
+            wide[without] >= MIN_BASE_S
+        )
         if wide["desc. overhead (%)"].isna().any():
             notes.append(f"desc. overhead (%): – where {catalog.method_label(without)} took under {MIN_BASE_S:g} s "
                          "(a percentage of so short a time says nothing); the seconds column still holds")
@@ -116,7 +118,9 @@ def register_table(name: str, *, build: Callable, title: str, reads: str = "resu
 
 register_table("comparison", build=cells.table_comparison,
                title="Comparison at low (10 %), mid (20 %) and high (30 %) pruning (paper Table 1)")
-register_table("ablation", build=cells.table_ablation, title="Ablation: descriptors × Beta at 20 % pruning (paper Table 2)")
+register_table(
+    "ablation", build=cells.table_ablation, title="Ablation: descriptors × Beta at 20 % pruning (paper Table 2)"
+)
 register_table("keep", build=sensitivity.table_keep,
                title="Keep fractions 0.7 / 0.5 / 0.3 with and without descriptors (paper Table 3)")
 register_table("sensitivity", build=sensitivity.table_sensitivity,

@@ -222,10 +222,13 @@ def check_like(baseline: dict, summary: dict, baseline_path, run_dir) -> None:
     base = baseline["summary"]
     mine, theirs = (summary.get("run"), protocols_of(summary)), (base.get("run"), protocols_of(base))
     if mine != theirs:
-        raise InputError(baseline_path, f"is a baseline of config {theirs[0]!r} (protocols {', '.join(theirs[1])}), "
-                                        f"but {run_dir} is a run of config {mine[0]!r} (protocols {', '.join(mine[1])}); "
-                                        "track compares a run only with a baseline of the same config and protocols "
-                                        "(give that one with --baseline)")
+        raise InputError(
+            baseline_path,
+            f"is a baseline of config {theirs[0]!r} (protocols {', '.join(theirs[1])}), "
+            f"but {run_dir} is a run of config {mine[0]!r} (protocols {', '.join(mine[1])}); "
+            "track compares a run only with a baseline of the same config and protocols "
+            "(give that one with --baseline)",
+        )
 
 
 @dataclass(frozen=True)

@@ -64,7 +64,8 @@ prints the resolved config with the file and line of every value.
 
 Every section is a dataclass of typed ``param(...)`` fields (:mod:`harness.run.schema`: one
 default, range and doc each). Every problem is an :class:`InputError` naming the key path
-(``methods[2].sweep.voxel``) and what is wrong. Variant names are stable: ``<variant or 'default'>`` for plain entries, and
+(``methods[2].sweep.voxel``) and what is wrong. Variant names are stable: ``<variant or 'default'>`` for plain entries,
+and
 ``k1=v1,k2=v2`` (keys in the order written) for sweep combinations, prefixed by ``variant`` when given.
 """
 

@@ -179,7 +179,9 @@ class MethodEntry:
     variant: str | None = param(None, doc="row label of this entry (default: default, or the sweep values)")
     params: dict = param(None, parse=_mapping_value, doc="the pruner's parameters")
     sweep: dict = param(None, parse=_mapping_value, doc="lists of values: one variant per combination")
-    ratios: tuple[float, ...] | None = param(None, parse=_fraction_list, doc="pruning ratios (default: the top level's)")
+    ratios: tuple[float, ...] | None = param(
+        None, parse=_fraction_list, doc="pruning ratios (default: the top level's)"
+    )
     keep: tuple[float, ...] | None = param(None, parse=_fraction_list, doc="keep fractions (ratio = 1 - keep)")
     scenes: tuple[str, ...] | None = param(None, parse=_text_list("scene names"), doc="restrict to these scenes")
 

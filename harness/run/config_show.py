@@ -104,7 +104,9 @@ def _methods(lines: _Lines, doc: dict, config: RunConfig) -> None:
                 lines.add(4, f"params.{k}", params[k], at + ("params", k), at + ("sweep", k))
             rest = len(params) - len(given)
             if rest:
-                lines.out.append(f"    # {rest} other parameter(s) at the pruner's defaults (harness methods {v.method})")
+                lines.out.append(
+                    f"    # {rest} other parameter(s) at the pruner's defaults (harness methods {v.method})"
+                )
 
 
 __all__ = ["SECTIONS", "show"]

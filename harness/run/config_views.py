@@ -29,8 +29,11 @@ def capture(d, where, src):
     every = _num(d.get("test_every", 0), f"{where}.test_every", src, lo=0, integer=True)
     given = [k for k in ("split", "test", "test_every") if d.get(k)]
     if len(given) != 1:
-        raise InputError(src, f"{where}: give the held-out views once: `split: FILE`, `test: [names]` or `test_every: k`"
-                              + (f" (got {', '.join(given)})" if given else ""))
+        raise InputError(
+            src,
+            f"{where}: give the held-out views once: `split: FILE`, `test: [names]` or `test_every: k`"
+            + (f" (got {', '.join(given)})" if given else ""),
+        )
     opt = lambda k: expand_env(_str(d[k], f"{where}.{k}", src)) if k in d else None  # noqa: E731
     return CaptureSpec(cameras=opt("cameras"), images=opt("images"), split=opt("split"), test=tuple(test),
                        test_every=every, transform=opt("transform"))

@@ -26,8 +26,9 @@ class ExecutorSpec:
     cpus_per_task: int | None = param(None, ge=1, le=1024,
                                       doc="ray: CPUs (= threads) per task; default cores // workers locally, 1 on a "
                                           "cluster")
-    gpus_per_task: float = param(1.0, ge=0.01, le=64,
-                                 doc="ray: GPU share of a render/metrics/camera-aware task when protocol.device is CUDA")
+    gpus_per_task: float = param(
+        1.0, ge=0.01, le=64, doc="ray: GPU share of a render/metrics/camera-aware task when protocol.device is CUDA"
+    )
     max_retries: int = param(2, ge=0, le=100,
                              doc="ray: re-runs of a task whose worker process died (never of a task that raised)")
 

@@ -24,10 +24,10 @@ from pathlib import Path
 
 import numpy as np
 
+from harness.metrics.registry import gt_names
 from harness.run.cache import StageCache, digest_json, digest_mask
 from harness.run.config import RunConfig
 from harness.run.executors import Bars, Executor, LocalExecutor, Stage
-from harness.metrics.registry import gt_names
 from harness.run.plan import SceneItem, Skip, Versions, load_items, variants_for
 from harness.run.tasks import (
     MaskJob,

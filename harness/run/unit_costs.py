@@ -10,10 +10,12 @@ unit               meaning (core-seconds = CPU seconds of one core)       anchor
                    upload): ``c_N``                                       splats, ``backends.gl.``
 ``render_px``      per pixel of a GL render (fill, read-back): ``c_P``    ``cpu_seconds_per_view`` (below)
 ``lpips_px``       LPIPS-VGG of one pruned image, per pixel               ``metrics.json`` ``lpips_cached_per_pruned_s``
-``lpips_ref_px``   LPIPS reference features of a view task, per pixel     ``metrics.json`` ``lpips_reference_features_s``
+``lpips_ref_px``   LPIPS reference features of a view task, per pixel     ``metrics.json``
+                                                                          ``lpips_reference_features_s``
 ``ssim_px``        one SSIM pass (3 planes), per pixel                    ``metrics.json`` ``ssim_per_image_s``
 ``psnr_px``        one PSNR pass, per pixel                               ``metrics.json`` ``psnr_per_image_s``
-``score_splat[m]`` camera-free scoring of method m, per splat             ``methods.json`` ``scoring.<m>.cpu_s / splats``
+``score_splat[m]`` camera-free scoring of method m, per splat             ``methods.json``
+                                                                          ``scoring.<m>.cpu_s / splats``
 ``aware[m]``       camera-aware scoring: multiple of one training render  ``methods.json`` (see below)
 ``select_splat``   prune selection (threshold + mask), per splat          ``prune.json`` ``stages_cpu_s.select``
 ``read_splat``     reading a scene file, per splat                        ``read.json`` ``steps.read_ply.seconds``
@@ -27,7 +29,8 @@ scene at 384×288 (7× fewer pixels) took 1.0–1.1 s in a one-thread worker aga
 Both terms come from that file. The other files are reported beside it: bonsai-7k-mini's (an orbit
 close-up, measured with two threads on a busy machine) implies 4× the per-pixel cost, while
 one-thread ``--calibrate`` runs on it measured 0.3–0.55 µs per pixel: per-pixel cost depends on
-overdraw and load, so an estimate for unseen content carries that spread. ``--calibrate`` measures both terms directly (two sizes).
+overdraw and load, so an estimate for unseen content carries that spread. ``--calibrate`` measures both terms directly
+(two sizes).
 
 **Metrics** ran with ``threads`` torch threads; core-seconds = wall × threads (an upper bound:
 the threads were busy). Costs scale with pixels: ``unit_px = seconds × threads / (W₀·H₀)``.

@@ -108,5 +108,7 @@ def tool_viewpoints(means: np.ndarray, n: int = DEFAULT_VIEWS, width: int | None
     w, h = int(width or TOOL_SIZE[0]), int(height or TOOL_SIZE[1])
     c = box_centre(means)
     digits = max(2, len(str(n - 1)))
-    cams = [look_at(eye, c, up, w, h, FOCAL, f"viewpoint_{i:0{digits}d}") for i, (eye, up) in enumerate(tool_poses(n, c))]
+    cams = [
+        look_at(eye, c, up, w, h, FOCAL, f"viewpoint_{i:0{digits}d}") for i, (eye, up) in enumerate(tool_poses(n, c))
+    ]
     return cams, c

@@ -11,7 +11,8 @@ one voxel wide:
 ``w_i`` is the aggregation weight of Eq. 6: the kernel mass of descriptor support around the
 splat. It is 1 inside populated regions and drops for a splat far from the voxel points around it
 (an outlier in the corner of an isolated cell), whose neighbourhood evidence is then down-weighted;
-its own voxel point is at most √3 voxels away, so w ≥ e^{−3/2} ≈ 0.22. A serial numba loop (deterministic for any thread count).
+its own voxel point is at most √3 voxels away, so w ≥ e^{−3/2} ≈ 0.22. A serial numba loop (deterministic for any
+thread count).
 """
 
 from __future__ import annotations

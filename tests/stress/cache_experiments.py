@@ -334,7 +334,9 @@ def _outcome(eid, opts, r, d: Path, base: Path, root: Path, scene: Path) -> str:
         recomputed = counts.get("load", {}).get("misses", 0) > 0
         same = _metrics(d / "out").equals(_metrics(f / "out"))
         if recomputed:
-            return "recomputed" + (" (equals a cold run on the edited scene)" if same else ", yet DIFFERS from a cold run")
+            return "recomputed" + (
+                " (equals a cold run on the edited scene)" if same else ", yet DIFFERS from a cold run"
+            )
         return "USED STALE RESULTS (cache hits on the old scene" + ("" if same else "; differs from a cold run") + ")"
     want = _metrics(base / "out")
     if not _metrics(d / "out").equals(want):

@@ -25,11 +25,15 @@ import tempfile
 import time
 from pathlib import Path
 
+from tests.stress.cache_experiments import (
+    STUDY,
+    _env,  # noqa: F401  (the kill experiments' environment)
+    cache_experiments,
+    harness,
+)
+
 ROOT = Path(__file__).resolve().parents[2]
 PY = sys.executable
-
-from tests.stress.cache_experiments import STUDY, cache_experiments, harness
-from tests.stress.cache_experiments import _env  # noqa: F401  (the kill experiments' environment)
 
 
 # ----------------------------------------------------------------------------- kill experiments

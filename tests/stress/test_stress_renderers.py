@@ -74,7 +74,9 @@ def both(gl, ref, sc, background=BG):
 CENTRE = (H // 2, W // 2)
 
 
-@pytest.mark.parametrize("z, drawn", [(-1.0, False), (0.0, False), (0.1, False), (0.19, False), (0.21, True), (1.0, True)])
+@pytest.mark.parametrize(
+    "z, drawn", [(-1.0, False), (0.0, False), (0.1, False), (0.19, False), (0.21, True), (1.0, True)]
+)
 def test_near_plane_and_behind(gl, ref, stress_counts, z, drawn):
     """Culled at z ≤ 0.2 (the image is the background exactly), drawn just in front."""
     stress_counts.add("renderers", near_plane=1)

@@ -141,8 +141,9 @@ class RayExecutor(Executor):
         except ImportError:
             from harness.core.errors import InputError
 
-            raise InputError("--executor ray", "needs the ray package (pip install -e '.[ray]'; setup.sh installs it)") \
-                from None
+            raise InputError(
+                "--executor ray", "needs the ray package (pip install -e '.[ray]'; setup.sh installs it)"
+            ) from None
         for k, v in QUIET_ENV.items():
             os.environ.setdefault(k, v)
         import sys
@@ -190,7 +191,9 @@ class RayExecutor(Executor):
 
         res = self._ray.cluster_resources()
         if res.get("CPU", 0) < self.threads:
-            raise InputError("--executor ray", f"tasks ask for {self.threads} CPUs; the cluster has {res.get('CPU', 0):g}")
+            raise InputError(
+                "--executor ray", f"tasks ask for {self.threads} CPUs; the cluster has {res.get('CPU', 0):g}"
+            )
         gpus = res.get("GPU", 0)
         if self.device.startswith("cuda"):
             if gpus <= 0:  # a task asking for a GPU on a CPU-only cluster would wait forever
@@ -222,10 +225,13 @@ class RayExecutor(Executor):
                     for n in nodes]
             for n, (host, seen, problem) in zip(nodes, ray.get(refs, timeout=300)):
                 if seen != token:
-                    raise InputError(location, f"the stage cache is not usable from Ray node {host} "
-                                               f"({n.get('NodeManagerAddress')}): {problem or 'it read another probe'}; "
-                                               "give a folder every node mounts (NFS ...) or an fsspec URL "
-                                               "(s3://bucket/prefix), and the same HARNESS_CACHE_KEY on every node")
+                    raise InputError(
+                        location,
+                        f"the stage cache is not usable from Ray node {host} "
+                        f"({n.get('NodeManagerAddress')}): {problem or 'it read another probe'}; "
+                        "give a folder every node mounts (NFS ...) or an fsspec URL "
+                        "(s3://bucket/prefix), and the same HARNESS_CACHE_KEY on every node",
+                    )
         finally:
             store.delete(rel)
 
