@@ -14,10 +14,9 @@ chosen ``--method``; ``bench``: the chosen benchmark's) takes them as a second p
 ``add_arguments(parser, argv)``. Unknown options, commands and choices get a "did you mean"
 (:class:`Parser`). Bad input anywhere raises :class:`harness.core.errors.HarnessError` (an
 ``InputError``), printed here as one line on stderr with exit status 2. Any other exception that reaches :func:`main`
-is also one line with exit status 2 — the command,
-the input it read last, the exception type and message — and its traceback is printed only with
-``--debug`` (anywhere on the command line) or ``HARNESS_DEBUG=1``. While a command runs, the files it
-reads are recorded (:func:`harness.io.safe.recording_inputs`) so that no output replaces one.
+is also one line with exit status 2 — the command, the input it read last, the exception type and message — and its
+traceback is printed only with ``--debug`` (anywhere on the command line) or ``HARNESS_DEBUG=1``. While a command
+runs, the files it reads are recorded (:func:`harness.io.safe.recording_inputs`) so that no output replaces one.
 """
 
 from __future__ import annotations

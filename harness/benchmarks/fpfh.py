@@ -8,10 +8,9 @@ per repeat, so machine noise hits both alike. Reported: median and best wall and
 (``process_time``, all threads) of each, their ratios, the max |difference|, our per-stage split
 (search, SPFH, FPFH), ours again with one numba thread (on a loaded 2-core machine a
 second thread that is descheduled makes every parallel region wait), and the first call in a fresh process with an
-empty numba cache (compile) and
-with the on-disk cache (load). open3d is timed on a prebuilt ``PointCloud`` (its own threads);
-ours from numpy arrays, input checks included. The 1-minute load average is recorded because the
-machine is shared.
+empty numba cache (compile) and with the on-disk cache (load). open3d is timed on a prebuilt ``PointCloud`` (its own
+threads); ours from numpy arrays, input checks included. The 1-minute load average is recorded because the machine is
+shared.
 """
 
 from __future__ import annotations

@@ -7,8 +7,8 @@ kicks in), then every view is rendered and the median is reported. A view's time
 ``render(scene, camera)`` call: projection, depth sort, binning/upload, compositing and read-back.
 The process CPU time per view is recorded too (the machines are shared and wall time is noisy;
 GL work done in llvmpipe threads counts, work in a separate GPU process does not). Peak memory is the child's peak
-resident set (and CUDA's peak allocation when on a GPU). A backend
-that cannot run here (``renderers.gl`` missing, no EGL) is recorded as not available with the reason.
+resident set (and CUDA's peak allocation when on a GPU). A backend that cannot run here (``renderers.gl`` missing, no
+EGL) is recorded as not available with the reason.
 """
 
 from __future__ import annotations

@@ -3,8 +3,7 @@
 Each command runs as a fresh child process (``python -m harness …``); its wall time (from spawn to
 exit) and its own CPU seconds and peak resident memory (``os.wait4``: that child's rusage, not a
 running maximum over all children; spawned from a small launcher, :data:`LAUNCHER`) are recorded. A bare ``python -c
-"import numpy"`` runs in every
-round as the floor every command stands on.
+"import numpy"`` runs in every round as the floor every command stands on.
 
 ``--against DIR`` times a second checkout (e.g. a worktree of the ``wave3-base`` tag) with the same
 interpreter in the same sitting: ``python -m harness`` run in DIR imports DIR's code. Rounds

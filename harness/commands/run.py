@@ -1,6 +1,5 @@
-"""`harness run CONFIG [--workers N] [--threads T] [--executor local|ray] [--address A] [--out DIR] [--force] [--cache
-DIR|URL]`:
-the CTC-style evaluation.
+"""`harness run CONFIG [--workers N] [--threads T] [--executor local|ray] [--address A] [--out DIR] [--force]
+[--cache DIR|URL]`: the CTC-style evaluation.
 
 Reads and validates the YAML config (:mod:`harness.run.config`) and resolves every scene before any
 work (:func:`harness.run.plan.check_sources`): a misspelt scene, method or metric, or a required

@@ -89,8 +89,7 @@ class LpipsVGG:
     telling to run ``harness fetch --weights``). ``batch_size``: images per trunk pass in
     :meth:`distances` (default 1 on CPU, which bounds memory to one image's activations, about
     1 GB at 1024x768; on CUDA as many as fit in a quarter of free memory, at most 16). Construction raises torch's
-    thread count
-    to every core the process may use (:func:`use_all_cores`).
+    thread count to every core the process may use (:func:`use_all_cores`).
     """
 
     def __init__(self, device=None, *, weights: str | Path | None = None, precision: str = "float32",

@@ -4,8 +4,7 @@ Every cell is computed from the per-view results (``status == ok``) of one (scen
 ratio): the mean over its views (frames pooled), the median, the number of views and of
 near-identical views, and — against its reference row, the same scene and views — the mean paired
 difference Δ = cell − reference with its 95 % interval (:func:`harness.report.stats.mean_ci`). The metrics are every
-registered metric
-the results carry (:func:`harness.report.catalog.display_metrics`: OM variants beside full-frame).
+registered metric the results carry (:func:`harness.report.catalog.display_metrics`: OM variants beside full-frame).
 
 * ``comparison`` (paper Table 1): each comparison-group method's default variant at Low/Mid/High =
   10/20/30 % pruning; reference: ``random`` (:data:`catalog.DEFAULT_REFERENCE`, or ``--reference``)

@@ -10,8 +10,7 @@ A :class:`Table` carries the three views of one table:
 ``notes`` are printed under the table; ``warnings`` name what a partly built table lacks (a run
 prints them in its summary); ``caption`` says what ``n`` is and how the intervals are computed (or
 that there are none) — every output of the table shows it. Builders from before this module returned ``(num, disp,
-notes)``;
-:func:`as_table` still accepts that, tidying ``num`` by :func:`tidy_from_wide`.
+notes)``; :func:`as_table` still accepts that, tidying ``num`` by :func:`tidy_from_wide`.
 """
 
 from __future__ import annotations

@@ -53,6 +53,7 @@ A config is a YAML mapping::
         sweep: {preset: [baseline, flat]}   # cartesian product -> one variant per combination
         ratios: [0.3]             # overrides the default ratios (keep: likewise)
         scenes: [luigi]           # restrict to these scene names
+        protocols: [rig]          # measured only under these of the config's protocols (default: all)
     protocols: [rig, shifted, real]   # held-out view protocols (the first: the primary one);
                                   # {name: real, n_test: 8}: the first 8 captured views by name
     tables: [comparison, ablation, keep, sensitivity, runtime, per_scene]
@@ -64,9 +65,8 @@ prints the resolved config with the file and line of every value.
 
 Every section is a dataclass of typed ``param(...)`` fields (:mod:`harness.run.schema`: one
 default, range and doc each). Every problem is an :class:`InputError` naming the key path
-(``methods[2].sweep.voxel``) and what is wrong. Variant names are stable: ``<variant or 'default'>`` for plain entries,
-and
-``k1=v1,k2=v2`` (keys in the order written) for sweep combinations, prefixed by ``variant`` when given.
+(``methods[2].sweep.voxel``) and what is wrong. Variant names are stable: ``<variant or 'default'>`` for plain
+entries, and ``k1=v1,k2=v2`` (keys in the order written) for sweep combinations, prefixed by ``variant`` when given.
 """
 
 from __future__ import annotations
@@ -214,7 +214,18 @@ def _variants(spec, e: dict, where: str, src):
         yield ":".join(x for x in (e["variant"], label) if x) or "default", resolved
 
 
-def _method(d, i, default_ratios, scene_names, src) -> list[MethodVariant]:
+def _entry_protocols(names, protocol_names, where: str, src) -> tuple[str, ...] | None:
+    if names is None:
+        return None
+    if not names:
+        raise InputError(src, f"{where}.protocols: expected a non-empty list of protocol names")
+    for j, p in enumerate(names):
+        if p not in protocol_names:
+            raise InputError(src, f"{where}.protocols[{j}]: {unknown('protocol of this config', p, protocol_names)}")
+    return tuple(names)
+
+
+def _method(d, i, default_ratios, scene_names, src, protocol_names=()) -> list[MethodVariant]:
     """Expand one methods[] entry into its variants, each with its parameters resolved and checked
     (through the pruner's :class:`Params`) here, once."""
     where = f"methods[{i}]"
@@ -225,8 +236,9 @@ def _method(d, i, default_ratios, scene_names, src) -> list[MethodVariant]:
     _check_sweep(e["sweep"] or {}, e["params"] or {}, where, src)
     rs = _entry_ratios(e, default_ratios, where, src)
     scenes = _entry_scenes(e["scenes"], scene_names, where, src)
+    protocols = _entry_protocols(e["protocols"], list(protocol_names), where, src)
     spec = _pruner(e["name"], f"{where}.name", src)
-    return [MethodVariant(method=e["name"], variant=v, params=p, ratios=rs, scenes=scenes)
+    return [MethodVariant(method=e["name"], variant=v, params=p, ratios=rs, scenes=scenes, protocols=protocols)
             for v, p in _variants(spec, e, where, src)]
 
 
@@ -243,14 +255,14 @@ def _scenes(d, protocol: Protocol, src) -> list[SceneSpec]:
     return scenes
 
 
-def _methods(d, default_ratios, scene_names, src) -> list[MethodVariant]:
+def _methods(d, default_ratios, scene_names, src, protocol_names=()) -> list[MethodVariant]:
     raw = d.get("methods")
     if not isinstance(raw, list) or not raw:
         raise InputError(src, "methods: expected a non-empty list of methods")
     methods: list[MethodVariant] = []
     keys: dict[str, int] = {}
     for i, m in enumerate(raw):
-        for v in _method(m, i, default_ratios, scene_names, src):
+        for v in _method(m, i, default_ratios, scene_names, src, protocol_names):
             if v.key in keys:
                 raise InputError(src, f"methods[{i}]: variant {v.key} already defined by methods[{keys[v.key]}]; "
                                       "give one of them a distinct `variant`")
@@ -270,12 +282,13 @@ def parse_config(data: Any, source: str = "<config>") -> RunConfig:
     protocol = _protocol(d.get("protocol"), src)
     scenes = _scenes(d, protocol, src)
     default_ratios = merge_ratios(top["ratios"], top["keep"])
-    methods = _methods(d, default_ratios, {s.name for s in scenes}, src)
+    protocols = _protocols(d.get("protocols", ["rig"]), src)
+    methods = _methods(d, default_ratios, {s.name for s in scenes}, src, [p.name for p in protocols])
     name = top["name"] if top["name"] is not None else _str(Path(source).stem, "name", src)
     return RunConfig(
         name=name, output=top["output"] or f"runs/{name}", workers=top["workers"], protocol=protocol,
         scenes=scenes, methods=methods, tables=top["tables"], plots=top["plots"], source_path=str(source), raw=d,
-        anchor=top["anchor"], protocols=_protocols(d.get("protocols", ["rig"]), src),
+        anchor=top["anchor"], protocols=protocols,
         executor=parse_executor(d.get("executor"), src),
     )
 

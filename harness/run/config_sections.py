@@ -165,10 +165,16 @@ class MethodVariant:
     params: Params
     ratios: tuple[float, ...]
     scenes: tuple[str, ...] | None = None
+    #: the held-out view protocols it is measured under (None = every protocol of the config)
+    protocols: tuple[str, ...] | None = None
 
     @property
     def key(self) -> str:
         return f"{self.method}[{self.variant}]"
+
+    def measures(self, protocol: str) -> bool:
+        """Whether its pruned sets are measured on ``protocol``'s held-out views."""
+        return self.protocols is None or protocol in self.protocols
 
 
 @dataclass(frozen=True)
@@ -184,6 +190,8 @@ class MethodEntry:
     )
     keep: tuple[float, ...] | None = param(None, parse=_fraction_list, doc="keep fractions (ratio = 1 - keep)")
     scenes: tuple[str, ...] | None = param(None, parse=_text_list("scene names"), doc="restrict to these scenes")
+    protocols: tuple[str, ...] | None = param(None, parse=_text_list("protocol names"),
+                                              doc="measure only under these of the config's view protocols")
 
 
 @dataclass(frozen=True)

@@ -85,7 +85,7 @@ def show(path: str | Path) -> str:
 
 
 def _methods(lines: _Lines, doc: dict, config: RunConfig) -> None:
-    """Each entry's variants: ratios, scenes, and the parameters the entry sets or sweeps."""
+    """Each entry's variants: ratios, scenes, protocols, and the parameters the entry sets or sweeps."""
     entries = [({"name": e} if isinstance(e, str) else e) for e in doc.get("methods", [])]
     variants = iter(config.methods)
     for i, e in enumerate(entries):
@@ -99,6 +99,7 @@ def _methods(lines: _Lines, doc: dict, config: RunConfig) -> None:
             lines.add(2, f"- {v.key}", v.method, at + ("name",), at)
             lines.add(4, "ratios", v.ratios, at + ("ratios",), at + ("keep",), ("ratios",), ("keep",))
             lines.add(4, "scenes", v.scenes or "all", at + ("scenes",))
+            lines.add(4, "protocols", v.protocols or "all", at + ("protocols",))
             params = v.params.to_dict()
             for k in given:
                 lines.add(4, f"params.{k}", params[k], at + ("params", k), at + ("sweep", k))

@@ -317,9 +317,11 @@ def estimate(config: RunConfig, infos: list[SceneInfo], units: UnitCosts | None)
     for info in infos:
         tasks = _score_tasks(config, specs[info.name], info, cost.notes)
         keeps = [1.0 - r for _, _, rs in tasks.values() for r in rs]
+        protos = _view_protocols(config, specs[info.name], info)
+        by_proto = {p: _keeps(config, specs[info.name], tasks, p) for p in set(protos)}
         before = {k: (s.units, s.core_s) for k, s in st.items()}
         for n in info.splats:
-            _cost_frame(st, n, info, tasks, keeps, cost)
+            _cost_frame(st, n, info, tasks, [by_proto[p] for p in protos], cost)
         for k, v in passes.items():
             st["render+metrics"].detail[f"{k}_passes"] = v * st["render+metrics"].units
         rows.append(_scene_row(info, st, before, len(keeps)))
@@ -343,10 +345,37 @@ def _score_tasks(config: RunConfig, spec, info: SceneInfo, notes: set) -> dict[s
     return tasks
 
 
-def _cost_frame(st: dict, n: int, info: SceneInfo, tasks: dict, keeps: list, cost: _Costing) -> None:
+def _view_protocols(config: RunConfig, spec, info: SceneInfo) -> list[str]:
+    """The protocol of each held-out view of ``info`` (``info.views`` then ``info.real_views``): a
+    rig scene's views are ``n_test`` per rig protocol, in the config's order; a scene with its own
+    cameras measures them under the first rig protocol."""
+    from harness.io.capture import CaptureProtocol
+
+    rig = [p.name for p in config.protocols if not isinstance(p, CaptureProtocol)]
+    real = next((p.name for p in config.protocols if isinstance(p, CaptureProtocol)), "real")
+    if rig and spec.sequence is None and spec.cameras is None and len(info.views) == spec.n_test * len(rig):
+        own = [p for p in rig for _ in range(spec.n_test)]
+    else:
+        own = [rig[0] if rig else real] * len(info.views)
+    return own + [real] * len(info.real_views)
+
+
+def _keeps(config: RunConfig, spec, tasks: dict, protocol: str) -> list[float]:
+    """Keep fractions of the distinct pruned sets measured under ``protocol`` (a method entry's
+    ``protocols``), one per (score task, ratio)."""
+    sets = {}
+    for mv in (m for m in config.methods if (m.scenes is None or spec.name in m.scenes) and m.measures(protocol)):
+        key = f"{mv.method}|{sorted(mv.params.to_dict().items())!r}"
+        if key in tasks:
+            sets.update({(key, r): 1.0 - r for r in mv.ratios})
+    return list(sets.values())
+
+
+def _cost_frame(st: dict, n: int, info: SceneInfo, tasks: dict, keeps: list[list[float]], cost: _Costing) -> None:
     """Add one frame of ``n`` splats to the stages: its load; per training set (the rig's, and the
     capture's for the real protocol: :mod:`harness.run.plan`) its score tasks and selections; per
-    held-out view its reference render and one view task measuring every pruned set."""
+    held-out view its reference render and one view task measuring the pruned sets of its protocol
+    (``keeps``: their keep fractions, per view of ``info.views`` then ``info.real_views``)."""
     u = cost.u
     sets = [(train, views, False) for train, views in ((info.train, info.views),) if views] \
         + [(info.real_train, info.real_views, True)] * bool(info.real_views)
@@ -361,16 +390,17 @@ def _cost_frame(st: dict, n: int, info: SceneInfo, tasks: dict, keeps: list, cos
             st["score"].detail["training_renders"] += renders
             st["score"].detail["camera_aware_tasks"] += aware
             st["prune"].add(len(rs), u.select_splat * n * len(rs), u.select_splat * n)
-        for w, h in views:
+        first = 0 if not j and info.views else len(info.views)
+        for (w, h), kept in zip(views, keeps[first:first + len(views)]):
             px = w * h
             st["render_ref"].add(1, u.render(n, px), u.render(n, px))
-            if not keeps:
+            if not kept:
                 continue
             extra = cost.gt_px * px if photos else 0.0
-            image = [u.render(n * k, px) + cost.per_px * px + extra + IMAGE_OVERHEAD_S for k in keeps]
+            image = [u.render(n * k, px) + cost.per_px * px + extra + IMAGE_OVERHEAD_S for k in kept]
             ref_cost = cost.ref_px * px + (extra + 2 * cost.ref_px * px) * photos  # + photo features, gt
             task = ref_cost + sum(image)  # one task per view
-            st["render+metrics"].add(len(keeps), task, task)
+            st["render+metrics"].add(len(kept), task, task)
             st["render+metrics"].detail["view_tasks"] += 1
 
 

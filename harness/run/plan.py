@@ -393,5 +393,14 @@ def shifted_views(spec: SceneSpec, scene, config: RunConfig, cache: StageCache, 
     return out
 
 
-def variants_for(item: SceneItem, methods: list[MethodVariant]) -> list[MethodVariant]:
-    return [m for m in methods if m.scenes is None or item.spec.name in m.scenes]
+def variants_for(item: SceneItem, methods: list[MethodVariant], protocol: str | None = None) -> list[MethodVariant]:
+    """The method variants measured on ``item`` (their ``scenes``), under ``protocol`` when given."""
+    return [m for m in methods if (m.scenes is None or item.spec.name in m.scenes)
+            and (protocol is None or m.measures(protocol))]
+
+
+def training_sets_for(item: SceneItem, mv: MethodVariant, primary: str) -> dict[str, list]:
+    """The item's training sets (:meth:`SceneItem.train_sets`) whose protocols measure ``mv``: a
+    variant measured only under ``real`` is not scored on the rig's training views, and vice versa."""
+    wanted = {item.train_set(p) for p in dict.fromkeys(v[0] for v in item.views(primary)) if mv.measures(p)}
+    return {ts: train for ts, train in item.train_sets().items() if ts in wanted}

@@ -44,7 +44,7 @@ def tidy_rows(runner, items, scores, prunes, skips) -> tuple[list[dict], dict]:
                     row0.update(splats_out=prec["splats_out"], bytes=item.ply_bytes(prec["splats_out"]),
                                 tau=prec["tau"], tau_quantile=prec["tau_quantile"],
                                 score_s=srec["seconds"], prune_s=prec["seconds"])
-                    for view in (v for v in views if item.train_set(v[0]) == ts):
+                    for view in (v for v in views if item.train_set(v[0]) == ts and mv.measures(v[0])):
                         rows.append(_view_row(runner, item, mv, r, row0, prec["mask"], view, ref_recs, unpruned,
                                               images))
     return rows, images

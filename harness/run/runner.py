@@ -28,7 +28,7 @@ from harness.metrics.registry import gt_names
 from harness.run.cache import StageCache, digest_json, digest_mask
 from harness.run.config import RunConfig
 from harness.run.executors import Bars, Executor, LocalExecutor, Stage
-from harness.run.plan import SceneItem, Skip, Versions, load_items, variants_for
+from harness.run.plan import SceneItem, Skip, Versions, load_items, training_sets_for, variants_for
 from harness.run.tasks import (
     MaskJob,
     ScoreTask,
@@ -178,7 +178,7 @@ class Runner:
         for i, item in enumerate(items):
             for mv in variants_for(item, self.config.methods):
                 spec = get_pruner(mv.method)
-                for ts, train in item.train_sets().items():
+                for ts, train in training_sets_for(item, mv, self.primary).items():
                     if "cameras" in spec.needs and not train:
                         skips.append(Skip(item.spec.name, item.frame, mv.method, mv.variant,
                                           f"{mv.method} needs {', '.join(sorted(spec.needs))}: the scene has no "
@@ -296,11 +296,12 @@ class Runner:
         return tuple(p.metrics) + (gt_names(p.metrics) if photo else ())
 
     def _masks(self, i: int, item: SceneItem, prunes) -> dict[str, dict[str, list[str]]]:
-        """Per training set: mask digest -> the methods and ratios that keep those splats."""
+        """Per protocol: mask digest -> the methods and ratios measured under it that keep those
+        splats (pruned on the protocol's training set)."""
         out: dict[str, dict[str, list[str]]] = {}
-        for ts in item.train_sets():
-            kept_by = out.setdefault(ts, {})
-            for mv in variants_for(item, self.config.methods):
+        for proto in dict.fromkeys(v[0] for v in item.views(self.primary)):
+            kept_by, ts = out.setdefault(proto, {}), item.train_set(proto)
+            for mv in variants_for(item, self.config.methods, proto):
                 for r in mv.ratios:
                     if (rec := prunes.get((i, mv.key, ts, r))) is not None:
                         kept_by.setdefault(rec["mask"], []).append(f"{mv.key} ratio {r:g}")
@@ -325,7 +326,7 @@ class Runner:
                 photo = item.photo(cam.name)
                 # the first view of the primary protocol and of the real one keep their renders as images
                 first = v == 0 and (proto == self.primary or photo is not None)
-                jobs = self._view_jobs(ref_key, masks.get(item.train_set(proto), {}), photo, first, users)
+                jobs = self._view_jobs(ref_key, masks.get(proto, {}), photo, first, users)
                 gt_key = self._gt_to_measure(ref_key, photo, v)
                 task = functools.partial(self._view_task, ref_key, item, cam, photo, views[ref_key])
                 ref_png = not self.cache.has("images", ref_key, "png")  # contact sheets and figures

@@ -1,10 +1,9 @@
 """Work units of a run, executed in pool workers (or in-process with one worker).
 
 Each function takes a plain, picklable task description, computes what the cache lacks, stores it
-atomically, and returns a small summary (timings, errors). The planner decided what is missing. Per-process state — the
-last
-loaded scene, the renderer (one GL context per process), the metric suite with its cached
-reference features — lives in :data:`_STATE`, so consecutive tasks on the same scene or view reuse it.
+atomically, and returns a small summary (timings, errors). The planner decided what is missing. Per-process state —
+the last loaded scene, the renderer (one GL context per process), the metric suite with its cached reference features
+— lives in :data:`_STATE`, so consecutive tasks on the same scene or view reuse it.
 
 The same functions run on every executor (:mod:`harness.run.executors`). An executor that holds
 inputs in shared memory (Ray's object store) hands them in: ``scene=`` the loaded scene, and for a

@@ -27,10 +27,9 @@ the split between the two terms is fixed by :data:`SPLAT_SHARE`: in the file wit
 65 % of the CPU time at 1024×768 — measured by the default study, whose pruned renders of the same
 scene at 384×288 (7× fewer pixels) took 1.0–1.1 s in a one-thread worker against 1.54 CPU-s here.
 Both terms come from that file. The other files are reported beside it: bonsai-7k-mini's (an orbit
-close-up, measured with two threads on a busy machine) implies 4× the per-pixel cost, while
-one-thread ``--calibrate`` runs on it measured 0.3–0.55 µs per pixel: per-pixel cost depends on
-overdraw and load, so an estimate for unseen content carries that spread. ``--calibrate`` measures both terms directly
-(two sizes).
+close-up, measured with two threads on a busy machine) implies 4× the per-pixel cost, while one-thread ``--calibrate``
+runs on it measured 0.3–0.55 µs per pixel: per-pixel cost depends on overdraw and load, so an estimate for unseen
+content carries that spread. ``--calibrate`` measures both terms directly (two sizes).
 
 **Metrics** ran with ``threads`` torch threads; core-seconds = wall × threads (an upper bound:
 the threads were busy). Costs scale with pixels: ``unit_px = seconds × threads / (W₀·H₀)``.

@@ -4,9 +4,8 @@ For every occupied voxel j (see :mod:`methods.betadesc.grid`) with neighbourhood
 ``max_nn`` nearest voxel points within ``radius_voxels`` voxels (j included; the FPFH search):
 
 * **geometric block** ``g_j`` (33): FPFH of the voxel points (MST-oriented normals from the
-  members' shortest scale axes, :mod:`methods.betadesc.backend`), each of the three 11-bin angle histograms (α, φ, θ)
-  normalised to sum 1; all-zero
-  where a voxel has no neighbour (FPFH undefined).
+  members' shortest scale axes, :mod:`methods.betadesc.backend`), each of the three 11-bin angle
+  histograms (α, φ, θ) normalised to sum 1; all-zero where a voxel has no neighbour (FPFH undefined).
 * **spectrum block** ``f̄_j`` (L+1): per splat the relative SH band power
   ``f_ℓ = P_ℓ / Σ_ℓ' P_ℓ'`` with ``P_ℓ = Σ_m ‖c_ℓm‖²`` (RGB channels summed) for the bands the
   scene has (degree 0 → P₀ only, f₀ ≡ 1), averaged over all splats of N(j); the block sums to 1.
