@@ -46,8 +46,8 @@ Readings decided here:
 
 * Rendering: the reference rasterizer's projection and α tests at reduced resolution
   (``train_longest_side``, default 128) through :mod:`renderers.pixel_pairs`, whose image, opacity
-  and colour gradients equal the tile rasterizer's (tested) at a fraction of the cost; black background; ``early_stop`` false as the
-  harness renderers. SSIM is the 3DGS window (11×11, σ = 1.5, zero padding) of
+  and colour gradients equal the tile rasterizer's (tested) at a fraction of the cost; black
+  background; ``early_stop`` false as the harness renderers. SSIM is the 3DGS window (11×11, σ = 1.5, zero padding) of
   :func:`harness.metrics.ssim.ssim_map` with a differentiable banded-matmul blur (:func:`blur_matmul`),
   on unclamped images as their training loss.
 * One view per step (their batch size 1), in a fixed order: one permutation of the training views per
