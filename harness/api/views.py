@@ -81,12 +81,35 @@ def views(scene, *, cameras=None, rig: str | None = None, split: str | None = No
           n_train: int | None = None, n_test: int | None = None, seed: int = 0, aspect: float | None = None,
           up=None, name: str | None = None) -> tuple[str, list]:
     """(where the views came from, the cameras) for ``scene`` (a loaded scene; ``name`` the name or
-    path it was given by, default the file it was read from), per the module docstring."""
-    from harness.core.cameras import MAX_SIDE
+    path it was given by, default the file it was read from), per the module docstring: the checks,
+    then a camera file's (or the scene's embedded) cameras, else a rig fitted to the scene."""
     from harness.io.cameras import embedded_cameras, load_cameras
-    from harness.views.rigs import ASPECT, LONGEST_SIDE, MAX_VIEWS, N_TEST, N_TRAIN, RIG_CHOICES
 
     name = name or scene.meta.source
+    up = _check_options(longest_side, split, rig, up)
+    file_cams = load_cameras(cameras) if cameras else None
+    if file_cams is None and rig in (None, "default"):
+        file_cams = embedded_cameras(scene) or None
+    if file_cams is not None:
+        origin = str(cameras) if cameras else f"{scene.meta.source or name} (embedded cameras)"
+        cams = [c.resized(longest_side) for c in file_cams] if longest_side else file_cams
+        if split is None:  # used as given
+            return f"{origin}, every camera", cams
+        origin, selected = _file_split(origin, cams, split)
+    else:
+        split = split or "test"
+        origin, selected = _rig_views(scene, name, rig or "default", split, longest_side=longest_side,
+                                      n_train=n_train, n_test=n_test, seed=seed, aspect=aspect, up=up)
+    if not selected:
+        raise InputError("split", f"the {split!r} split has no views")
+    return origin, selected
+
+
+def _check_options(longest_side, split, rig, up):
+    """The options' one-line errors (before any file is read); returns ``up`` as a triple or None."""
+    from harness.core.cameras import MAX_SIDE
+    from harness.views.rigs import RIG_CHOICES
+
     if longest_side is not None and not 1 <= longest_side <= MAX_SIDE:
         raise InputError("longest_side", f"must be 1..{MAX_SIDE} pixels (the maximum render size), got {longest_side}")
     if split not in (None, "test", "train", "all"):
@@ -96,41 +119,36 @@ def views(scene, *, cameras=None, rig: str | None = None, split: str | None = No
     up = _triple(up, "up")
     if up is not None and not any(up):
         raise InputError("up", "must be a non-zero direction")
-    file_cams = load_cameras(cameras) if cameras else None
-    if file_cams is None and rig in (None, "default"):
-        file_cams = embedded_cameras(scene) or None
-    if file_cams is not None:
-        origin = str(cameras) if cameras else f"{scene.meta.source or name} (embedded cameras)"
-        cams = [c.resized(longest_side) for c in file_cams] if longest_side else file_cams
-        if split is None:  # used as given
-            return f"{origin}, every camera", cams
-        train, test = _split_llff(cams)
-        selected = {"test": test, "train": train, "all": cams}[split]
-        origin += f", {split} split (every {LLFF_HOLD}th view is a test view)"
-    else:
-        from harness.views.rigs import scene_rig
+    return up
 
-        n_train, n_test = N_TRAIN if n_train is None else n_train, N_TEST if n_test is None else n_test
-        if not 1 <= n_test <= MAX_VIEWS or not 0 <= n_train <= MAX_VIEWS:
-            raise InputError("n_test/n_train", f"need 1..{MAX_VIEWS} test views and 0..{MAX_VIEWS} training "
-                                               f"views, got {n_test} and {n_train}")
-        if aspect is not None and not (np.isfinite(aspect) and 0.1 <= aspect <= 10):
-            raise InputError("aspect", f"must be a width/height ratio in [0.1, 10], got {aspect}")
-        rig = rig or "default"
-        found = source_dataset(name, scene) if rig == "default" else None
-        dataset, fitted, how = found if found else (None, scene, "")
-        try:
-            built = scene_rig(dataset, fitted, rig, n_train=n_train, n_test=n_test, seed=seed,
-                              longest_side=longest_side or LONGEST_SIDE, aspect=aspect or ASPECT, up=up)
-        except ValueError as err:
-            raise InputError(name or "scene", f"cannot build a rig: {err}") from None
-        origin = f"rig {built.rig}" + (f" ({how})" if how else "")
-        split = split or "test"
-        selected = {"test": built.test, "train": built.train, "all": built.all}[split]
-        origin += f", {split} views"
-    if not selected:
-        raise InputError("split", f"the {split!r} split has no views")
-    return origin, selected
+
+def _file_split(origin: str, cams: list, split: str) -> tuple[str, list]:
+    """A camera file's ``split`` (LLFF hold-out: every :data:`LLFF_HOLD`-th view is a test view)."""
+    train, test = _split_llff(cams)
+    selected = {"test": test, "train": train, "all": cams}[split]
+    return origin + f", {split} split (every {LLFF_HOLD}th view is a test view)", selected
+
+
+def _rig_views(scene, name, rig: str, split: str, *, longest_side, n_train, n_test, seed, aspect, up):
+    """(origin, the ``split`` views) of a rig fitted to ``scene`` (``default``: its dataset's rig
+    when the scene is, or is a subset of, a known dataset; else ``auto``)."""
+    from harness.views.rigs import ASPECT, LONGEST_SIDE, MAX_VIEWS, N_TEST, N_TRAIN, scene_rig
+
+    n_train, n_test = N_TRAIN if n_train is None else n_train, N_TEST if n_test is None else n_test
+    if not 1 <= n_test <= MAX_VIEWS or not 0 <= n_train <= MAX_VIEWS:
+        raise InputError("n_test/n_train", f"need 1..{MAX_VIEWS} test views and 0..{MAX_VIEWS} training "
+                                           f"views, got {n_test} and {n_train}")
+    if aspect is not None and not (np.isfinite(aspect) and 0.1 <= aspect <= 10):
+        raise InputError("aspect", f"must be a width/height ratio in [0.1, 10], got {aspect}")
+    found = source_dataset(name, scene) if rig == "default" else None
+    dataset, fitted, how = found if found else (None, scene, "")
+    try:
+        built = scene_rig(dataset, fitted, rig, n_train=n_train, n_test=n_test, seed=seed,
+                          longest_side=longest_side or LONGEST_SIDE, aspect=aspect or ASPECT, up=up)
+    except ValueError as err:
+        raise InputError(name or "scene", f"cannot build a rig: {err}") from None
+    origin = f"rig {built.rig}" + (f" ({how})" if how else "") + f", {split} views"
+    return origin, {"test": built.test, "train": built.train, "all": built.all}[split]
 
 
 def cameras(scene, rig: str | None = "default", *, cameras=None, split: str | None = None, **options) -> list:

@@ -145,24 +145,7 @@ def _split(spec: CaptureSpec, cams: list[Camera], base: Path) -> tuple[list[Came
     from harness.io.photos import photo_stem
 
     by_name = {photo_stem(c.name): c for c in cams}
-    source, train_names = spec.cameras, None
-    if spec.named:
-        m = manifest(spec.named)
-        test_names, train_names, source = m["split"]["test"], m["split"]["train"], f"{spec.named} manifest"
-    elif spec.split is not None:
-        from harness.io.safe import read_json
-
-        source = Path(spec.split) if Path(spec.split).is_absolute() else Path(base) / spec.split
-        d = read_json(source, "json", "split file")
-        ok = lambda v: isinstance(v, list) and all(isinstance(x, str) for x in v)  # noqa: E731
-        if not isinstance(d, dict) or not ok(d.get("test")) or ("train" in d and not ok(d["train"])):
-            raise InputError(source, 'expected {"test": [view names], "train": [view names]} (train optional)')
-        test_names, train_names = d["test"], d.get("train")
-    elif spec.test:
-        test_names, source = list(spec.test), "capture.test"
-    else:
-        order = sorted(by_name)
-        test_names, source = [n for i, n in enumerate(order) if i % spec.test_every == 0], "capture.test_every"
+    test_names, train_names, source = _split_names(spec, sorted(by_name), base)
     for names in (test_names, train_names or []):
         unknown = [n for n in names if photo_stem(n) not in by_name]
         if unknown:
@@ -174,13 +157,32 @@ def _split(spec: CaptureSpec, cams: list[Camera], base: Path) -> tuple[list[Came
     if not test:
         raise InputError(source, "no held-out views")
     if train_names is None:
-        train = [c for c in cams if c.name not in held]
-    else:
-        both = [n for n in train_names if by_name[photo_stem(n)].name in held]
-        if both:
-            raise InputError(source, f"{both[0]!r} is both a training and a held-out view")
-        train = [by_name[photo_stem(n)] for n in dict.fromkeys(train_names)]
-    return train, test
+        return [c for c in cams if c.name not in held], test
+    both = [n for n in train_names if by_name[photo_stem(n)].name in held]
+    if both:
+        raise InputError(source, f"{both[0]!r} is both a training and a held-out view")
+    return [by_name[photo_stem(n)] for n in dict.fromkeys(train_names)], test
+
+
+def _split_names(spec: CaptureSpec, names: list[str], base: Path) -> tuple[list[str], list[str] | None, object]:
+    """(held-out names, training names or None for "every other camera", where they were given):
+    a named capture's manifest, a split file, ``test:`` names, or every ``test_every``-th of the
+    camera ``names`` in sorted order."""
+    if spec.named:
+        m = manifest(spec.named)
+        return m["split"]["test"], m["split"]["train"], f"{spec.named} manifest"
+    if spec.split is not None:
+        from harness.io.safe import read_json
+
+        source = Path(spec.split) if Path(spec.split).is_absolute() else Path(base) / spec.split
+        d = read_json(source, "json", "split file")
+        ok = lambda v: isinstance(v, list) and all(isinstance(x, str) for x in v)  # noqa: E731
+        if not isinstance(d, dict) or not ok(d.get("test")) or ("train" in d and not ok(d["train"])):
+            raise InputError(source, 'expected {"test": [view names], "train": [view names]} (train optional)')
+        return d["test"], d.get("train"), source
+    if spec.test:
+        return list(spec.test), None, "capture.test"
+    return [n for i, n in enumerate(names) if i % spec.test_every == 0], None, "capture.test_every"
 
 
 def load_capture(spec: CaptureSpec, base: Path = Path("."), digest=None) -> Capture:
