@@ -58,3 +58,30 @@ def test_the_estimate_counts_only_the_measured_images(tmp_path):
     # random: 2 ratios x 6 views; opacity: 2 ratios x the 3 shifted views
     assert est.stages["render+metrics"].units == 2 * 6 + 2 * 3
     assert est.stages["render_ref"].units == 6 and est.stages["score"].units == 2
+
+
+def test_a_table_made_for_one_protocol_only_is_a_note_not_a_failure(tmp_path, capsys):
+    """The ablation variants measured under rig only: ``ablation`` is written for rig, and its
+    absence under shifted is a note (``harness tables`` exits 0), while a table no protocol can make
+    is still missing (and fails ``harness tables`` that asked for it)."""
+    import json
+
+    from harness.cli import main
+    from harness.report.results import write_results
+    from harness.report.tables import write_tables
+    from tests.test_tables import _rows
+
+    rig = _rows().assign(protocol="rig")
+    shifted = rig[rig["method"].isin(["betadesc", "random"])].assign(
+        protocol="shifted", view=lambda d: "shifted/" + d["view"].astype(str))
+    df = __import__("pandas").concat([rig, shifted], ignore_index=True)
+    written = write_tables(df, tmp_path, ["ablation", "keep"])
+    assert (tmp_path / "tables" / "ablation.md").exists() and not (tmp_path / "tables" / "ablation-shifted.md").exists()
+    assert [n.split(":")[0] for n in written.notes] == ["table ablation-shifted not made for the shifted views",
+                                                        "table keep-shifted not made for the shifted views"]
+    assert written.missing == []
+    write_results(df, tmp_path)
+    (tmp_path / "run.json").write_text(json.dumps({"tables": ["ablation", "keep"], "plots": ["curves"]}))
+    assert main(["tables", str(tmp_path)]) == 0
+    assert "note: table ablation-shifted not made for the shifted views" in capsys.readouterr().err
+    assert main(["tables", str(tmp_path), "--tables", "bd"]) == 2  # no protocol has its anchor

@@ -125,8 +125,12 @@ def test_ablation_that_cannot_be_made_says_which_variants_are_missing():
     df = df[~((df["ratio"] - 0.2).abs() < 1e-9)]
     t = _t("ablation", df)
     assert isinstance(t, Missing)
-    assert "betadesc-nodesc-nobeta, betadesc-nodesc, betadesc-nobeta, betadesc at 20%" in t.reason
-    assert "they ran at 10%, 30%, 50%, 70%" in t.reason
+    assert "missing betadesc-nodesc-nobeta, betadesc-nodesc, betadesc-nobeta at 20%" in t.reason
+    ran = sorted(set(df.loc[df["method"].str.startswith("betadesc-"), "ratio"]))
+    assert f"they ran at {', '.join(f'{100 * r:g}%' for r in ran)}" in t.reason
+    # the full method alone is no ablation: a missing table, not a one-column one with a warning
+    alone = _t("ablation", _rows()[lambda d: ~d["method"].str.startswith("betadesc-")])
+    assert isinstance(alone, Missing) and "no ablation variant measured at 20%" in alone.reason
     part = _t("ablation", _rows()[lambda d: d["method"] != "betadesc-nobeta"])
     assert part.warnings == ["ablation: missing betadesc-nobeta at 20%"]
 

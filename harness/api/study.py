@@ -20,7 +20,8 @@ from harness.core.errors import InputError
 class Study:
     """What a study produced: ``frame`` (the tidy rows, a pandas DataFrame), the output folder, the
     summary lines ``harness run`` prints, the tables' warnings, the count of table/plot files written,
-    the stage errors (a failed stage is a row with status "error") and whether anything was measured."""
+    the stage errors (a failed stage is a row with status "error"), whether anything was measured,
+    and the tables' notes (tables made for some held-out view protocols only)."""
 
     frame: object
     out_dir: Path
@@ -29,6 +30,7 @@ class Study:
     written: int = 0
     errors: list[str] = field(default_factory=list)
     measured: bool = True
+    notes: list[str] = field(default_factory=list)
 
 
 def _config(config_or_path):
@@ -115,7 +117,7 @@ def run_study(config_or_path, *, out=None, executor: str | None = None, address:
         result = runner.run()
     done = finish_run(out_dir, config, runner, result, workers=workers, cache_root=cache_root, argv=argv)
     return Study(done.frame, out_dir, done.summary, warnings=done.warnings, written=done.written,
-                 errors=list(result.errors), measured=done.measured)
+                 errors=list(result.errors), measured=done.measured, notes=done.notes)
 
 
 def evaluate(config_or_path, out=None, executor: str | None = "local", **options):

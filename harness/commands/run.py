@@ -70,5 +70,7 @@ def run(args) -> int:
     if study.measured:
         for line in study.warnings:  # what the config asked for and these results cannot show
             print(f"warning: {line}")
+        for line in study.notes:  # tables of some protocols only: what the config measured there
+            print(f"note: {line}")
         print(f"wrote {study.written} table/plot files")
     return 1 if study.errors else 0

@@ -55,6 +55,8 @@ def run(args) -> int:
     print(run_dir / "report.html")
     for line in written.warnings:
         print(f"harness: warning: {line}", file=sys.stderr)
+    for line in written.notes:  # made for other protocols: these results hold none of its variants here
+        print(f"harness: note: {line}", file=sys.stderr)
     # what the command line named explicitly and could not be made fails the command; the run's
     # own defaults for the other kind (plots when only --tables was given, and so on) only warn
     asked = {

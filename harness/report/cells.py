@@ -264,10 +264,11 @@ def table_ablation(df: pd.DataFrame, ratio: float = ABLATION_RATIO):
     at = ok[ok["rkey"] == ratios.key(ratio)]
     present = [a for a in grid if not at[at["method"] == a[2]].empty]
     missing = [a[2] for a in grid if a not in present]
-    if not present:
-        seen = sorted(set(ok.loc[ok["method"].isin([a[2] for a in grid]), "ratio"]))
+    variants = [a[2] for a in grid if a[2] != catalog.proposed_method()]
+    if not [a for a in present if a[2] in variants]:  # the full method alone is no ablation
+        seen = sorted(set(ok.loc[ok["method"].isin(variants), "ratio"]))
         return Missing(f"no ablation variant measured at {ratios.percent(ratio)} pruning: missing "
-                       f"{', '.join(missing)} at {ratios.percent(ratio)}"
+                       f"{', '.join(m for m in missing if m in variants)} at {ratios.percent(ratio)}"
                        + (f" (they ran at {', '.join(ratios.percent(r) for r in seen)})" if seen else ""))
     full = catalog.proposed_method()
     ref = full if full in [a[2] for a in present] else None

@@ -98,13 +98,16 @@ class Built:
 class Written:
     """What writing a run's outputs produced: files, and one line per table or plot that could not
     be made (``missing``) or was made without some of its parts (``warnings``); ``built``: the
-    tables as built (``{file stem: Built}``), for the report page."""
+    tables as built (``{file stem: Built}``), for the report page; ``notes``: tables made for some
+    held-out view protocols and not for others, whose results hold none of their variants (a method
+    entry's ``protocols:``) — what the run measured, not a failure."""
 
     paths: list = field(default_factory=list)
     missing: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     built: dict = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
 
     def __add__(self, other: "Written") -> "Written":
         return Written(self.paths + other.paths, self.missing + other.missing, self.warnings + other.warnings,
-                       {**self.built, **other.built})
+                       {**self.built, **other.built}, self.notes + other.notes)

@@ -199,6 +199,7 @@ def write_tables(df: pd.DataFrame, out_dir: str | Path, names, **opts) -> Writte
     summaries = [summarise(sub).assign(protocol=proto) for proto, _, sub in subsets]
     out = Written([out_dir / "summary.csv"])
     atomic_write_text(out.paths[0], pd.concat(summaries, ignore_index=True).to_csv(index=False))
+    absent = []  # (table, protocol, line): missing, or a note when the table was made for another protocol
     for proto, suffix, sub in subsets:
         # a table of the photos belongs to the protocols whose views have photos (when any has)
         here = [n for n in names if not TABLE_SPECS.get(n).with_photos or not with_photos or proto in with_photos]
@@ -210,8 +211,8 @@ def write_tables(df: pd.DataFrame, out_dir: str | Path, names, **opts) -> Writte
                 stale = [f for ext in ("md", "csv", "tex") if (f := out_dir / f"{key}.{ext}").exists()]
                 for f in stale:
                     f.unlink()
-                out.missing.append(f"table {key} not written: {t.reason}"
-                                   + (f" (removed its earlier {', '.join(f.name for f in stale)})" if stale else ""))
+                absent.append((name, proto, f"table {key} not written: {t.reason}"
+                               + (f" (removed its earlier {', '.join(f.name for f in stale)})" if stale else "")))
                 continue
             out.warnings += t.warnings
             tidy = t.tidy.assign(protocol=proto)
@@ -221,4 +222,10 @@ def write_tables(df: pd.DataFrame, out_dir: str | Path, names, **opts) -> Writte
                 path = out_dir / f"{key}.{ext}"
                 atomic_write_text(path, text)
                 out.paths.append(path)
+    made = {b.name for b in out.built.values() if not isinstance(b.table, Missing)}
+    for name, proto, line in absent:
+        if name in made:
+            out.notes.append(line.replace(" not written: ", f" not made for the {proto} views: ", 1))
+        else:
+            out.missing.append(line)
     return out

@@ -19,13 +19,15 @@ from pathlib import Path
 class Finished:
     """What :func:`finish_run` wrote: the tidy rows (``frame``), the summary lines to print, the
     tables' warnings (what the config asked for and these results cannot show), how many table and
-    plot files were written, and whether anything was measured."""
+    plot files were written, whether anything was measured, and the tables' notes (made for some
+    held-out view protocols only: :class:`harness.report.tabledata.Written`)."""
 
     frame: object
     summary: list[str]
     warnings: list[str] = field(default_factory=list)
     written: int = 0
     measured: bool = True
+    notes: list[str] = field(default_factory=list)
 
 
 def finish_run(out_dir: Path, config, runner, result, *, workers: int, cache_root, argv) -> Finished:
@@ -53,4 +55,5 @@ def finish_run(out_dir: Path, config, runner, result, *, workers: int, cache_roo
              "images": images, "contact sheets": f"{out_dir / 'contact_sheets'} (coverage per view: {coverage})",
              "run record": run_json, "report page": published.page, "stage cache": cache_root}
     written = published.written
-    return Finished(df, summary_lines(result, df, paths), written.warnings + written.missing, len(written.paths))
+    return Finished(df, summary_lines(result, df, paths), written.warnings + written.missing, len(written.paths),
+                    notes=written.notes)
