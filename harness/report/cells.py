@@ -63,6 +63,13 @@ def cell_rows(ok, mets, cells, reference_of, table: str, pooled: bool = False, l
     """Tidy rows of ``cells`` [(method, variant, ratio)] per scene (and pooled), each against
     ``reference_of(cell)`` (a cell, or None)."""
     groups = {k: g for k, g in ok.groupby(["scene", "method", "variant", "rkey"], sort=False)}
+    arrays: dict = {}  # group key -> {metric: (values, near)}, converted once for every cell that reads it
+
+    def cols(key):
+        if key not in arrays:
+            arrays[key] = {mk: stats.columns(groups[key], mk) for mk, *_ in mets}
+        return arrays[key]
+
     labels = dict(zip(ok["scene"], ok["label"]))
     levels = levels or {}
     out = []
@@ -77,16 +84,18 @@ def cell_rows(ok, mets, cells, reference_of, table: str, pooled: bool = False, l
             if g is None:
                 continue
             gr = groups.get((scene, *rk)) if rk and rk != (m, v, r) else None
+            pairs = stats.pair_index(g, gr) if gr is not None else None
             size = _size(g)
+            here, there = cols((scene, m, v, r)), (cols((scene, *rk)) if gr is not None else None)
             for mk, _, _ in mets:
                 row = {"table": table, "scene": scene, "label": labels[scene], "method": m,
                        "method_label": catalog.method_label(m), "variant": v, "ratio": r,
                        "level": levels.get(r, ""), "metric": mk,
-                       **stats.summary(g[mk], g["near"], mk), **size,
+                       **stats.summary(*here[mk], mk), **size,
                        "reference": "" if rk is None else f"{rk[0]}[{rk[1]}]"}
-                pooled_vals[mk].append(g[[mk, "near"]])
+                pooled_vals[mk].append(here[mk])
                 if gr is not None:
-                    d, excl = stats.paired_diffs(g, gr, mk)
+                    d, excl = stats.paired_diffs_at(here[mk], there[mk], mk, pairs)
                     diffs[mk].append((d, excl))
                     row.update(_delta(d, excl, mk))
                 out.append(row)
@@ -94,11 +103,12 @@ def cell_rows(ok, mets, cells, reference_of, table: str, pooled: bool = False, l
             for mk, _, _ in mets:
                 if not diffs[mk]:
                     continue
-                vals = pd.concat(pooled_vals[mk])
+                vals = np.concatenate([x for x, _ in pooled_vals[mk]])
+                near = np.concatenate([n for _, n in pooled_vals[mk]])
                 d = np.concatenate([x for x, _ in diffs[mk]])
                 out.append({"table": table, "scene": POOLED, "label": "all scenes", "method": m,
                             "method_label": catalog.method_label(m), "variant": v, "ratio": r,
-                            "level": levels.get(r, ""), "metric": mk, **stats.summary(vals[mk], vals["near"], mk),
+                            "level": levels.get(r, ""), "metric": mk, **stats.summary(vals, near, mk),
                             "reference": f"{rk[0]}[{rk[1]}]",
                             **_delta(d, sum(e for _, e in diffs[mk]), mk)})
     tidy = pd.DataFrame(out, columns=TIDY)
@@ -197,10 +207,19 @@ def _sections(tidy, mets, row_keys, col_key, col_order, text) -> list[tuple[str,
         if t.empty:
             continue
         rows = list(dict.fromkeys(tuple(x) for x in t[row_keys[1]].itertuples(index=False)))
-        table = pd.DataFrame("–", pd.MultiIndex.from_tuples(rows, names=row_keys[0]), col_order)
+        cols = list(col_order)
+        cells = {}  # (row, column) -> text, later rows over earlier ones; filled into the frame at once
         for _, r in t.iterrows():
-            table.loc[tuple(r[c] for c in row_keys[1]), col_key(r)] = text(r, digits)
-        out.append((heading, table))
+            cells[(tuple(r[c] for c in row_keys[1]), col_key(r))] = text(r, digits)
+        cols += [c for c in dict.fromkeys(c for _, c in cells) if c not in cols]
+        at_row, at_col = {k: i for i, k in enumerate(rows)}, {c: j for j, c in enumerate(cols)}
+        grid = np.full((len(rows), len(cols)), "–", dtype=object)
+        for (rk, ck), s in cells.items():
+            grid[at_row[rk], at_col[ck]] = s
+        index = pd.MultiIndex.from_tuples(rows, names=row_keys[0])
+        columns = (col_order.append(pd.Index(cols[len(col_order):])) if isinstance(col_order, pd.Index)
+                   else pd.Index(cols, tupleize_cols=False))
+        out.append((heading, pd.DataFrame(grid, index, columns)))
     return out
 
 

@@ -157,10 +157,20 @@ def paired_diffs(cur: pd.DataFrame, ref: pd.DataFrame, metric: str, keys=("frame
     The pairs are those of an inner join on ``keys`` in ``cur``'s row order (a key repeated in
     ``ref`` pairs with each of its rows, in ``ref``'s order), built with a dict: a table has
     thousands of cells of a few views each, where a DataFrame merge per cell cost most of a rerun."""
+    return paired_diffs_at(columns(cur, metric), columns(ref, metric), metric, pair_index(cur, ref, keys))
+
+
+def columns(frame: pd.DataFrame, metric: str) -> tuple[np.ndarray, np.ndarray]:
+    """(values of ``metric`` as float64, the boolean ``near`` column) of a cell's rows."""
+    return (pd.to_numeric(frame[metric], errors="coerce").to_numpy(dtype=np.float64),
+            frame["near"].to_numpy(dtype=bool))
+
+
+def pair_index(cur: pd.DataFrame, ref: pd.DataFrame, keys=("frame", "view")) -> tuple[np.ndarray, np.ndarray]:
+    """Row positions (in ``cur``, in ``ref``) of the pairs :func:`paired_diffs` takes, computed once
+    for every metric of a cell."""
     keys = [k for k in keys if k in cur and k in ref]
-    cv = pd.to_numeric(cur[metric], errors="coerce").to_numpy(dtype=np.float64)
-    rv = pd.to_numeric(ref[metric], errors="coerce").to_numpy(dtype=np.float64)
-    cn, rn = cur["near"].to_numpy(dtype=bool), ref["near"].to_numpy(dtype=bool)
+
     def key_rows(df):  # NaN keys match each other, as in a merge
         return zip(*([None if isinstance(x, float) and x != x else x for x in df[c].tolist()] for c in keys))
 
@@ -169,8 +179,18 @@ def paired_diffs(cur: pd.DataFrame, ref: pd.DataFrame, metric: str, keys=("frame
         rows.setdefault(k, []).append(j)
     pairs = [(i, j) for i, k in enumerate(key_rows(cur)) for j in rows.get(k, ())]
     if not pairs:
-        return np.empty(0, np.float64), 0
+        return np.empty(0, np.intp), np.empty(0, np.intp)
     ci, ri = np.array(pairs, dtype=np.intp).T
+    return ci, ri
+
+
+def paired_diffs_at(cur, ref, metric: str, index) -> tuple[np.ndarray, int]:
+    """:func:`paired_diffs` on the pairs ``index`` (:func:`pair_index`); ``cur``, ``ref``: each
+    side's (values, near) arrays (:func:`columns`)."""
+    ci, ri = index
+    if not len(ci):
+        return np.empty(0, np.float64), 0
+    (cv, cn), (rv, rn) = cur, ref
     d = cv[ci] - rv[ri]
     excluded = (cn[ci] | rn[ri]) if drops_near(metric) else np.zeros(len(ci), bool)
     return d[~excluded & np.isfinite(d)].astype(np.float64), int(excluded.sum())
