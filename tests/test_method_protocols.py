@@ -84,4 +84,7 @@ def test_a_table_made_for_one_protocol_only_is_a_note_not_a_failure(tmp_path, ca
     (tmp_path / "run.json").write_text(json.dumps({"tables": ["ablation", "keep"], "plots": ["curves"]}))
     assert main(["tables", str(tmp_path)]) == 0
     assert "note: table ablation-shifted not made for the shifted views" in capsys.readouterr().err
+    page = (tmp_path / "report.html").read_text()  # the page says it as a note too, not as a warning
+    assert "2 note(s): tables measured under some protocols only" in page and "warning(s)" not in page
+    assert "Not measured under the shifted views" in page
     assert main(["tables", str(tmp_path), "--tables", "bd"]) == 2  # no protocol has its anchor

@@ -47,6 +47,8 @@ th,td{border:1px solid #d5dde3;padding:3px 7px;text-align:right;white-space:nowr
 th{background:#eef2f5;white-space:normal;min-width:3em;max-width:16em}td.k{text-align:left;font-weight:600}
 td small{color:#444}td.better{background:#dff3e1}td.worse{background:#f8dede}
 table.kv td{text-align:left;white-space:normal}
+table.wrap td{text-align:left;white-space:normal;min-width:5em}
+details.note{background:#eef4fb;border:1px solid #b9cde5;padding:8px 12px}
 .notes{color:#555;font-size:12px;margin:0 0 10px}.warn{background:#fff4d6;border:1px solid #e8c96b;padding:8px 12px}
 ul.warn{margin:8px 0;padding-left:28px}
 .scroll{overflow-x:auto;max-width:100%}.plots img{max-width:100%;border:1px solid #ddd;margin:4px 0;background:#fff}
@@ -93,16 +95,20 @@ openTarget();
 
 
 # --------------------------------------------------------------------------- tables
-def table_html(b: Built, sections=None) -> str:
-    """One table: warnings, its sections (each an HTML table with the caption), notes."""
+def table_html(b: Built, sections=None, cls: str = "", elsewhere: bool = False) -> str:
+    """One table: warnings, its sections (each an HTML table with the caption), notes. A missing
+    table made for another protocol (``elsewhere``) is a note: this protocol measured none of its
+    variants (a method entry's ``protocols:``)."""
     t = b.table
     if isinstance(t, Missing):
+        if elsewhere:
+            return f"<p class='notes'>Not measured under the {esc(b.protocol)} views: {esc(t.reason)}</p>"
         return f"<p class='warn'>Not made from these results: {esc(t.reason)}</p>"
     out = [f"<p class='warn'>{esc(w)}</p>" for w in t.warnings]
     for sub, disp in sections if sections is not None else (t.sections or [("", t.disp)]):
         if sub:
             out.append(f"<h4>{esc(sub)}</h4>")
-        out.append(html_table(disp, sub, t.caption))
+        out.append(html_table(disp, sub, t.caption, cls))
     out += [f"<p class='notes'>{esc(n)}</p>" for n in t.notes]
     return "\n".join(out)
 
@@ -111,8 +117,8 @@ def summary_html(built: dict[str, Built]) -> str:
     """The claims table(s), then per protocol the headline table's first section."""
     out = []
     for b in built.values():
-        if b.name == "claims":
-            out += [f"<h3 id='s-{esc(b.key)}'>{esc(b.title)}</h3>", table_html(b)]
+        if b.name == "claims":  # its cells are sentences: wrapped, so the verdict column is in view
+            out += [f"<h3 id='s-{esc(b.key)}'>{esc(b.title)}</h3>", table_html(b, cls="wrap")]
     protocols = list(dict.fromkeys(b.protocol for b in built.values()))
     for proto in protocols:
         head = next((b for name in ("comparison", "versus") for b in built.values()
@@ -123,6 +129,11 @@ def summary_html(built: dict[str, Built]) -> str:
         out += [f"<h3>{esc(head.title)}</h3>", table_html(head, first),
                 f"<p class='notes'><a href='#t-{esc(head.key)}'>every metric of this table</a></p>"]
     return "\n".join(out) or "<p class='warn'>no table could be made from these results</p>"
+
+
+def made_elsewhere(built: dict[str, Built]) -> set[str]:
+    """Names of the tables made for at least one protocol (a missing one of these is a note)."""
+    return {b.name for b in built.values() if isinstance(b.table, Table)}
 
 
 def tables_html(built: dict[str, Built]) -> str:
@@ -137,10 +148,15 @@ def tables_html(built: dict[str, Built]) -> str:
                 f"<h3>Held-out views: {esc(proto)} <small>({esc(PROTOCOL_NOTES.get(proto, 'a named view protocol'))})"
                 "</small></h3>"
             )
+        made = made_elsewhere(built)
         for b in (b for b in built.values() if b.protocol == proto):
-            tag = " <small>(not made from these results)</small>" if isinstance(b.table, Missing) else ""
+            elsewhere = isinstance(b.table, Missing) and b.name in made
+            tag = "" if not isinstance(b.table, Missing) else (
+                " <small>(not measured under this protocol)</small>" if elsewhere
+                else " <small>(not made from these results)</small>")
             name = base_title(b.name) + (f" — {proto} views" if proto else "")
-            out.append(f"<details id='t-{esc(b.key)}'><summary>{esc(name)}{tag}</summary>{table_html(b)}</details>")
+            body = table_html(b, cls="wrap" if b.name == "claims" else "", elsewhere=elsewhere)
+            out.append(f"<details id='t-{esc(b.key)}'><summary>{esc(name)}{tag}</summary>{body}</details>")
     return "\n".join(out)
 
 
@@ -262,12 +278,16 @@ def records_html(records: list[dict], unreadable: list[str]) -> str:
 
 # --------------------------------------------------------------------------- the page
 def render_page(*, title: str, subtitle: str, warnings, summary: str, tables: str, plots: str, images: str,
-                records: str) -> str:
+                records: str, notes=()) -> str:
     warn = ""
     if warnings:
         items = "".join(f"<li>{esc(w)}</li>" for w in warnings)
         warn = (f"<details class='warn'><summary>{len(warnings)} warning(s)</summary>"
                 f"<ul class='warn'>{items}</ul></details>")
+    if notes:
+        items = "".join(f"<li>{esc(n)}</li>" for n in notes)
+        warn += (f"<details class='note'><summary>{len(notes)} note(s): tables measured under some "
+                 f"protocols only</summary><ul>{items}</ul></details>")
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><meta name="viewport" content="width=device-width,initial-scale=1">
 <title>{esc(title)}</title><link rel="icon" href="data:,"><style>{CSS}</style></head>
@@ -291,7 +311,10 @@ def write_report(run_dir: str | Path, df: pd.DataFrame, meta: dict, built: dict[
     from harness.io.files import atomic_write_text
 
     run_dir = Path(run_dir)
-    warnings = [f"{b.key}: {b.table.reason}" for b in built.values() if isinstance(b.table, Missing)]
+    made = made_elsewhere(built)
+    absent = [b for b in built.values() if isinstance(b.table, Missing)]
+    warnings = [f"{b.key}: {b.table.reason}" for b in absent if b.name not in made]
+    notes = [f"{b.key}: not measured under the {b.protocol} views ({b.table.reason})" for b in absent if b.name in made]
     warnings += [w for b in built.values() if isinstance(b.table, Table) for w in b.table.warnings]
     warnings += [m for m in missing if not m.startswith("table ")]  # tables: said above, from ``built``
     scenes = list(dict.fromkeys(zip(df["scene"], df["label"])))
@@ -306,7 +329,7 @@ def write_report(run_dir: str | Path, df: pd.DataFrame, meta: dict, built: dict[
     page = render_page(title=f"harness run {meta.get('name') or run_dir.name}", subtitle=subtitle,
                        warnings=warnings, summary=summary_html(built), tables=tables_html(built),
                        plots=plots_html(run_dir / "plots", protocols[0] if protocols else ""), images=images,
-                       records=records_html(records, unreadable))
+                       records=records_html(records, unreadable), notes=notes)
     path = run_dir / "report.html"
     atomic_write_text(path, page)
     return path

@@ -52,7 +52,8 @@ def cell_html(text: str) -> str:
 
 
 def html_table(disp: pd.DataFrame, heading: str = "", caption: str = "", cls: str = "") -> str:
-    """A display frame as one scrolling HTML table (repeated row keys blanked, as in the .md)."""
+    """A display frame as one scrolling HTML table (repeated row keys blanked, as in the .md);
+    ``cls``: the table's class (``wrap``: cells wrap, for tables of sentences)."""
     names = [n or "" for n in disp.index.names]
     cols = [" · ".join(str(x) for x in c if str(x)) if isinstance(c, tuple) else str(c) for c in disp.columns]
     attr = f" class='{cls}'" if cls else ""
