@@ -27,6 +27,19 @@ MIN_WIDTH = 300  # smaller renders are shown enlarged (nearest neighbour, whole 
 LEVELS = (0.3, 0.2, 0.1)
 
 
+
+def _font(size: int):
+    """DejaVu Sans (matplotlib's own, so labels such as "ConfSplatPrune — lower bound" keep their
+    dash; Pillow's default font has no "—"), else Pillow's default."""
+    from PIL import ImageFont
+
+    try:
+        from matplotlib import font_manager
+
+        return ImageFont.truetype(font_manager.findfont("DejaVu Sans", fallback_to_default=True), size)
+    except (ImportError, OSError, ValueError):
+        return ImageFont.load_default(size=size)
+
 def _real_dir(images: Path, scene: str, protocol: str) -> Path | None:
     """The folder of the scene's first captured view: ``<scene>[/<frame>]/<protocol>``, or the scene's
     (first frame's) own folder when that protocol was the run's primary one."""
@@ -61,7 +74,7 @@ def _panels(df: pd.DataFrame, scene: str, d: Path, ratio: float) -> list[tuple[P
 
 def write_photo_figures(df: pd.DataFrame, run_dir: str | Path, protocol: str = "real") -> list[Path]:
     """One figure per scene with a stored captured view; returns the files written."""
-    from PIL import Image, ImageDraw, ImageFont
+    from PIL import Image, ImageDraw
 
     from harness.io.files import atomic_write_with
 
@@ -82,7 +95,7 @@ def write_photo_figures(df: pd.DataFrame, run_dir: str | Path, protocol: str = "
         n_rows = -(-len(imgs) // COLUMNS)
         sheet = Image.new("RGB", (COLUMNS * (w + PAD) + PAD, 24 + n_rows * (h + CAPTION + PAD)), "white")
         draw = ImageDraw.Draw(sheet)
-        font, small = ImageFont.load_default(size=13), ImageFont.load_default(size=11)
+        font, small = _font(13), _font(11)
         label = df.loc[df["scene"] == scene, "label"].iloc[0]
         draw.text((PAD, 5), f"{label}: a held-out view of the real capture (photo | unpruned | pruned"
                             + (f", shown {k}x enlarged)" if k > 1 else ")"), fill="black", font=font)
