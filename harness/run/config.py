@@ -178,15 +178,17 @@ def _entry_ratios(e: dict, default_ratios, where: str, src) -> tuple[float, ...]
     return out
 
 
-def _entry_scenes(scenes, scene_names, where: str, src) -> tuple[str, ...] | None:
-    if scenes is None:
+def _entry_names(names, known, key: str, what: str, where: str, src) -> tuple[str, ...] | None:
+    """An entry's restriction (``scenes``, ``protocols``) to some of the config's ``known`` names;
+    None: all of them."""
+    if names is None:
         return None
-    if not scenes:
-        raise InputError(src, f"{where}.scenes: expected a non-empty list of scene names")
-    for j, s in enumerate(scenes):
-        if s not in scene_names:
-            raise InputError(src, f"{where}.scenes[{j}]: {unknown('scene of this config', s, sorted(scene_names))}")
-    return tuple(scenes)
+    if not names:
+        raise InputError(src, f"{where}.{key}: expected a non-empty list of {what} names")
+    for j, n in enumerate(names):
+        if n not in known:
+            raise InputError(src, f"{where}.{key}[{j}]: {unknown(f'{what} of this config', n, sorted(known))}")
+    return tuple(names)
 
 
 def _check_sweep(sweep: dict, params: dict, where: str, src) -> None:
@@ -214,17 +216,6 @@ def _variants(spec, e: dict, where: str, src):
         yield ":".join(x for x in (e["variant"], label) if x) or "default", resolved
 
 
-def _entry_protocols(names, protocol_names, where: str, src) -> tuple[str, ...] | None:
-    if names is None:
-        return None
-    if not names:
-        raise InputError(src, f"{where}.protocols: expected a non-empty list of protocol names")
-    for j, p in enumerate(names):
-        if p not in protocol_names:
-            raise InputError(src, f"{where}.protocols[{j}]: {unknown('protocol of this config', p, protocol_names)}")
-    return tuple(names)
-
-
 def _method(d, i, default_ratios, scene_names, src, protocol_names=()) -> list[MethodVariant]:
     """Expand one methods[] entry into its variants, each with its parameters resolved and checked
     (through the pruner's :class:`Params`) here, once."""
@@ -235,8 +226,8 @@ def _method(d, i, default_ratios, scene_names, src, protocol_names=()) -> list[M
         _str(None, f"{where}.name", src)  # required: "expected a non-empty string"
     _check_sweep(e["sweep"] or {}, e["params"] or {}, where, src)
     rs = _entry_ratios(e, default_ratios, where, src)
-    scenes = _entry_scenes(e["scenes"], scene_names, where, src)
-    protocols = _entry_protocols(e["protocols"], list(protocol_names), where, src)
+    scenes = _entry_names(e["scenes"], scene_names, "scenes", "scene", where, src)
+    protocols = _entry_names(e["protocols"], protocol_names, "protocols", "protocol", where, src)
     spec = _pruner(e["name"], f"{where}.name", src)
     return [MethodVariant(method=e["name"], variant=v, params=p, ratios=rs, scenes=scenes, protocols=protocols)
             for v, p in _variants(spec, e, where, src)]
