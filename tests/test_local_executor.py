@@ -16,10 +16,13 @@ def test_one_pool_serves_every_stage(tmp_path):
     tasks = [fakes.MarkerTask(str(tmp_path / "m"), f"t{i}") for i in range(6)]
     with LocalExecutor(2, fakes.toolkit(), threads=1) as ex:
         first, second = ex.run([Stage("a", fakes.pid_task, tasks), Stage("b", fakes.pid_task, tasks)], Bars())
+        pool = ex._pool
         third = ex.run([Stage("c", fakes.pid_task, tasks)], Bars())[0]
         assert len(first) == len(second) == len(third) == 6
-        assert _pids(second) <= _pids(first) and _pids(third) <= _pids(first)
-        assert 1 <= len(_pids(first)) <= 2
+        assert ex._pool is pool  # the same pool, so the same (at most 2) workers served all three stages
+        # which of the two workers a stage's tasks reach depends on their start-up: compare with all of them
+        workers = set(pool._processes)
+        assert _pids(first) | _pids(second) | _pids(third) <= workers and len(workers) <= 2
     assert ex._pool is None  # closed with the executor
 
 
