@@ -87,4 +87,6 @@ def test_a_table_made_for_one_protocol_only_is_a_note_not_a_failure(tmp_path, ca
     page = (tmp_path / "report.html").read_text()  # the page says it as a note too, not as a warning
     assert "2 note(s): tables measured under some protocols only" in page and "warning(s)" not in page
     assert "Not measured under the shifted views" in page
+    assert main(["report", str(tmp_path)]) == 0  # report says it as run and tables do
+    assert "note: table ablation-shifted not made for the shifted views" in capsys.readouterr().err
     assert main(["tables", str(tmp_path), "--tables", "bd"]) == 2  # no protocol has its anchor

@@ -70,54 +70,27 @@ class Round:
 
 
 ROUNDS = {
-    1: Round(
-        1,
-        "reading.yaml",
-        "reading_confirm.yaml",
-        (rs.METHOD,),
-        "lit",
-        (
-            ("betadesc (selected default)", {"method": "betadesc", "variant": "default"}),
-            ("betadesc-nodesc (same reading)", {"method": "betadesc-nodesc", "variant": "default"}),
-            ("betadesc paper-literal", {"method": "betadesc", "variant": "lit"}),
-            ("betadesc v1", {"method": "betadesc", "variant": "v1"}),
-            ("opacity", {"method": "opacity", "variant": "default"}),
-        ),
-    ),
-    2: Round(
-        2,
-        "reading2.yaml",
-        "reading2_confirm.yaml",
-        rs.SEARCHED,
-        "r1",
-        (
-            ("betadesc (round-two default)", {"method": "betadesc", "variant": "default"}),
-            ("betadesc (round-one default)", {"method": "betadesc", "variant": "r1"}),
-            ("paper-literal", {"method": "betadesc", "variant": "lit"}),
-            ("paper-direction", {"method": "betadesc", "variant": "pdir"}),
-            ("opacity", {"method": "opacity", "variant": "default"}),
-            ("nodesc (default)", {"method": "betadesc-nodesc", "variant": "default"}),
-            ("nodesc splat-params", {"method": "betadesc-nodesc", "variant": "splat-params"}),
-            ("nodesc param-stats", {"method": "betadesc-nodesc", "variant": "param-stats"}),
-        ),
-        (
-            (
-                "round two − round one",
-                {"method": "betadesc", "variant": "default"},
-                {"method": "betadesc", "variant": "r1"},
-            ),
-            (
-                "descriptor gain: betadesc − nodesc (defaults)",
-                {"method": "betadesc", "variant": "default"},
-                {"method": "betadesc-nodesc", "variant": "default"},
-            ),
-            (
-                "Beta gain without descriptors: nodesc − nodesc-nobeta",
-                {"method": "betadesc-nodesc", "variant": "default"},
-                {"method": "betadesc-nodesc-nobeta", "variant": "default"},
-            ),
-        ),
-    ),
+    1: Round(1, "reading.yaml", "reading_confirm.yaml", (rs.METHOD,), "lit", (
+        ("betadesc (selected default)", {"method": "betadesc", "variant": "default"}),
+        ("betadesc-nodesc (same reading)", {"method": "betadesc-nodesc", "variant": "default"}),
+        ("betadesc paper-literal", {"method": "betadesc", "variant": "lit"}),
+        ("betadesc v1", {"method": "betadesc", "variant": "v1"}),
+        ("opacity", {"method": "opacity", "variant": "default"}))),
+    2: Round(2, "reading2.yaml", "reading2_confirm.yaml", rs.SEARCHED, "r1", (
+        ("betadesc (round-two default)", {"method": "betadesc", "variant": "default"}),
+        ("betadesc (round-one default)", {"method": "betadesc", "variant": "r1"}),
+        ("paper-literal", {"method": "betadesc", "variant": "lit"}),
+        ("paper-direction", {"method": "betadesc", "variant": "pdir"}),
+        ("opacity", {"method": "opacity", "variant": "default"}),
+        ("nodesc (default)", {"method": "betadesc-nodesc", "variant": "default"}),
+        ("nodesc splat-params", {"method": "betadesc-nodesc", "variant": "splat-params"}),
+        ("nodesc param-stats", {"method": "betadesc-nodesc", "variant": "param-stats"})), (
+        ("round two − round one", {"method": "betadesc", "variant": "default"},
+         {"method": "betadesc", "variant": "r1"}),
+        ("descriptor gain: betadesc − nodesc (defaults)", {"method": "betadesc", "variant": "default"},
+         {"method": "betadesc-nodesc", "variant": "default"}),
+        ("Beta gain without descriptors: nodesc − nodesc-nobeta", {"method": "betadesc-nodesc", "variant": "default"},
+         {"method": "betadesc-nodesc-nobeta", "variant": "default"}))),
 }
 
 

@@ -32,5 +32,7 @@ def run(args) -> int:
     published = publish(args.run_dir, df, meta, reference=args.reference)
     for line in published.written.warnings + published.written.missing:
         print(f"harness: warning: {line}", file=sys.stderr)
+    for line in published.written.notes:  # tables of some protocols only (as `run` and `tables` say)
+        print(f"harness: note: {line}", file=sys.stderr)
     print(published.page)
     return 0
