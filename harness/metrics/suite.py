@@ -136,12 +136,13 @@ class MetricSuite:
 
     ``torch_forms`` (default: on CUDA): score each batch of ``score_many`` with the metrics' torch
     forms on the suite's device (:mod:`.batched`: the images uploaded once, each metric over the whole
-    batch, the results read back once); otherwise image by image with the CPU forms.
+    batch, the results read back once); otherwise image by image with the CPU forms. ``batch``: the
+    images a caller should pass per call (:meth:`batch_size`; default: by the device's free memory).
     """
 
     def __init__(self, lpips_model: LpipsVGG | None = None, *, names=METRICS, device=None,
                  feature_dir: str | Path | None = None, max_in_memory: int = 4, yuv: bool = False,
-                 torch_forms: bool | None = None):
+                 torch_forms: bool | None = None, batch: int | None = None):
         self.names = tuple(names)
         unknown = sorted(set(self.names) - set(METRICS))
         if unknown:
@@ -168,6 +169,7 @@ class MetricSuite:
         self._sides: dict[str, dict] = {}  # reference_sides of the views in _cache, evicted with it
         self.wants_alpha = _registry.needs_alpha(self.names)
         self.torch_forms = _on_cuda(self.device) if torch_forms is None else bool(torch_forms)
+        self.batch = None if batch is None else max(1, int(batch))
 
     # -- photos (gt_ metrics) ------------------------------------------------------------------
     def _set_photo(self, key: str, photo, ref: np.ndarray, ref_feats, alpha) -> None:
@@ -262,6 +264,8 @@ class MetricSuite:
 
     def batch_size(self, height: int, width: int) -> int:
         """How many images one :meth:`score_many` call should get (1 with the CPU forms)."""
+        if self.batch is not None:
+            return self.batch
         if not self.torch_forms:
             return 1
         from harness.metrics.batched import batch_size
