@@ -17,7 +17,9 @@ record, report page (and the pool's workers with ``--workers`` > 1).
 /tmp/base <commit>`` with a ``.venv`` link), alternating with this one over ``--repeats``, so both
 see the same machine load; their tables are compared file by file (the runtime tables aside).
 Results: ``<out>/study.{json,md}`` for ci.yaml, ``study-<config stem>`` otherwise (``--out``,
-default ``runs/bench``). Goals of issue 25 (reported, not enforced): cached rerun of ci.yaml
+default ``runs/bench``). ``--device DEV`` measures a study on one device instead (seconds per stage,
+images/s, GPU memory, its tables against a CPU run of a subset): :mod:`.study_device`.
+Goals of issue 25 (reported, not enforced): cached rerun of ci.yaml
 ≤ 5 s, of default.yaml ≤ 10 s; default study cold ≤ 2,200 CPU-s.
 """
 
@@ -92,7 +94,18 @@ print(u.ru_utime + u.ru_stime - before.ru_utime - before.ru_stime)
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--config", default="ctc_configs/ci.yaml", help="run config (default ctc_configs/ci.yaml)")
+    parser.add_argument("config_file", nargs="?", default=None, metavar="CONFIG",
+                        help="run config (the same as --config)")
+    parser.add_argument("--config", default=None, help="run config (default ctc_configs/ci.yaml)")
+    parser.add_argument("--device", default=None,
+                        help="measure the study on this device instead (cpu, cuda, cuda:N): seconds per stage, "
+                             "images/s, GPU memory, and its tables against a CPU run of a subset "
+                             "(harness/benchmarks/study_device.py)")
+    parser.add_argument("--scenes", default=None, metavar="SCENE[,SCENE]",
+                        help="with --device: the study on these scenes of the config only (default: all)")
+    parser.add_argument("--check", default=None, metavar="SCENE[,SCENE]",
+                        help="with --device: the scenes of the CPU check (default: the config's smallest; "
+                             "'none' skips it)")
     parser.add_argument("--against", default=None, metavar="DIR",
                         help="another checkout of the project to measure in the same sitting (e.g. a git worktree "
                              "of an earlier commit with a .venv link)")
@@ -230,6 +243,9 @@ def run(args) -> int:
     from harness.core.errors import InputError
 
     folder = out_dir(args)  # created and probed before any work
+    if args.config_file and args.config and Path(args.config_file) != Path(args.config):
+        raise InputError("--config", f"two configs given ({args.config_file} and {args.config}); give one")
+    args.config = args.config_file or args.config or "ctc_configs/ci.yaml"
     if args.repeats < 1:
         raise InputError("--repeats", f"must be >= 1, got {args.repeats}")
     if not 1 <= args.workers <= 256:
@@ -237,6 +253,12 @@ def run(args) -> int:
     config = Path(args.config).resolve()
     if not config.is_file():
         raise InputError(args.config, "no such config file")
+    if args.device is not None:
+        if args.against is not None or args.repeats != 1:
+            raise InputError("--device", "measures one checkout once: leave out --against and --repeats")
+        from harness.benchmarks.study_device import run_device
+
+        return run_device(args, folder, config)
     here = Path(__file__).resolve().parents[2]
     checkouts = {"this": here}
     if args.against is not None:
