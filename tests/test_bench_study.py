@@ -72,7 +72,7 @@ def test_a_tiny_study_end_to_end(tmp_path):
 
 
 def test_device_mode_subset_and_table_comparison(tmp_path):
-    from harness.benchmarks import study_device as sd
+    from harness.benchmarks import _study_device as sd
 
     doc = {"scenes": [{"name": "a"}, {"name": "b"}, "c"],
            "methods": ["opacity", {"name": "x", "scenes": ["b"]}, {"name": "y", "scenes": ["a", "b"], "keep": [0.7]}]}

@@ -18,7 +18,7 @@ record, report page (and the pool's workers with ``--workers`` > 1).
 see the same machine load; their tables are compared file by file (the runtime tables aside).
 Results: ``<out>/study.{json,md}`` for ci.yaml, ``study-<config stem>`` otherwise (``--out``,
 default ``runs/bench``). ``--device DEV`` measures a study on one device instead (seconds per stage,
-images/s, GPU memory, its tables against a CPU run of a subset): :mod:`.study_device`.
+images/s, GPU memory, its tables against a CPU run of a subset): :mod:`._study_device`.
 Goals of issue 25 (reported, not enforced): cached rerun of ci.yaml
 ≤ 5 s, of default.yaml ≤ 10 s; default study cold ≤ 2,200 CPU-s.
 """
@@ -100,7 +100,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--device", default=None,
                         help="measure the study on this device instead (cpu, cuda, cuda:N): seconds per stage, "
                              "images/s, GPU memory, and its tables against a CPU run of a subset "
-                             "(harness/benchmarks/study_device.py)")
+                             "(harness/benchmarks/_study_device.py)")
     parser.add_argument("--scenes", default=None, metavar="SCENE[,SCENE]",
                         help="with --device: the study on these scenes of the config only (default: all)")
     parser.add_argument("--check", default=None, metavar="SCENE[,SCENE]",
@@ -256,7 +256,7 @@ def run(args) -> int:
     if args.device is not None:
         if args.against is not None or args.repeats != 1:
             raise InputError("--device", "measures one checkout once: leave out --against and --repeats")
-        from harness.benchmarks.study_device import run_device
+        from harness.benchmarks._study_device import run_device
 
         return run_device(args, folder, config)
     here = Path(__file__).resolve().parents[2]

@@ -204,7 +204,7 @@ def _fmt(v, unit="") -> str:
 
 def _markdown(config: str, device: str, res: dict) -> str:
     s = res["study"]
-    lines = [f"# harness bench study --device {device} ({config}, {res['machine']})", "",
+    lines = [f"# harness bench study --device {device} ({config}, {res['device_name']})", "",
              f"Scenes: {', '.join(res['scenes'])}.", "",
              "| quantity | value |", "|---|---|",
              f"| wall s (whole run) | {_fmt(s['wall_s'])} |", f"| CPU-s (process tree) | {_fmt(s['cpu_s'])} |"]
@@ -285,7 +285,7 @@ def run_device(args, folder: Path, config: Path) -> int:
     if [s for s in scenes if s not in names]:
         raise InputError("--check", f"the check's scenes must be among --scenes ({', '.join(names)})")
     here = Path(__file__).resolve().parents[2]
-    res: dict = {"config": str(args.config), "device": device, "machine": _machine(),
+    res: dict = {"config": str(args.config), "device": device, "device_name": _machine(),
                  "scenes": names, "workers": args.workers}
     with tempfile.TemporaryDirectory(prefix="bench-study-device-") as tmp:
         tmp = Path(tmp)
