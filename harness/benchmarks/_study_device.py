@@ -114,12 +114,12 @@ def _write(doc: dict, device: str, path: Path) -> Path:
 
 def _study(here: Path, config: Path, folder: Path, workers: int | None, device: str, timeout: float) -> dict:
     """One cold ``harness run`` of ``config`` in ``folder``: seconds, stages, images, GPU memory."""
-    from harness.benchmarks.study import _python
+    from harness.benchmarks._common import run_python
 
     args = ["run", str(config), "--cache", str(folder / "cache"), "--out", str(folder / "out")]
     args += ["--workers", str(workers)] if workers else []
     with GpuMemory(device) as mem:
-        _, wall, cpu = _python(here, RUN, args, timeout=timeout)
+        _, wall, cpu = run_python(here, RUN, args, timeout=timeout)
     record = json.loads((folder / "out" / "run.json").read_text())
     images = _images(folder / "out")
     stages = {k: float(v) for k, v in record.get("stage_seconds", {}).items()}

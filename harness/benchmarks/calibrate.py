@@ -37,13 +37,11 @@ def add_arguments(parser) -> None:
 
 
 def _best(fn, repeats: int) -> float:
-    fn()  # warm-up
-    best = float("inf")
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
+    """Least wall seconds of ``repeats`` calls after a warm-up call."""
+    from harness.run.calibrate import _cpu
+
+    fn()
+    return _cpu(fn, repeats, clock=time.perf_counter)
 
 
 def _pass_names() -> dict[str, tuple[str, ...]]:

@@ -28,12 +28,10 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import resource
-import subprocess
-import sys
 import tempfile
-import time
 from pathlib import Path
+
+from harness.benchmarks._common import run_python
 
 NAME = "study"
 HELP = ("CPU-seconds per stage of a study cold and of its cached rerun, a worker's start-up and the "
@@ -115,29 +113,6 @@ def add_arguments(parser) -> None:
     parser.add_argument("--timeout", type=float, default=7200, help="seconds one run may take (default 7200)")
 
 
-def _children_cpu() -> float:
-    r = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return r.ru_utime + r.ru_stime
-
-
-def _python(
-    checkout: Path, code: str, args=(), env=None, timeout=600
-) -> tuple[subprocess.CompletedProcess, float, float]:
-    """Run ``code`` with ``checkout``'s interpreter in its root: (process, wall s, CPU s of the tree)."""
-    from harness.core.errors import InputError
-
-    exe = checkout / ".venv" / "bin" / "python"
-    cmd = [str(exe if exe.exists() else sys.executable), "-c", code, *args]
-    c0, t0 = _children_cpu(), time.perf_counter()
-    proc = subprocess.run(cmd, cwd=checkout, capture_output=True, text=True, timeout=timeout,
-                          env={**os.environ, **(env or {})})
-    wall, cpu = time.perf_counter() - t0, _children_cpu() - c0
-    if proc.returncode not in (0, 1):  # 1: the run finished with errors recorded in its rows
-        tail = (proc.stderr or proc.stdout).strip().splitlines()[-1:] or ["(no output)"]
-        raise InputError(str(checkout), f"{' '.join(args[:2]) or 'probe'} failed (exit {proc.returncode}): {tail[0]}")
-    return proc, wall, cpu
-
-
 def _run(checkout: Path, config: Path, folder: Path, workers: int, timeout: float) -> dict:
     probe = folder / "probe.json"
     args = [
@@ -150,7 +125,7 @@ def _run(checkout: Path, config: Path, folder: Path, workers: int, timeout: floa
         "--out",
         str(folder / "out"),
     ]
-    _, wall, cpu = _python(checkout, PROBE, args, {"HARNESS_BENCH_PROBE": str(probe)}, timeout)
+    _, wall, cpu = run_python(checkout, PROBE, args, {"HARNESS_BENCH_PROBE": str(probe)}, timeout)
     measured = json.loads(probe.read_text())
     stages = {k: measured["stages"].get(k, 0.0) for k in STAGES}
     record = json.loads((folder / "out" / "run.json").read_text())
@@ -182,8 +157,8 @@ def _measure(checkout: Path, config: Path, workers: int, timeout: float) -> dict
         cold = _run(checkout, config, folder, workers, timeout)
         cached = _run(checkout, config, folder, workers, timeout)
         tables, per_image = _tables(folder / "out"), _per_image(folder / "out", cold)
-    startup = float(_python(checkout, STARTUP)[0].stdout.split()[-1])
-    versions = float(_python(checkout, VERSIONS)[0].stdout.split()[-1])
+    startup = float(run_python(checkout, STARTUP)[0].stdout.split()[-1])
+    versions = float(run_python(checkout, VERSIONS)[0].stdout.split()[-1])
     return {"cold": cold, "cached": cached, "per_image": per_image, "worker_startup_cpu_s": startup,
             "versions_cpu_s": versions, "tables": tables}
 

@@ -59,7 +59,7 @@ def yuv_qmiv(rgb: torch.Tensor) -> torch.Tensor:
     return torch.stack([y, u, v], -1)
 
 
-class ToolReferenceT:
+class ToolReferenceT(mpeg.LazySides):
     """A reference render's side of :func:`tool_metrics_batch` for one mode, on ``device``: its
     8-bit RGB and YUV planes in tool row order (bottom-up), their SSIM moments and integer YCbCr
     planes on first use (the torch twin of :class:`.mpeg.ToolReference`)."""
@@ -74,19 +74,10 @@ class ToolReferenceT:
         self._ssim = None
         self._qmiv = None
 
-    @property
-    def qmiv_planes(self) -> torch.Tensor:
-        if self.qmiv:
-            return self.yuv
-        if self._qmiv is None:
-            self._qmiv = yuv_qmiv(self.rgb)
-        return self._qmiv
+    _to_qmiv = staticmethod(yuv_qmiv)
 
-    @property
-    def ssim_planes(self) -> mpeg_ssim_torch.PlaneStatsT:
-        if self._ssim is None:
-            self._ssim = mpeg_ssim_torch.plane_stats(self.yuv.permute(0, 3, 1, 2))
-        return self._ssim
+    def _ssim_side(self) -> mpeg_ssim_torch.PlaneStatsT:
+        return mpeg_ssim_torch.plane_stats(self.yuv.permute(0, 3, 1, 2))
 
 
 def _int_sq_sums(d: torch.Tensor, mask: torch.Tensor | None) -> torch.Tensor:
