@@ -208,7 +208,8 @@ def _markdown(config: str, device: str, res: dict) -> str:
              f"Scenes: {', '.join(res['scenes'])}.", "",
              "| quantity | value |", "|---|---|",
              f"| wall s (whole run) | {_fmt(s['wall_s'])} |", f"| CPU-s (process tree) | {_fmt(s['cpu_s'])} |"]
-    lines += [f"| stage {k} wall s | {_fmt(v)} |" for k, v in s["stage_wall_s"].items() if k not in ("total",)]
+    lines += [f"| stage {k} wall s | {_fmt(v)} |" for k, v in s["stage_wall_s"].items()
+              if k not in ("total", "hash_inputs")]  # hashing the inputs is part of load
     lines += [f"| images measured | {s['images']:,} |", f"| images/s (whole run) | {_fmt(s['images_per_s'])} |",
               f"| images/s (render+metrics stage) | {_fmt(s['render_metrics_images_per_s'])} |",
               f"| GPU memory in use, peak over the run's start (MiB) | {_fmt(s['gpu_memory_mib'])} |",
