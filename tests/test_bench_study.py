@@ -32,13 +32,20 @@ def test_figures_are_medians_and_the_table_has_ratios():
 
 
 def _args(tmp_path, **kw):
-    base = dict(config="ctc_configs/ci.yaml", against=None, repeats=1, workers=1, timeout=60, out=str(tmp_path))
+    base = dict(config_file=None, config="ctc_configs/ci.yaml", against=None, repeats=1, workers=1, timeout=60,
+                out=str(tmp_path), device=None, check=None, scenes=None)
     return argparse.Namespace(**{**base, **kw})
 
 
 @pytest.mark.parametrize("kw, match", [({"repeats": 0}, "--repeats"), ({"workers": 0}, "--workers"),
                                        ({"config": "nope.yaml"}, "no such config"),
-                                       ({"against": "/tmp"}, "not a checkout")])
+                                       ({"against": "/tmp"}, "not a checkout"),
+                                       ({"config_file": "ctc_configs/default.yaml"}, "two configs"),
+                                       ({"device": "cpu", "repeats": 2}, "leave out --against"),
+                                       ({"device": "tpu"}, "--device"),
+                                       ({"device": "cpu", "check": "luigii"}, "no scene 'luigii'"),
+                                       ({"device": "cpu", "scenes": "luigi", "check": "grape-small"},
+                                        "among --scenes")])
 def test_bad_arguments_are_one_line_errors(tmp_path, kw, match):
     with pytest.raises(InputError, match=match):
         study.run(_args(tmp_path, **kw))
@@ -62,3 +69,55 @@ def test_a_tiny_study_end_to_end(tmp_path):
     assert run["cold"]["cpu_s"] > run["cold"]["stage_cpu_s"]["render_metrics"] > 0
     assert run["cached"]["misses"] == 0 and run["cached"]["stage_cpu_s"]["render_metrics"] < 0.5
     assert res["tables_stable"] and Path(tmp_path / "bench" / "study-tiny.md").is_file()
+
+
+def test_device_mode_subset_and_table_comparison(tmp_path):
+    from harness.benchmarks import _study_device as sd
+
+    doc = {"scenes": [{"name": "a"}, {"name": "b"}, "c"],
+           "methods": ["opacity", {"name": "x", "scenes": ["b"]}, {"name": "y", "scenes": ["a", "b"], "keep": [0.7]}]}
+    sub = sd.subset(doc, ["a"])
+    assert sub["scenes"] == [{"name": "a"}] and sub["methods"] == ["opacity", {"name": "y", "scenes": ["a"],
+                                                                                 "keep": [0.7]}]
+    assert doc["methods"][2]["scenes"] == ["a", "b"]  # the input is not modified
+    assert sd._last_digit("56.89 (Δ +16.84 [+8.57, +25.12])", "56.90 (Δ +16.84 [+8.56, +25.12])")
+    assert not sd._last_digit("56.89", "56.91") and not sd._last_digit("0.5", "0.50")
+    assert not sd._last_digit("a 1", "b 1")
+    a, b = tmp_path / "a", tmp_path / "b"
+    a.mkdir(), b.mkdir()
+    (a / "t.md").write_text("# T\n\n| k | v |\n|---|---|\n| x | 1.00 |\n| y | 2.00 |\n| z | 3.0 |\n")
+    (b / "t.md").write_text("# T\n\n| k | v |\n|---|---|\n| x | 1.00 |\n| y | 2.01 |\n| z | 3.5 |\n")
+    (a / "runtime.md").write_text("| s | 1 |\n")
+    (b / "runtime.md").write_text("| s | 2 |\n")
+    (a / "only.md").write_text("| s | 1 |\n")
+    got = sd.compare_tables(a, b)
+    assert (got["files"], got["cells"], got["last_digit"], got["more"]) == (2, 10, 1, 1)
+    assert got["missing"] == ["only.md"]
+    assert got["equal"] == 8 and got["differ"] == ["t.md: z: '3.0' vs '3.5'"]
+    with sd.GpuMemory("cpu") as mem:
+        pass
+    assert mem.used_mib is None
+
+
+@pytest.mark.slow
+@pytest.mark.gl
+def test_device_mode_end_to_end_on_the_cpu(tmp_path):
+    """--device cpu: the study, then its subset on the device (here the CPU again) and on the CPU: every
+    cell equal."""
+    from tests import runner_fakes as fakes
+
+    scenes = fakes.write_two_scenes(tmp_path)
+    config = tmp_path / "tiny.yaml"
+    config.write_text(json.dumps({"name": "tiny", "protocol": {"longest_side": 32, "metrics": ["psnr", "rgb_psnr"],
+                                                                "n_test": 2, "n_train": 1}, "ratios": [0.3, 0.5],
+                                  "scenes": [{"name": k, "source": v} for k, v in scenes.items()],
+                                  "methods": ["opacity", "random"], "tables": ["comparison"], "plots": []}))
+    assert study.run(_args(tmp_path / "bench", config=str(config), device="cpu")) == 0
+    res = json.loads((tmp_path / "bench" / "study-tiny-cpu.json").read_text())
+    assert res["study"]["images"] == 2 * 2 * 2 * 2 and res["study"]["gpu_memory_mib"] is None
+    assert res["study"]["stage_wall_s"]["render_metrics"] > 0 and res["study"]["images_per_s"] > 0
+    check = res["check"]
+    assert check["scenes"] == ["s0"] and check["cpu"]["images"] == check["device"]["images"] == 2 * 2 * 2
+    assert check["tables"]["cells"] > 0 and check["tables"]["equal"] == check["tables"]["cells"]
+    md = (tmp_path / "bench" / "study-tiny-cpu.md").read_text()
+    assert "## Check: the subset on s0" in md and "equal**" in md

@@ -8,6 +8,7 @@ from skimage import data, filters
 from harness.core.errors import InputError
 from harness.metrics import lpips_weights as lw
 from harness.metrics.lpips_vgg import LpipsVGG, load_features, save_features
+from tests.optional_support import require_lpips_package
 
 pytestmark = pytest.mark.weights
 
@@ -52,6 +53,7 @@ def test_grows_with_noise(model, astronaut, astronaut_features):
 
 def test_cached_distance_equals_the_lpips_package_forward(model):
     """Independent truth: lpips.LPIPS.forward (two passes, 1x1 lin convs, NCHW) with the same trunk."""
+    require_lpips_package()
     ref_module = lw.new_lpips_module(pretrained_lin=True)
     ref_module.net.load_state_dict(lw.load_backbone()["net"])
     rng = np.random.default_rng(3)
@@ -109,6 +111,7 @@ class _PackageLpips(LpipsVGG):
 
 
 def test_trunk_built_from_weights_is_bit_identical_to_the_package_modules(model):
+    require_lpips_package()
     package = _PackageLpips()
     rng = np.random.default_rng(5)
     a = data.astronaut()[100:196, 150:278].astype(np.float32) / 255

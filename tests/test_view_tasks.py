@@ -69,8 +69,11 @@ class CountingSuite:
         CALLS["reference"] += 1
         return self.suite.reference(key, image, alpha=alpha)
 
-    def score(self, key, image, alpha=None):
-        return self.suite.score(key, image, alpha=alpha)
+    def score_many(self, key, images, alphas=None):
+        return self.suite.score_many(key, images, alphas)
+
+    def batch_size(self, height, width):
+        return self.suite.batch_size(height, width)
 
 
 def make_counting_metrics(names, device):

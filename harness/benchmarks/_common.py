@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import json
+import os
 import resource
 import statistics
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -76,3 +79,26 @@ def write_result(name: str, payload: dict, markdown: str | None, out: Path) -> P
         atomic_write_text(out / f"{name}.md", markdown.rstrip() + "\n")
     print(f"bench: wrote {path}" + (" and .md" if markdown is not None else "") + tracked_note(out))
     return path
+
+
+def _children_cpu() -> float:
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def run_python(
+    checkout: Path, code: str, args=(), env=None, timeout=600
+) -> tuple[subprocess.CompletedProcess, float, float]:
+    """Run ``code`` with ``checkout``'s interpreter in its root: (process, wall s, CPU s of the tree)."""
+    from harness.core.errors import InputError
+
+    exe = checkout / ".venv" / "bin" / "python"
+    cmd = [str(exe if exe.exists() else sys.executable), "-c", code, *args]
+    c0, t0 = _children_cpu(), time.perf_counter()
+    proc = subprocess.run(cmd, cwd=checkout, capture_output=True, text=True, timeout=timeout,
+                          env={**os.environ, **(env or {})})
+    wall, cpu = time.perf_counter() - t0, _children_cpu() - c0
+    if proc.returncode not in (0, 1):  # 1: the run finished with errors recorded in its rows
+        tail = (proc.stderr or proc.stdout).strip().splitlines()[-1:] or ["(no output)"]
+        raise InputError(str(checkout), f"{' '.join(args[:2]) or 'probe'} failed (exit {proc.returncode}): {tail[0]}")
+    return proc, wall, cpu

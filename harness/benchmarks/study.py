@@ -17,7 +17,9 @@ record, report page (and the pool's workers with ``--workers`` > 1).
 /tmp/base <commit>`` with a ``.venv`` link), alternating with this one over ``--repeats``, so both
 see the same machine load; their tables are compared file by file (the runtime tables aside).
 Results: ``<out>/study.{json,md}`` for ci.yaml, ``study-<config stem>`` otherwise (``--out``,
-default ``runs/bench``). Goals of issue 25 (reported, not enforced): cached rerun of ci.yaml
+default ``runs/bench``). ``--device DEV`` measures a study on one device instead (seconds per stage,
+images/s, GPU memory, its tables against a CPU run of a subset): :mod:`._study_device`.
+Goals of issue 25 (reported, not enforced): cached rerun of ci.yaml
 ≤ 5 s, of default.yaml ≤ 10 s; default study cold ≤ 2,200 CPU-s.
 """
 
@@ -26,12 +28,10 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import resource
-import subprocess
-import sys
 import tempfile
-import time
 from pathlib import Path
+
+from harness.benchmarks._common import run_python
 
 NAME = "study"
 HELP = ("CPU-seconds per stage of a study cold and of its cached rerun, a worker's start-up and the "
@@ -92,7 +92,18 @@ print(u.ru_utime + u.ru_stime - before.ru_utime - before.ru_stime)
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--config", default="ctc_configs/ci.yaml", help="run config (default ctc_configs/ci.yaml)")
+    parser.add_argument("config_file", nargs="?", default=None, metavar="CONFIG",
+                        help="run config (the same as --config)")
+    parser.add_argument("--config", default=None, help="run config (default ctc_configs/ci.yaml)")
+    parser.add_argument("--device", default=None,
+                        help="measure the study on this device instead (cpu, cuda, cuda:N): seconds per stage, "
+                             "images/s, GPU memory, and its tables against a CPU run of a subset "
+                             "(harness/benchmarks/_study_device.py)")
+    parser.add_argument("--scenes", default=None, metavar="SCENE[,SCENE]",
+                        help="with --device: the study on these scenes of the config only (default: all)")
+    parser.add_argument("--check", default=None, metavar="SCENE[,SCENE]",
+                        help="with --device: the scenes of the CPU check (default: the config's smallest; "
+                             "'none' skips it)")
     parser.add_argument("--against", default=None, metavar="DIR",
                         help="another checkout of the project to measure in the same sitting (e.g. a git worktree "
                              "of an earlier commit with a .venv link)")
@@ -100,29 +111,6 @@ def add_arguments(parser) -> None:
     parser.add_argument("--workers", type=int, default=1,
                         help="--workers of the runs (default 1: every stage's CPU-seconds are exact)")
     parser.add_argument("--timeout", type=float, default=7200, help="seconds one run may take (default 7200)")
-
-
-def _children_cpu() -> float:
-    r = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return r.ru_utime + r.ru_stime
-
-
-def _python(
-    checkout: Path, code: str, args=(), env=None, timeout=600
-) -> tuple[subprocess.CompletedProcess, float, float]:
-    """Run ``code`` with ``checkout``'s interpreter in its root: (process, wall s, CPU s of the tree)."""
-    from harness.core.errors import InputError
-
-    exe = checkout / ".venv" / "bin" / "python"
-    cmd = [str(exe if exe.exists() else sys.executable), "-c", code, *args]
-    c0, t0 = _children_cpu(), time.perf_counter()
-    proc = subprocess.run(cmd, cwd=checkout, capture_output=True, text=True, timeout=timeout,
-                          env={**os.environ, **(env or {})})
-    wall, cpu = time.perf_counter() - t0, _children_cpu() - c0
-    if proc.returncode not in (0, 1):  # 1: the run finished with errors recorded in its rows
-        tail = (proc.stderr or proc.stdout).strip().splitlines()[-1:] or ["(no output)"]
-        raise InputError(str(checkout), f"{' '.join(args[:2]) or 'probe'} failed (exit {proc.returncode}): {tail[0]}")
-    return proc, wall, cpu
 
 
 def _run(checkout: Path, config: Path, folder: Path, workers: int, timeout: float) -> dict:
@@ -137,7 +125,7 @@ def _run(checkout: Path, config: Path, folder: Path, workers: int, timeout: floa
         "--out",
         str(folder / "out"),
     ]
-    _, wall, cpu = _python(checkout, PROBE, args, {"HARNESS_BENCH_PROBE": str(probe)}, timeout)
+    _, wall, cpu = run_python(checkout, PROBE, args, {"HARNESS_BENCH_PROBE": str(probe)}, timeout)
     measured = json.loads(probe.read_text())
     stages = {k: measured["stages"].get(k, 0.0) for k in STAGES}
     record = json.loads((folder / "out" / "run.json").read_text())
@@ -169,8 +157,8 @@ def _measure(checkout: Path, config: Path, workers: int, timeout: float) -> dict
         cold = _run(checkout, config, folder, workers, timeout)
         cached = _run(checkout, config, folder, workers, timeout)
         tables, per_image = _tables(folder / "out"), _per_image(folder / "out", cold)
-    startup = float(_python(checkout, STARTUP)[0].stdout.split()[-1])
-    versions = float(_python(checkout, VERSIONS)[0].stdout.split()[-1])
+    startup = float(run_python(checkout, STARTUP)[0].stdout.split()[-1])
+    versions = float(run_python(checkout, VERSIONS)[0].stdout.split()[-1])
     return {"cold": cold, "cached": cached, "per_image": per_image, "worker_startup_cpu_s": startup,
             "versions_cpu_s": versions, "tables": tables}
 
@@ -230,6 +218,9 @@ def run(args) -> int:
     from harness.core.errors import InputError
 
     folder = out_dir(args)  # created and probed before any work
+    if args.config_file and args.config and Path(args.config_file) != Path(args.config):
+        raise InputError("--config", f"two configs given ({args.config_file} and {args.config}); give one")
+    args.config = args.config_file or args.config or "ctc_configs/ci.yaml"
     if args.repeats < 1:
         raise InputError("--repeats", f"must be >= 1, got {args.repeats}")
     if not 1 <= args.workers <= 256:
@@ -237,6 +228,12 @@ def run(args) -> int:
     config = Path(args.config).resolve()
     if not config.is_file():
         raise InputError(args.config, "no such config file")
+    if args.device is not None:
+        if args.against is not None or args.repeats != 1:
+            raise InputError("--device", "measures one checkout once: leave out --against and --repeats")
+        from harness.benchmarks._study_device import run_device
+
+        return run_device(args, folder, config)
     here = Path(__file__).resolve().parents[2]
     checkouts = {"this": here}
     if args.against is not None:

@@ -88,6 +88,10 @@ def run(args) -> int:
     est = estimate(config, infos, units)
     workers = args.workers or config.workers
     doc = to_json(args, config, est, units, assume, workers)
+    if units is not None:
+        from harness.run.estimate_device import one_gpu
+
+        doc["one_gpu"] = one_gpu(config, infos, _bench(args), units, args.cores_per_node, args.efficiency)
     print(markdown(doc))
     if args.out:
         from harness.io.files import atomic_write_text
@@ -98,13 +102,18 @@ def run(args) -> int:
     return 0
 
 
+def _bench(args) -> Path:
+    from harness.core.paths import results_dir
+
+    return Path(args.bench) if args.bench else results_dir() / "bench"
+
+
 def _units(args):
     import sys
 
-    from harness.core.paths import results_dir
     from harness.run.unit_costs import from_bench
 
-    units = from_bench(Path(args.bench) if args.bench else results_dir() / "bench")
+    units = from_bench(_bench(args))
     if args.calibrate:
         from harness.run.calibrate import calibrate
 
@@ -222,7 +231,18 @@ def _wall(doc: dict) -> list[str]:
             f"projected wall on {o['nodes'] * o['cores_per_node']} workers: {_n(o['wall_hours'])} h. "
             f"Fewest nodes whose projected wall fits: {fit}."
             + (f" Memory: ~{mem:.1f} GiB per metrics worker at the largest view size (metrics.json peak RSS, "
-               f"scaled by pixels)." if mem else "")]
+               f"scaled by pixels)." if mem else "")] + _one_gpu(doc.get("one_gpu"))
+
+
+def _one_gpu(g: dict | None) -> list[str]:
+    """The projected wall time on one GPU (harness.run.estimate_device), or why there is none."""
+    if g is None:
+        return []
+    if not g["measured"]:
+        return ["", f"**On one GPU: not measured.** {g['note']}."]
+    per = ", ".join(f"{k} {_n(v / 60)} min" for k, v in g["stages_s"].items())
+    return ["", f"**On one GPU ({g['device']}) with {g['cores']} cores: {_n(g['wall_s'] / 60)} min** ({per}); "
+                f"units from {g['source']}; {g['note']}."]
 
 
 def _scenes(doc: dict) -> list[str]:

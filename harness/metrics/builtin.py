@@ -78,14 +78,9 @@ register_metric("gt_psnr_om", higher_is_better=True, valid_range=(0, INF), inf_i
 
 
 # --------------------------------------------------------------------------- MPEG
-#: what part of the tool's computation a member needs beyond its PSNR sums (mpeg.tool_metrics flags)
-_TOOL_PART = {"yuv_ssim": "ssim", "yuv_ssim_om": "ssim", "rgb_ivssim": "iv", "yuv_ivssim": "iv"}
-
-
 def _tool_family(qmiv: bool):
     """The joint computer of the mpeg (``qmiv=False``) or mpeg-qmiv family: one call of
-    :func:`.mpeg.tool_metrics` for every member asked for, plus ``occupancy`` (%) with an OM one."""
-    suffix = "_qmiv" if qmiv else ""
+    :func:`.mpeg.tool_metrics` for every member asked for (:func:`.mpeg_members.tool_request`)."""
 
     def prepare(reference):
         from harness.metrics.mpeg import ToolReference
@@ -94,16 +89,10 @@ def _tool_family(qmiv: bool):
 
     def compute(reference, test, names, mask=None) -> dict:
         from harness.metrics.mpeg import tool_metrics
-        from harness.metrics.registry import METRICS
+        from harness.metrics.mpeg_members import tool_members, tool_request
 
-        base = {n: n[: len(n) - len(suffix)] for n in names}
-        parts = {_TOOL_PART.get(b) for b in base.values()}
-        om = any(METRICS.get(n).needs_alpha for n in names)
-        r = tool_metrics(reference, test, mask, qmiv=qmiv, ssim="ssim" in parts, om=om, iv="iv" in parts)
-        out = {n: float(r[b]) for n, b in base.items()}
-        if om:
-            out["occupancy"] = float(r["occupancy"])
-        return out
+        base, flags = tool_request(names, qmiv)
+        return tool_members(tool_metrics(reference, test, mask, qmiv=qmiv, **flags), base, flags["om"])
 
     return compute, prepare
 

@@ -110,12 +110,14 @@ class LpipsVGG:
                      for k in range(N_LIN)]
 
     # -- passes -------------------------------------------------------------------------------
-    def _to_input(self, images: list[np.ndarray]) -> torch.Tensor:
-        x = torch.from_numpy(np.stack(images)).to(self.device).permute(0, 3, 1, 2)
+    def _to_input(self, images) -> torch.Tensor:
+        """``images``: a list of ``(H, W, 3)`` arrays or a ``(N, H, W, 3)`` tensor (any device)."""
+        x = images if isinstance(images, torch.Tensor) else torch.from_numpy(np.stack(images))
+        x = x.to(self.device, torch.float32).permute(0, 3, 1, 2)
         x = scale_input(x.clamp(0.0, 1.0) * 2.0 - 1.0)
         return x.contiguous(memory_format=torch.channels_last if self.channels_last else torch.contiguous_format)
 
-    def _normalised_layers(self, images: list[np.ndarray]) -> list[torch.Tensor]:
+    def _normalised_layers(self, images) -> list[torch.Tensor]:
         x = self._to_input(images)
         if self.precision == "bfloat16":
             with torch.autocast(device_type=self.device.type, dtype=torch.bfloat16):
@@ -156,15 +158,30 @@ class LpipsVGG:
                 if tuple(img.shape[:2]) != tuple(ref.size):
                     raise InputError(f"{source} {i}", f"size {img.shape[1]}x{img.shape[0]} differs from the "
                                                       f"reference's {ref.size[1]}x{ref.size[0]}")
+        return self._distances(refs, imgs, len(imgs), imgs[0].shape[:2] if imgs else (1, 1))
+
+    def distances_batch(self, refs, images: torch.Tensor) -> np.ndarray:
+        """:meth:`distances_to` of a batch ``(N, H, W, 3)`` tensor already checked by the caller (on
+        the study's device: no host copy); float64 ``(N, n_refs)``."""
+        size = tuple(images.shape[1:3])
+        if min(size) < MIN_SIDE:
+            raise InputError("image", f"image {size[1]}x{size[0]} is too small for LPIPS-VGG "
+                                      f"(needs at least {MIN_SIDE} px per side)")
+        for ref in refs:
+            if size != tuple(ref.size):
+                raise InputError("image", f"size {size[1]}x{size[0]} differs from the reference's "
+                                          f"{ref.size[1]}x{ref.size[0]}")
+        return self._distances(refs, images, len(images), size)
+
+    def _distances(self, refs, images, n: int, size) -> np.ndarray:
         refs = [ref.to(self.device) for ref in refs]
-        out = np.empty((len(imgs), len(refs)), dtype=np.float64)
-        step = self.batch_size or self._auto_batch(imgs[0].shape[:2] if imgs else (1, 1))
+        step = self.batch_size or self._auto_batch(size)
+        parts = []
         with torch.inference_mode():
-            for start in range(0, len(imgs), step):
-                layers = self._normalised_layers(imgs[start:start + step])
-                for j, ref in enumerate(refs):
-                    out[start:start + step, j] = self._combine(layers, ref.layers).double().cpu().numpy()
-        return out
+            for start in range(0, n, step):
+                layers = self._normalised_layers(images[start:start + step])
+                parts.append(torch.stack([self._combine(layers, ref.layers) for ref in refs], 1).double())
+        return torch.cat(parts).cpu().numpy() if parts else np.empty((0, len(refs)))
 
     def feature_distance(self, a: LpipsFeatures, b: LpipsFeatures) -> float:
         """LPIPS of two images from their stored features (no trunk pass)."""

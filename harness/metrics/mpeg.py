@@ -141,7 +141,28 @@ def _combine(values, qmiv: bool, kind: str) -> float:
     return (4.0 * a + b + c) / 6.0
 
 
-class ToolReference:
+class LazySides:
+    """What a reference side computes on first use, whatever holds its planes (numpy here, torch in
+    :mod:`.mpeg_torch`): the integer YCbCr planes IV-SSIM reads in every mode, and the YUV planes'
+    SSIM side. ``_to_qmiv`` and ``_ssim_side`` are the holder's own forms."""
+
+    @property
+    def qmiv_planes(self):
+        """The reference's integer (QMIV) YCbCr planes (computed once; the YUV planes in QMIV mode)."""
+        if self.qmiv:
+            return self.yuv
+        if self._qmiv is None:
+            self._qmiv = self._to_qmiv(self.rgb)
+        return self._qmiv
+
+    @property
+    def ssim_planes(self):
+        if self._ssim is None:
+            self._ssim = self._ssim_side()
+        return self._ssim
+
+
+class ToolReference(LazySides):
     """The reference render's side of :func:`tool_metrics` for one mode, prepared once and reused
     for every image compared with it: 8-bit RGB and YUV planes in tool row order, and each YUV
     plane's padded SSIM moments (:func:`harness.metrics.mpeg_ssim.plane_stats`, on first use)."""
@@ -166,20 +187,10 @@ class ToolReference:
         yb = yuv_default(b)
         return yb, yb if rnd == (True,) * 3 else yuv_default(b, rnd)
 
-    @property
-    def qmiv_planes(self) -> np.ndarray:
-        """The reference's integer (QMIV) YCbCr planes, which IV-SSIM reads in every mode (computed once)."""
-        if self.qmiv:
-            return self.yuv
-        if self._qmiv is None:
-            self._qmiv = yuv_qmiv(self.rgb)
-        return self._qmiv
+    _to_qmiv = staticmethod(yuv_qmiv)
 
-    @property
-    def ssim_planes(self) -> list:
-        if self._ssim is None:
-            self._ssim = [mpeg_ssim.plane_stats(self.yuv[..., c]) for c in range(3)]
-        return self._ssim
+    def _ssim_side(self) -> list:
+        return [mpeg_ssim.plane_stats(self.yuv[..., c]) for c in range(3)]
 
 
 def tool_metrics(ref, test, mask=None, *, qmiv: bool = False, ssim: bool = True, om: bool = True,

@@ -91,13 +91,16 @@ def ssim_map(x: torch.Tensor, y: torch.Tensor, data_range: float = 1.0, blur=Non
 
 class SsimReference:
     """The first image's side of :func:`ssim_batch` (its tensor and :func:`moments`), computed once
-    for a reference scored against many images: ``ssim_batch(ref, b)`` with ``ref`` one of these."""
+    for a reference scored against many images: ``ssim_batch(ref, b)`` with ``ref`` one of these.
+    ``blur``: the Gaussian used for it and for every image scored against it (default: scipy on
+    the CPU, ``conv2d`` elsewhere; :func:`blur_torch` is the torch form on any device)."""
 
-    def __init__(self, a, *, device=None, dtype=torch.float64):
+    def __init__(self, a, *, device=None, dtype=torch.float64, blur=None):
         self.device = _device(device)
+        self.blur = blur
         self.x = _tensor(a, self.device, dtype)
         with torch.inference_mode():
-            self.moments = moments(self.x)
+            self.moments = moments(self.x, blur)
 
 
 def _device(device) -> torch.device:
@@ -105,12 +108,13 @@ def _device(device) -> torch.device:
 
 
 def _tensor(a, device, dtype) -> torch.Tensor:
-    return torch.as_tensor(np.asarray(a), device=device).to(dtype).clamp(0, 1).permute(0, 3, 1, 2)
+    a = a if isinstance(a, torch.Tensor) else np.asarray(a)
+    return torch.as_tensor(a, device=device).to(dtype).clamp(0, 1).permute(0, 3, 1, 2)
 
 
 def ssim_batch(a, b, *, border: str = "zero", device=None, dtype=torch.float64) -> np.ndarray:
     """SSIM of image pairs: ``a``, ``b`` arrays ``(B, H, W, 3)`` (or tensors) -> float64 ``(B,)``;
-    ``a`` may be an :class:`SsimReference` (its device and dtype win)."""
+    ``a`` may be an :class:`SsimReference` (its device, dtype and blur win)."""
     if border not in ("zero", "valid"):
         raise ValueError(f"border must be 'zero' or 'valid', not {border!r}")
     ref = a if isinstance(a, SsimReference) else None
@@ -118,14 +122,18 @@ def ssim_batch(a, b, *, border: str = "zero", device=None, dtype=torch.float64) 
     x = ref.x if ref is not None else _tensor(a, device, dtype)
     y = _tensor(b, device, x.dtype)
     with torch.inference_mode():
-        s = ssim_map(x, y, x_moments=ref.moments if ref is not None else None)
+        s = ssim_map(x, y, blur=ref.blur if ref is not None else None,
+                     x_moments=ref.moments if ref is not None else None)
         if border == "valid":
             r = WINDOW // 2
             if min(s.shape[-2:]) <= 2 * r:
                 raise ValueError(f"border='valid' needs images larger than {2 * r} px per side")
             s = s[..., r:-r, r:-r]
-        # the mean in numpy: torch splits a CPU reduction over its threads, so the last digit would
-        # depend on the thread count (1 vs 2 workers of a run); numpy's summation order is fixed
+        # on the CPU the mean in numpy: torch splits a CPU reduction over its threads, so the last digit
+        # would depend on the thread count (1 vs 2 workers of a run); numpy's summation order is fixed.
+        # A GPU's reduction order is fixed for a shape, and reading back one number per image is the point
+        if s.device.type != "cpu":
+            return s.reshape(len(s), -1).mean(1).cpu().numpy().astype(np.float64)
         return s.cpu().numpy().astype(np.float64).reshape(len(s), -1).mean(axis=1)
 
 

@@ -42,7 +42,8 @@ import numpy as np
 
 from harness.metrics import registry as _registry
 from harness.metrics.images import as_image, check_same_size, read_image
-from harness.metrics.psnr import psnr, psnr_from_mse, summarize_psnr, yuv_psnr
+from harness.metrics.pairs import pair_values, reference_sides
+from harness.metrics.psnr import mse, psnr, psnr_from_mse, summarize_psnr, yuv_psnr
 
 if TYPE_CHECKING:  # served lazily by __getattr__ (they import torch)
     from harness.metrics.lpips_vgg import LpipsFeatures, LpipsVGG, load_features, save_features
@@ -95,46 +96,10 @@ LPIPS = "lpips"
 GT_OCCUPANCY_ALPHA = 0.5
 
 
-def _split(names) -> tuple[dict[str, list[str]], list]:
-    """``names`` (LPIPS aside) as the members of each family with a joint computer and the metrics
-    computed one by one (:mod:`.registry`)."""
-    joint: dict[str, list[str]] = {}
-    single = []
-    for n in names:
-        spec = _registry.METRICS.get(n)
-        if n == LPIPS:
-            continue
-        if spec.compute is None and spec.family in _registry.FAMILIES:
-            joint.setdefault(spec.family, []).append(n)
-        else:
-            single.append(spec)
-    return joint, single
-
-
-def reference_sides(ref: np.ndarray, names, device) -> dict:
-    """What the metrics ``names`` compute from a reference alone (SSIM's window moments, the MPEG
-    tool's 8-bit/YUV planes per mode: each metric's or family's ``prepare``), once for every image
-    it is compared with; the values are those of scoring each pair from scratch, bit for bit."""
-    joint, single = _split(names)
-    sides = {fam: _registry.FAMILIES[fam].prepare(ref) for fam in joint if _registry.FAMILIES[fam].prepare}
-    sides.update({s.name: s.prepare(ref, device) for s in single if s.prepare is not None})
-    return sides
-
-
-def pair_values(ref: np.ndarray, img: np.ndarray, names, *, device=None, mask=None, sides=None, raw=None) -> dict:
-    """The metrics ``names`` (LPIPS aside) of one pair: each family's joint computer (on ``raw``
-    ``(reference, test)`` when given: uint8 images scored as they are), then each metric's own
-    ``compute`` (on ``sides``, the reference's :func:`reference_sides`, where it has one)."""
-    sides = sides or {}
-    joint, single = _split(names)
-    out = {}
-    for fam, members in joint.items():
-        a, b = raw if raw is not None else (ref, img)
-        out.update(_registry.FAMILIES[fam].compute(sides.get(fam, a), b, members, mask))
-    for spec in single:
-        kw = {k: v for k, v in (("device", device), ("mask", mask)) if spec.takes(k)}
-        out[spec.name] = float(spec.compute(sides.get(spec.name, ref), img, **kw))
-    return out
+def _on_cuda(device) -> bool:
+    """Does a suite on ``device`` score with the torch forms by default? On CUDA: on the CPU the
+    numpy/numba forms are faster, and MPS has no float64 (torch is not imported to say so)."""
+    return device is not None and str(device).split(":")[0] == "cuda"
 
 
 def compare_images(a, b, *, lpips_model: LpipsVGG | None = None, yuv: bool = False,
@@ -168,10 +133,16 @@ class MetricSuite:
     the metrics (a subset of ``METRICS``); without "lpips" no network is loaded. A model the suite
     creates itself leaves the process's torch thread count as it found it (the runner budgets
     workers × threads ≤ cores).
+
+    ``torch_forms`` (default: on CUDA): score each batch of ``score_many`` with the metrics' torch
+    forms on the suite's device (:mod:`.batched`: the images uploaded once, each metric over the whole
+    batch, the results read back once); otherwise image by image with the CPU forms. ``batch``: the
+    images a caller should pass per call (:meth:`batch_size`; default: by the device's free memory).
     """
 
     def __init__(self, lpips_model: LpipsVGG | None = None, *, names=METRICS, device=None,
-                 feature_dir: str | Path | None = None, max_in_memory: int = 4, yuv: bool = False):
+                 feature_dir: str | Path | None = None, max_in_memory: int = 4, yuv: bool = False,
+                 torch_forms: bool | None = None, batch: int | None = None):
         self.names = tuple(names)
         unknown = sorted(set(self.names) - set(METRICS))
         if unknown:
@@ -197,6 +168,8 @@ class MetricSuite:
         self._photo_ref: dict[str, dict] = {}  # view -> gt_ metrics of its reference
         self._sides: dict[str, dict] = {}  # reference_sides of the views in _cache, evicted with it
         self.wants_alpha = _registry.needs_alpha(self.names)
+        self.torch_forms = _on_cuda(self.device) if torch_forms is None else bool(torch_forms)
+        self.batch = None if batch is None else max(1, int(batch))
 
     # -- photos (gt_ metrics) ------------------------------------------------------------------
     def _set_photo(self, key: str, photo, ref: np.ndarray, ref_feats, alpha) -> None:
@@ -215,9 +188,8 @@ class MetricSuite:
         row = pair_values(photo, img, base, device=self.device, mask=mask)
         out = {_registry.GT_PREFIX + k: v for k, v in row.items() if k in base}
         if "psnr" in self.names:
-            m = np.ones(img.shape[:2], bool) if mask is None else mask
-            out["gt_psnr_om"] = psnr_from_mse(float(np.mean((np.clip(photo[m], 0, 1) - np.clip(img[m], 0, 1)) ** 2)))\
-                if m.any() else 0.0
+            m = np.ones(img.shape[:2], bool) if mask is None else mask  # float64, as PSNR (and the torch form)
+            out["gt_psnr_om"] = psnr_from_mse(mse(photo[m], img[m])) if m.any() else 0.0
         if lpips_value is not None:
             out["gt_lpips"] = float(lpips_value)
         out["gt_occupancy"] = 100.0 * float(mask.mean()) if mask is not None else 100.0
@@ -290,10 +262,22 @@ class MetricSuite:
                 return img, feats
         raise KeyError(f"no reference registered for view {key!r}; call reference() first")
 
+    def batch_size(self, height: int, width: int) -> int:
+        """How many images one :meth:`score_many` call should get (1 with the CPU forms)."""
+        if self.batch is not None:
+            return self.batch
+        if not self.torch_forms:
+            return 1
+        from harness.metrics.batched import batch_size
+
+        return batch_size(height, width, self.device or "cpu")
+
     def score_many(self, view_key: str, images, alphas=None) -> list[dict]:
         """Metrics of each image against the reference of ``view_key`` (LPIPS batched); ``alphas``
         (one per image, or None) give the OM metrics' occupancy together with the reference's."""
         key = str(view_key)
+        if self.torch_forms:
+            return self._score_on_device(key, images, alphas)
         ref, feats = self._get(key)
         imgs = [as_image(im, f"image {i} of {key}") for i, im in enumerate(images)]
         for i, img in enumerate(imgs):
@@ -321,6 +305,29 @@ class MetricSuite:
             if photo is not None:
                 row.update(self._photo_values(key, img, d_photo[0] if d_photo else None))
             rows.append(row)
+        return rows
+
+    def _score_on_device(self, key: str, images, alphas) -> list[dict]:
+        """:meth:`score_many` with the torch forms, the whole batch at once (:mod:`.batched`)."""
+        from harness.metrics.batched import ViewOnDevice, to_batch
+
+        ref, feats = self._get(key)
+        photo = self._photo.get(key)
+        view = self._sides.get(key)
+        if not isinstance(view, ViewOnDevice):  # also after a reload from feature_dir
+            view = self._sides[key] = ViewOnDevice(ref, self.names, self.device, self._alpha.get(key),
+                                                   *(photo[0], photo[2]) if photo is not None else ())
+        x = to_batch(images, ref.shape[:2], key, self.device)
+        rows = view.score(x, alphas)
+        if self.lpips is not None:
+            refs = [feats] + ([photo[1]] if photo is not None and photo[1] is not None else [])
+            for row, (d, *d_photo) in zip(rows, self.lpips.distances_batch(refs, x)):
+                row[LPIPS] = float(d)
+                if d_photo:
+                    row[_registry.GT_PREFIX + LPIPS] = float(d_photo[0])
+        if self.yuv:
+            for row, img in zip(rows, x.cpu().numpy()):
+                row.update(yuv_psnr(ref, img))
         return rows
 
     def score(self, view_key: str, image, alpha=None) -> dict:

@@ -272,14 +272,15 @@ def run_view(task: ViewTask, progress=None, scene=None, ref=None, keep_ref: bool
             suite, feat_s = _register_reference(task, cache, cam, ref_img, ref_alpha if alpha else None, alpha)
             if task.masks:
                 renders.prepare()
-            for job in task.masks:
-                try:
-                    _measure_set(task, cache, suite, renders, job, feat_s, om)
+            step = suite.batch_size(cam.height, cam.width)  # 1 with the CPU forms: image by image
+            for start in range(0, len(task.masks), step):
+                for job, err in _measure_sets(task, cache, suite, renders, task.masks[start:start + step], feat_s, om):
+                    if err is not None:
+                        out["errors"].append((job.metrics_key, err))
+                        continue
                     out["done"] += 1
                     if progress:
                         progress(1)
-                except Exception as err:
-                    out["errors"].append((job.metrics_key, f"{type(err).__name__}: {err}"))
     except Exception as err:
         out["errors"].append((None, f"{type(err).__name__}: {err}"))
         out["trace"] = traceback.format_exc(limit=6)
@@ -332,24 +333,49 @@ def _register_reference(task: ViewTask, cache: StageCache, cam: Camera, ref, ref
     return suite, feat_s
 
 
-def _measure_set(task: ViewTask, cache: StageCache, suite, renders: ViewRenders, job: MaskJob, feat_s: float,
-                 om: bool) -> None:
-    """Render one pruned set of the view (its splats filtered from the view's packing), score it
-    against the reference (and the photo), store the metrics entry (and its PNG when asked)."""
+def _measure_sets(task: ViewTask, cache: StageCache, suite, renders: ViewRenders, jobs: list[MaskJob],
+                  feat_s: float, om: bool) -> list[tuple[MaskJob, str | None]]:
+    """Render pruned sets of the view (their splats filtered from the view's packing), score them
+    against the reference (and the photo) in one batch, store each one's metrics entry (and its PNG
+    when asked). Returns each job with its error (None: stored); a job whose mask or render fails
+    is left out of the batch, a batch whose scoring fails fails all of its jobs.
+    ``metrics_s`` of an entry is its share of the batch's scoring."""
     from harness.run.verify import mask_check
 
-    packed = cache.get_array("masks", job.mask_key, count=False, check=mask_check(task.n_splats, digest=job.mask_key))
-    if packed is None:
-        raise RuntimeError(f"mask {job.mask_key[:12]} is missing or failed verification")
-    keep = np.unpackbits(packed, count=task.n_splats).astype(bool)
-    t0 = time.perf_counter()
-    img, img_alpha = renders(keep)
+    done, result = [], {}  # result: id(job) -> its error (None: stored)
+    for job in jobs:
+        try:
+            packed = cache.get_array("masks", job.mask_key, count=False,
+                                     check=mask_check(task.n_splats, digest=job.mask_key))
+            if packed is None:
+                raise RuntimeError(f"mask {job.mask_key[:12]} is missing or failed verification")
+            keep = np.unpackbits(packed, count=task.n_splats).astype(bool)
+            t0 = time.perf_counter()
+            img, img_alpha = renders(keep)
+            done.append((job, img, img_alpha, time.perf_counter() - t0))
+        except Exception as err:
+            result[id(job)] = f"{type(err).__name__}: {err}"
+    in_order = lambda: [(job, result[id(job)]) for job in jobs]  # noqa: E731
+    if not done:
+        return in_order()
     t1 = time.perf_counter()
-    values = suite.score(task.ref_key, img, alpha=img_alpha) if om else suite.score(task.ref_key, img)
-    t2 = time.perf_counter()
-    if job.png:
-        put_png(cache, job.metrics_key, img)
-    rec = {k: float(values[k]) for k in (*task.metrics, *task.gt, "occupancy") if k in values}
-    # render_s: this set's own render (its share of the view's projection is view_pack_s)
-    rec.update(render_s=t1 - t0, metrics_s=t2 - t1, ref_features_s=feat_s, view_pack_s=renders.pack_s)
-    cache.put_json("metrics", job.metrics_key, rec)
+    try:
+        images = [img for _, img, _, _ in done]
+        rows = suite.score_many(task.ref_key, images, [a for _, _, a, _ in done]) if om else \
+            suite.score_many(task.ref_key, images)
+    except Exception as err:
+        result.update({id(job): f"{type(err).__name__}: {err}" for job, *_ in done})
+        return in_order()
+    metrics_s = (time.perf_counter() - t1) / len(done)
+    for (job, img, _, render_s), values in zip(done, rows):
+        try:
+            if job.png:
+                put_png(cache, job.metrics_key, img)
+            rec = {k: float(values[k]) for k in (*task.metrics, *task.gt, "occupancy") if k in values}
+            # render_s: this set's own render (its share of the view's projection is view_pack_s)
+            rec.update(render_s=render_s, metrics_s=metrics_s, ref_features_s=feat_s, view_pack_s=renders.pack_s)
+            cache.put_json("metrics", job.metrics_key, rec)
+            result[id(job)] = None
+        except Exception as err:
+            result[id(job)] = f"{type(err).__name__}: {err}"
+    return in_order()

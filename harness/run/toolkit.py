@@ -83,8 +83,10 @@ def make_renderer(name: str, device: str):
 
 
 def make_metrics(names: tuple[str, ...], device: str):
-    """A metric suite with ``reference(key, img)`` and ``score(key, img) -> dict``; one view's
-    features in memory at a time (a view task measures all its pruned sets before the next view)."""
+    """A metric suite (:class:`harness.metrics.suite.MetricSuite`) with ``reference(key, img, alpha=)``,
+    ``batch_size(h, w)`` and ``score_many(key, imgs, alphas) -> [dict]``; one view's features in
+    memory at a time (a view task measures all its pruned sets before the next view), its pruned
+    images in batches of ``batch_size`` (several on CUDA, one with the CPU forms)."""
     from harness.metrics.suite import MetricSuite
 
     return MetricSuite(names=names, device=device, max_in_memory=1)

@@ -1,0 +1,29 @@
+"""The members of the mpeg and mpeg-qmiv metric families and the values of the tool they read:
+what one call of :func:`.mpeg.tool_metrics` (or its torch form,
+:func:`.mpeg_torch.tool_metrics_batch`) must compute for the members asked for, and their values
+from its result."""
+
+from __future__ import annotations
+
+#: what part of the tool's computation a member needs beyond its PSNR sums (mpeg.tool_metrics flags)
+_TOOL_PART = {"yuv_ssim": "ssim", "yuv_ssim_om": "ssim", "rgb_ivssim": "iv", "yuv_ivssim": "iv"}
+
+
+def tool_request(names, qmiv: bool) -> tuple[dict, dict]:
+    """What a call of the tool computes for the members ``names`` of the mpeg (``qmiv=False``) or
+    mpeg-qmiv family: (member -> the tool's key, the :func:`.mpeg.tool_metrics` flags)."""
+    from harness.metrics.registry import METRICS
+
+    suffix = "_qmiv" if qmiv else ""
+    base = {n: n[: len(n) - len(suffix)] for n in names}
+    parts = {_TOOL_PART.get(b) for b in base.values()}
+    om = any(METRICS.get(n).needs_alpha for n in names)
+    return base, {"ssim": "ssim" in parts, "om": om, "iv": "iv" in parts}
+
+
+def tool_members(r: dict, base: dict, om: bool) -> dict:
+    """The members' values from one :func:`.mpeg.tool_metrics` result, plus ``occupancy`` (%) with an OM one."""
+    out = {n: float(r[b]) for n, b in base.items()}
+    if om:
+        out["occupancy"] = float(r["occupancy"])
+    return out

@@ -1,0 +1,61 @@
+"""What a cold run of a config takes on **one GPU** beside a node's CPU cores, from the device's
+calibration (``harness bench calibrate --device cuda`` → ``calibrate-cuda.json`` in the benchmark
+folder); without one, nothing is guessed: the estimate says the GPU time is not measured.
+
+The counts are :func:`harness.run.estimate.estimate`'s, costed twice: with the GPU's units (its
+render and metric passes, seconds of the device) and with the CPU's (reading, selection and
+camera-free scoring stay on the CPU). The model, stage by stage as the runner runs them:
+
+* ``load`` and ``prune`` in the driver, serial, CPU units;
+* ``score``: camera-free pruners on the cores (``core_s / (cores · e)``) and camera-aware ones on the
+  GPU, one after another there (their training renders at the GPU's render units × the CPU
+  benchmark's multiple ``k_m`` of a training render: an assumption, the note says so); the stage
+  takes the longer of the two;
+* ``render_ref`` and ``render+metrics`` on the GPU, serial (every image's render and metric passes
+  at the GPU's units, per view its reference features): the device does one thing at a time, so
+  the workers feeding it overlap only their CPU share, which this leaves out;
+
+plus :data:`harness.run.estimate.STARTUP_S` per pool stage.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+from harness.run.estimate import STARTUP_S, estimate
+from harness.run.unit_costs import UnitCosts
+
+CALIBRATION = "calibrate-cuda.json"
+GPU_UNITS = ("render_splat", "render_px", "lpips_px", "lpips_ref_px", "ssim_px", "psnr_px")
+
+
+def read_calibration(folder: Path) -> dict | None:
+    """The GPU's calibration in ``folder`` (None: absent or unreadable)."""
+    try:
+        doc = json.loads((Path(folder) / CALIBRATION).read_text())
+        return doc if all(isinstance(doc["units"].get(k), (int, float)) for k in GPU_UNITS) else None
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return None
+
+
+def one_gpu(config, infos, folder: Path, cpu: UnitCosts, cores: int, efficiency: float) -> dict:
+    """``{"measured": False, "note"}`` without a calibration, else the projected wall seconds on one
+    GPU and ``cores`` CPU cores, per stage (module docstring), with what they stand on."""
+    cal = read_calibration(folder)
+    if cal is None:
+        return {"measured": False,
+                "note": f"GPU time not measured: no {CALIBRATION} in {folder} (`harness bench calibrate --device "
+                        "cuda --out results/bench` on a GPU machine writes it)"}
+    gpu = replace(cpu, **{k: float(cal["units"][k]) for k in GPU_UNITS}, sources={}, notes=[])
+    free = replace(cpu, render_splat=0.0, render_px=0.0, aware={})  # camera-free scoring only, CPU units
+    on_gpu, on_cpu = estimate(config, infos, gpu).stages, estimate(config, infos, free).stages
+    aware_s = on_gpu["score"].core_s - on_cpu["score"].core_s
+    stages = {"load": on_cpu["load"].core_s, "prune": on_cpu["prune"].core_s,
+              "score": STARTUP_S + max(on_cpu["score"].core_s / (cores * efficiency), aware_s),
+              "render_ref": STARTUP_S + on_gpu["render_ref"].core_s,
+              "render+metrics": STARTUP_S + on_gpu["render+metrics"].core_s}
+    return {"measured": True, "wall_s": sum(stages.values()), "stages_s": stages, "cores": cores,
+            "device": cal.get("device_name", "GPU"), "source": f"{folder / CALIBRATION} ({cal.get('when', '')})",
+            "note": "camera-aware scoring on the GPU costed with the CPU benchmark's multiple of a training render"}
