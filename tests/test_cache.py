@@ -19,7 +19,7 @@ from harness.run.cache import (
     digest_json,
     digest_mask,
 )
-from harness.run.versions import code_digest
+from harness.run.cache.versions import code_digest
 
 
 def test_keys_depend_on_content_not_order():
@@ -248,7 +248,7 @@ def test_entries_that_are_not_regular_files_are_refused_without_blocking(tmp_pat
 
 def test_keyed_caches_refuse_entries_sealed_without_the_key(tmp_path, monkeypatch):
     """HARNESS_CACHE_KEY: an HMAC nobody without the secret can recompute; other entries are recomputed."""
-    from harness.run.cache_entries import Sealer
+    from harness.run.cache.entries import Sealer
 
     plain = StageCache(tmp_path, secret=b"")
     plain.put_json("metrics", "k", {"psnr": 30.0})
@@ -296,7 +296,7 @@ def test_a_sog_scene_named_by_its_meta_json_is_keyed_on_every_file_it_reads(tmp_
 
 
 def test_process_local_stores_are_refused_for_other_processes(tmp_path, monkeypatch):
-    from harness.run.executor_spec import ExecutorSpec
+    from harness.run.config.executor import ExecutorSpec
     from harness.run.executors import preflight
 
     monkeypatch.setenv("HARNESS_CACHE", str(tmp_path))

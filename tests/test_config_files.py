@@ -9,8 +9,8 @@ import pytest
 
 from harness.core.errors import InputError
 from harness.run.config import load_config
-from harness.run.config_files import read_config_file
-from harness.run.config_show import show
+from harness.run.config.files import read_config_file
+from harness.run.config.show import show
 
 REPO = Path(__file__).resolve().parent.parent
 BASE = """name: base

@@ -198,7 +198,7 @@ def test_missing_lpips_weights_fail_before_any_work(scenes, tmp_path, monkeypatc
 
 
 def test_pruner_version_follows_imported_project_modules():
-    from harness.run.versions import project_closure
+    from harness.run.cache.versions import project_closure
 
     mods = project_closure("tests.runner_fakes", roots=("tests", "harness", "methods"))
     assert {

@@ -7,7 +7,7 @@ import sys
 import textwrap
 from pathlib import Path
 
-from harness.run.versions import find_module_spec, module_file, module_versions, project_closure
+from harness.run.cache.versions import find_module_spec, module_file, module_versions, project_closure
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -53,7 +53,7 @@ def test_project_versions_import_nothing_heavy_and_find_the_imported_files():
     script = textwrap.dedent("""
         import json, sys
         from harness.run.toolkit import Toolkit
-        from harness.run.versions import Versions, module_file, project_closure
+        from harness.run.cache.versions import Versions, module_file, project_closure
         from methods.registry import list_pruners
         v = Versions.of(Toolkit())
         digests = {s.name: v.pruner(s.name) for s in list_pruners()}

@@ -13,7 +13,7 @@ import pytest
 import torch
 
 from harness.core.scene import GaussianScene
-from harness.run.versions import project_closure
+from harness.run.cache.versions import project_closure
 from methods import PruneContext, get_pruner
 from methods.lightgs.significance import resolve_backend, significance, volume_factor
 from methods.virtualrig import VirtualRigParams, virtual_cameras

@@ -81,7 +81,7 @@ print(u.ru_utime + u.ru_stime)
 VERSIONS = """
 import resource
 from harness.run.toolkit import Toolkit
-from harness.run.versions import Versions
+from harness.run.cache.versions import Versions
 from methods.registry import list_pruners
 before = resource.getrusage(resource.RUSAGE_SELF)
 v = Versions.of(Toolkit())

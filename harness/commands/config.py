@@ -2,7 +2,7 @@
 
 The config as `harness run` reads it — its ``extends`` chain merged, every default filled in, method
 entries expanded into their variants — one ``key: value  # origin`` line each, the origin the file
-and line that set it or ``default`` (:mod:`harness.run.config_show`). Bad input is one line and exit
+and line that set it or ``default`` (:mod:`harness.run.config.show`). Bad input is one line and exit
 status 2, as for `harness run`.
 """
 
@@ -21,7 +21,7 @@ def run(args) -> int:
     from pathlib import Path
 
     from harness.core.errors import InputError
-    from harness.run.config_show import show
+    from harness.run.config.show import show
 
     if not Path(args.config).exists():
         raise InputError(args.config, "cannot read config: no such file")

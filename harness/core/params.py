@@ -42,7 +42,7 @@ class ParamError(ValueError):
 def param(default, *, doc: str, ge=None, gt=None, le=None, lt=None, reading: str = "", choices=None,
           parse=None):
     """A parameter field: default, bounds (numbers), what it means (``doc``) and, for a reading of
-    the paper, the sentence it reads (``reading``). Run-config sections (:mod:`harness.run.schema`)
+    the paper, the sentence it reads (``reading``). Run-config sections (:mod:`harness.run.config.schema`)
     declare theirs the same way, with ``choices`` (a tuple, or a function returning the registered
     names) and, for a value that is no scalar (a list, a mapping), the function that reads it:
     ``parse(value, key, source) -> value``."""

@@ -36,10 +36,10 @@ from pathlib import Path
 from harness.core.cameras import Camera
 from harness.io.capture import CaptureProtocol
 from harness.run.cache import StageCache, digest_json
+from harness.run.cache.versions import Versions
 from harness.run.captured import RealViews, capture_views
 from harness.run.config import MethodVariant, RunConfig, SceneSpec
 from harness.run.toolkit import Toolkit
-from harness.run.versions import Versions
 
 
 @dataclass
@@ -251,7 +251,7 @@ def _sequence_views(spec: SceneSpec, cache: StageCache, versions: Versions, base
               "frame0": cache.files.digest(seq.frames[0]) if seq.cameras is None else None}
     if seq.cameras is not None and seq.cameras.is_dir():
         digest["cameras"] = [cache.files.digest(f) for f in sorted(seq.cameras.iterdir()) if f.is_file()]
-    from harness.run.versions import module_versions
+    from harness.run.cache.versions import module_versions
 
     code = [versions.rigs, module_versions(("harness.io.sequences", "harness.io.gscameras", "harness.io.colmap"))]
     key = cache.key("views", source={"sequence": digest, "test": list(spec.test), "test_every": spec.test_every,

@@ -26,6 +26,7 @@ import numpy as np
 
 from harness.metrics.registry import gt_names
 from harness.run.cache import StageCache, digest_json, digest_mask
+from harness.run.cache.versions import module_versions
 from harness.run.config import RunConfig
 from harness.run.executors import Bars, Executor, LocalExecutor, Stage
 from harness.run.plan import SceneItem, Skip, Versions, load_items, training_sets_for, variants_for
@@ -46,7 +47,6 @@ from harness.run.verify import (
     score_array_check,
     score_record_check,
 )
-from harness.run.versions import module_versions
 
 #: tasks per worker below which views are split (see :meth:`Runner._view_stage`)
 BALANCE = 4

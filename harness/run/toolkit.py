@@ -7,7 +7,7 @@ rigs, camera files, renderers, metrics. The default toolkit imports the real mod
 callable in it must be a module-level function.
 
 Each entry also names the modules whose source is its "version" in cache keys
-(see :func:`harness.run.versions.code_digest`).
+(see :func:`harness.run.cache.versions.code_digest`).
 """
 
 from __future__ import annotations

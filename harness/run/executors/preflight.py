@@ -25,11 +25,11 @@ CURRENT_CLUSTER = "/tmp/ray/ray_current_cluster"
 
 def preflight(spec, workers: int, cache: str | None, *, timeout: float = CONNECT_TIMEOUT_S) -> None:
     """Refuse (InputError) a cache location or Ray address this run cannot use; see the module text."""
-    from harness.run.cache_stores import is_url
+    from harness.run.cache.stores import is_url
 
     if cache and is_url(cache) and not cache.startswith("file://"):
         from harness.core.paths import cache_dir
-        from harness.run.cache_stores import FsspecStore
+        from harness.run.cache.stores import FsspecStore
 
         store = FsspecStore(cache, cache_dir() / "mirror")
         if store.process_local and (spec.name == "ray" or workers > 1):

@@ -64,8 +64,8 @@ def _ray_probe(location: str, rel: str) -> tuple[str, bytes | None, str | None]:
     absent, or failing this node's checksum / cache key (``HARNESS_CACHE_KEY`` unset or different)."""
     import socket
 
-    from harness.run.cache_entries import Sealer, cache_secret
-    from harness.run.cache_stores import open_store
+    from harness.run.cache.entries import Sealer, cache_secret
+    from harness.run.cache.stores import open_store
 
     host = socket.gethostname()
     try:
@@ -207,8 +207,8 @@ class RayExecutor(Executor):
         import uuid
 
         from harness.core.errors import InputError
-        from harness.run.cache_entries import Sealer, cache_secret
-        from harness.run.cache_stores import open_store
+        from harness.run.cache.entries import Sealer, cache_secret
+        from harness.run.cache.stores import open_store
 
         ray = self._ray
         from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy

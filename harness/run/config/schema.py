@@ -15,7 +15,7 @@ import dataclasses
 import types
 import typing
 
-from harness.run.config_checks import boolean, choice, num, only, string
+from harness.run.config.checks import boolean, choice, num, only, string
 
 
 def declared(cls) -> list[dataclasses.Field]:

@@ -60,10 +60,10 @@ A config is a YAML mapping::
     plots: [curves, figure1, figure3]
 
 ``extends: default.yaml`` makes a config another one with its own keys over it (mappings merge key
-by key, lists and values replace: :mod:`harness.run.config_files`); ``harness config show CONFIG``
+by key, lists and values replace: :mod:`harness.run.config.files`); ``harness config show CONFIG``
 prints the resolved config with the file and line of every value.
 
-Every section is a dataclass of typed ``param(...)`` fields (:mod:`harness.run.schema`: one
+Every section is a dataclass of typed ``param(...)`` fields (:mod:`harness.run.config.schema`: one
 default, range and doc each). Every problem is an :class:`InputError` naming the key path
 (``methods[2].sweep.voxel``) and what is wrong. Variant names are stable: ``<variant or 'default'>`` for plain
 entries, and ``k1=v1,k2=v2`` (keys in the order written) for sweep combinations, prefixed by ``variant`` when given.
@@ -81,10 +81,12 @@ from harness.core.errors import InputError
 from harness.core.suggest import unknown
 from harness.report.plots import PLOTS
 from harness.report.tables import TABLES
-from harness.run.config_checks import expand_env
-from harness.run.config_checks import mapping as _mapping
-from harness.run.config_checks import string as _str
-from harness.run.config_sections import (  # noqa: F401  (the sections are imported from here)
+from harness.run.config.checks import expand_env
+from harness.run.config.checks import mapping as _mapping
+from harness.run.config.checks import string as _str
+from harness.run.config.executor import ExecutorSpec, parse_executor
+from harness.run.config.schema import read_section
+from harness.run.config.sections import (  # noqa: F401  (the sections are imported from here)
     KINDS,
     CameraSpec,
     MethodEntry,
@@ -93,10 +95,8 @@ from harness.run.config_sections import (  # noqa: F401  (the sections are impor
     SceneSpec,
     Settings,
 )
-from harness.run.config_sections import pruner as _pruner
-from harness.run.config_views import protocols as _protocols
-from harness.run.executor_spec import ExecutorSpec, parse_executor
-from harness.run.schema import read_section
+from harness.run.config.sections import pruner as _pruner
+from harness.run.config.views import protocols as _protocols
 from harness.views import rigs
 
 SECTIONS = ("protocol", "scenes", "methods", "protocols", "executor")
@@ -264,7 +264,7 @@ def _methods(d, default_ratios, scene_names, src, protocol_names=()) -> list[Met
 
 def parse_config(data: Any, source: str = "<config>") -> RunConfig:
     """Validate a parsed YAML document (its ``extends`` resolved) and expand method sweeps."""
-    from harness.run.config_files import resolve
+    from harness.run.config.files import resolve
 
     src = source
     data, _ = resolve(data, source)

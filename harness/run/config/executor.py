@@ -6,8 +6,8 @@ from dataclasses import dataclass
 
 from harness.core.errors import InputError
 from harness.core.params import param
-from harness.run.config_checks import expand_env, mapping, string
-from harness.run.schema import read_section
+from harness.run.config.checks import expand_env, mapping, string
+from harness.run.config.schema import read_section
 
 EXECUTORS = ("local", "ray")
 

@@ -1,6 +1,6 @@
 """The sections of a run config, each a dataclass of typed ``param(...)`` fields (one default, range
-and doc each; read by :func:`harness.run.schema.read_section`), with the readers of the values that
-are no scalars. :mod:`harness.run.config` reads a whole config with them.
+and doc each; read by :func:`harness.run.config.schema.read_section`), with the readers of the values that
+are no scalars. :mod:`harness.run.config.run_config` reads a whole config with them.
 """
 
 from __future__ import annotations
@@ -15,14 +15,14 @@ from harness.io.capture import CaptureSpec
 from harness.metrics.registry import expand, requestable
 from harness.report.plots import PLOTS
 from harness.report.tables import TABLES
-from harness.run.config_checks import expand_env
-from harness.run.config_checks import fractions as _fractions
-from harness.run.config_checks import mapping as _mapping
-from harness.run.config_checks import names as _names
-from harness.run.config_checks import num as _num
-from harness.run.config_checks import string as _str
-from harness.run.config_views import capture as _capture
-from harness.run.schema import read_section
+from harness.run.config.checks import expand_env
+from harness.run.config.checks import fractions as _fractions
+from harness.run.config.checks import mapping as _mapping
+from harness.run.config.checks import names as _names
+from harness.run.config.checks import num as _num
+from harness.run.config.checks import string as _str
+from harness.run.config.schema import read_section
+from harness.run.config.views import capture as _capture
 from harness.views import rigs
 from renderers import RENDERERS
 

@@ -5,16 +5,16 @@ inputs, with the sha256 of its own bytes, and is checked before it is used.
 result depends on: scene file **content** digests (:class:`FileDigests`: every file is hashed on
 every run, never trusted by size/mtime), method + resolved params, camera set (:func:`digest_json`
 of the camera dicts), renderer / metric / pruner code versions
-(:func:`harness.run.versions.code_digest` of their source files). Values live at
+(:func:`harness.run.cache.versions.code_digest` of their source files). Values live at
 ``<root>/<stage>/<key[:2]>/<key>.<ext>``.
 
 **Verification.** Every entry is sealed with a checksum bound to its own name
-(:mod:`harness.run.cache_entries`: JSON and ``.npy`` payloads in an envelope, PNG images with a
+(:mod:`harness.run.cache.entries`: JSON and ``.npy`` payloads in an envelope, PNG images with a
 private chunk), so a damaged entry and an entry copied under another key both fail; with
 ``HARNESS_CACHE_KEY`` set the checksum is an HMAC that cannot be recomputed without the secret. A
 read then runs the caller's schema check (:mod:`harness.run.verify`: length = splat count, prune
 counts ≤ input, finite metrics ...) on the decoded value. An entry that fails either — or that is
-not a regular file at all (a FIFO, a symlink to ``/dev/zero``: :mod:`harness.run.cache_stores`) —
+not a regular file at all (a FIFO, a symlink to ``/dev/zero``: :mod:`harness.run.cache.stores`) —
 is **discarded**: a one-line warning, the name deleted, and it reads as a miss, so the stage
 recomputes it. What this can and cannot detect: README, "Bad input, the cache, and kills".
 
@@ -28,7 +28,7 @@ folder (name ``.<name>.<host>.<pid>.<random>.tmp``), fsynced and renamed into pl
 the folder — sees the old entry, the complete new one, or none. Two writers of one key write the
 same content (keys are content addresses of deterministic computations) and the last rename wins;
 a reader that races a deletion of a bad entry sees a miss. All storage access goes through a store
-(:mod:`harness.run.cache_stores`): a folder (local, or a shared filesystem every node of a cluster
+(:mod:`harness.run.cache.stores`): a folder (local, or a shared filesystem every node of a cluster
 mounts: NFS, CephFS, Lustre — rename is atomic there too), or an fsspec URL (``s3://bucket/prefix``,
 ``gs://...``), where each entry is published by **one** PUT. ``memory://`` lives inside one process:
 it serves a one-worker local run only (:func:`harness.run.executors.preflight` refuses it otherwise).
@@ -50,8 +50,8 @@ from typing import Any
 
 import numpy as np
 
-from harness.run.cache_entries import Sealer, cache_secret
-from harness.run.cache_stores import BadEntry, FsspecStore, LocalStore, is_url, open_store
+from harness.run.cache.entries import Sealer, cache_secret
+from harness.run.cache.stores import BadEntry, FsspecStore, LocalStore, is_url, open_store
 
 __all__ = ["CACHE_FORMAT", "FileDigests", "StageCache", "canonical_json", "digest_bytes", "digest_json",
            "digest_mask", "is_url", "open_store"]

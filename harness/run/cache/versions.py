@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
-from harness.run.cache import digest_bytes, digest_json
+from harness.run.cache.stage_cache import digest_bytes, digest_json
 
 PROJECT_PACKAGES = ("methods", "renderers", "harness")
 

@@ -6,11 +6,11 @@ from __future__ import annotations
 
 from harness.core.errors import InputError
 from harness.io.capture import CaptureProtocol, CaptureSpec
-from harness.run.config_checks import expand_env
-from harness.run.config_checks import mapping as _mapping
-from harness.run.config_checks import num as _num
-from harness.run.config_checks import only as _only
-from harness.run.config_checks import string as _str
+from harness.run.config.checks import expand_env
+from harness.run.config.checks import mapping as _mapping
+from harness.run.config.checks import num as _num
+from harness.run.config.checks import only as _only
+from harness.run.config.checks import string as _str
 from harness.views import rigs
 
 

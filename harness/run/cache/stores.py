@@ -1,6 +1,6 @@
 """Where the stage cache's bytes live: a folder (:class:`LocalStore`) or an fsspec URL
 (:class:`FsspecStore`). A store reads, writes, deletes and tests relative paths
-(``stage/ab/key.ext``); it knows nothing of keys or checksums (:mod:`harness.run.cache_entries`).
+(``stage/ab/key.ext``); it knows nothing of keys or checksums (:mod:`harness.run.cache.entries`).
 
 **Reads are bounded** like every other read of the tool (:mod:`harness.io.safe`): an entry must be
 a regular file — opened with ``O_NOFOLLOW | O_NONBLOCK`` and ``fstat``-ed, so a symlink (to

@@ -1,7 +1,7 @@
 """``harness config show CONFIG``: the resolved config, every value with where it came from.
 
 Each line is ``key: value  # origin``, the origin a ``file:line`` (the config, or a file it
-``extends``) or ``default`` (the declared default of the field, :mod:`harness.run.config_sections`,
+``extends``) or ``default`` (the declared default of the field, :mod:`harness.run.config.sections`,
 or a pruner's own parameter default). Method entries are shown as the variants they expand to, with
 the parameters the config sets (the others are the pruner's defaults: ``harness methods``).
 """
@@ -11,11 +11,11 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from harness.run.config import SECTIONS, RunConfig, parse_config
-from harness.run.config_files import read_config_file
-from harness.run.config_sections import Protocol, SceneSpec, Settings
-from harness.run.executor_spec import ExecutorSpec
-from harness.run.schema import declared
+from harness.run.config.executor import ExecutorSpec
+from harness.run.config.files import read_config_file
+from harness.run.config.run_config import SECTIONS, RunConfig, parse_config
+from harness.run.config.schema import declared
+from harness.run.config.sections import Protocol, SceneSpec, Settings
 
 WIDTH = 60
 
