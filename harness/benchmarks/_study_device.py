@@ -268,7 +268,7 @@ def run_device(args, folder: Path, config: Path) -> int:
     from harness.core.devices import check_device
     from harness.core.errors import InputError
     from harness.run.config import load_config
-    from harness.run.config_files import read_config_file
+    from harness.run.config.files import read_config_file
 
     device = check_device(args.device, "--device")
     loaded = load_config(config)  # a bad config: one line, before any run
