@@ -163,6 +163,7 @@ def _splat_transform():
     ("x.ply", {}, 1e-6), ("x.compressed.ply", {}, 1e-6), ("x.spz", {"spz_version": 4}, 1e-6),
     ("x.spz", {"spz_version": 3}, 1e-6),
     ("x.splat", {}, 1 / 127.5),  # splat-transform decodes rotation bytes on another scale before normalising
+    ("x.sog", {}, 1e-6), ("meta.json", {}, 1e-6),
 ])
 def test_splat_transform_reads_what_we_write(tmp_path, name, options, quat_tol):
     path, ours = _ours(tmp_path, name, **options)
@@ -219,6 +220,8 @@ def test_plyfile_reads_our_ply_and_compressed_ply(tmp_path):
         ("o.compressed.ply", "PlayCanvas compressed.ply"),
         ("o.splat", "antimatter15 .splat"),
         ("o.spz", "Niantic .spz v4"),
+        ("o.sog", "PlayCanvas SOG (bundle)"),
+        ("meta.json", "PlayCanvas SOG (folder)"),
     ],
 )
 def test_convert_writes_the_format_the_name_asks_for(tmp_path, capsys, name, label):
@@ -227,12 +230,13 @@ def test_convert_writes_the_format_the_name_asks_for(tmp_path, capsys, name, lab
     report = json.loads(out)
     assert report["output"]["format"] == label and report["output"]["splats"] == 1000
     assert report["lossless"] == (name == "o.ply") and (report["loses"] is None) == (name == "o.ply")
-    assert report["output"]["bytes"] == (tmp_path / name).stat().st_size
+    written = [tmp_path / name] if name != "meta.json" else sorted(tmp_path.iterdir())  # the folder: meta + textures
+    assert report["output"]["bytes"] == sum(f.stat().st_size for f in written)
     assert len(load_scene(tmp_path / name)) == 1000
 
 
 @pytest.mark.parametrize("name, phrase", [
-    ("o.sog", "SOG is read but not written"), ("meta.json", "SOG is read but not written"),
+    ("lod-meta.json", "streamed SOG is read but not written"), ("x-lod-meta.json", "streamed SOG is read"),
     ("o.spx", "did you mean '.spz'"), ("o", "files without an extension"), ("o.ksplat", "not written"),
 ])
 def test_unwritable_names_are_refused_before_reading(tmp_path, capsys, name, phrase):
