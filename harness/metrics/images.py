@@ -81,13 +81,16 @@ def _read_png(path: Path) -> np.ndarray:
 
     from PIL import Image, UnidentifiedImageError
 
-    from harness.io.safe import read_bytes
+    from harness.io.safe import pillow_problem, read_bytes
 
     data = read_bytes(path, "image", "image file")
     head = data[:26]
     # IHDR: signature (8) + length (4) + "IHDR" (4) + width, height (8) + bit depth + colour type
     if len(head) == 26 and head[12:16] == b"IHDR":
-        _check_dims(path, int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big"))
+        w, h = int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+        if w == 0 or h == 0:
+            raise InputError(path, f"image is empty: its PNG header says {w}x{h} pixels")
+        _check_dims(path, w, h)
         if head[24] == 16 and head[25] in (2, 6):
             raise InputError(path, "16-bit colour PNG is not supported (Pillow reads it as 8-bit); save it as .npy")
         if head[24] == 16 and head[25] == 4:
@@ -107,7 +110,7 @@ def _read_png(path: Path) -> np.ndarray:
                 im = im.convert("RGB")
             return np.asarray(im, dtype=np.uint8)
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError, Image.DecompressionBombError) as err:
-        raise InputError(path, f"not a readable PNG image: {err}") from None
+        raise InputError(path, f"not a readable PNG image: {pillow_problem(err, head)}") from None
 
 
 def check_same_size(a: np.ndarray, b: np.ndarray, source_a="first image", source_b="second image") -> None:
