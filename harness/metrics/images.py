@@ -60,6 +60,25 @@ def _check_dims(path, w: int, h: int) -> None:
         raise InputError(path, f"image is {w}x{h} pixels, larger than the maximum ({MAX_SIDE} per side)")
 
 
+def header_size(path: str | Path) -> tuple[int, int] | None:
+    """(width, height) from a PNG's IHDR or a ``.npy`` header, nothing decoded; None when the
+    header says nothing readable (:func:`read_image` then says what is wrong)."""
+    from harness.io.safe import npy_header, open_regular
+
+    path = Path(path)
+    with open_regular(path, "image", "image file") as f:
+        if path.suffix.lower() == ".npy":
+            try:
+                shape = npy_header(f, path)[0]
+            except InputError:
+                return None
+            return (shape[1], shape[0]) if len(shape) >= 2 else None
+        head = f.read(24)
+    if head[:8] == b"\x89PNG\r\n\x1a\n" and head[12:16] == b"IHDR":
+        return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+    return None
+
+
 def read_image(path: str | Path) -> np.ndarray:
     """Read a PNG or ``.npy`` image file as float32 ``(H, W, 3)``."""
     from harness.io.safe import check_regular, load_npy
