@@ -119,9 +119,8 @@ def check_memory(path, names, budget: int | None = None) -> None:
     """Refuse, from its header and before decoding, an image whose comparison by ``names`` would
     need more than the budget: ``pixels × max(bytes per pixel of each metric)`` (a PSNR-like metric
     120, SSIM-like 400, LPIPS 1,500; two 8192x8192 images need ~8 GB for PSNR alone)."""
-    from harness.metrics.images import header_size
-
     from harness.core.cameras import MAX_SIDE
+    from harness.metrics.images import header_size
 
     size = header_size(path)
     if size is None or max(size) > MAX_SIDE:  # reading it says what is wrong

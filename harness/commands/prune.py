@@ -4,8 +4,9 @@ The output is the input minus rows, written atomically in the format OUT's name 
 (:mod:`harness.io.writers`: ``.ply`` keeps every property, extras and header comments unchanged;
 ``.compressed.ply``, ``.splat``, ``.spz`` and SOG ``.sog``/``meta.json`` are lossy); a failure leaves
 no partial file, and an output that is the input is refused. Removes exactly ``round(R·N)`` splats
-(``--keep K`` is ``R = 1 − K``), ties by index (:mod:`methods.targeting`). Prints splats before/after, τ (the score at the cut;
-"none" when nothing is removed) and seconds per stage; ``--json`` prints the same as one JSON object.
+(``--keep K`` is ``R = 1 − K``), ties by index (:mod:`methods.targeting`). Prints splats
+before/after, τ (the score at the cut; "none" when nothing is removed) and seconds per stage;
+``--json`` prints the same as one JSON object.
 
 ``--ratio 0`` (``--keep 1``) removes nothing, so nothing is scored (unless ``--scores`` asks for the
 scores): the command is then ``harness convert IN OUT``, and says so; the method's parameters are

@@ -17,9 +17,9 @@ file's rows are reordered), texel ``i`` of every per-splat texture (``W = 4·cei
 * shN (SH degree ≥ 1): the ``3·K`` coefficients of each splat are clustered into a palette of
   ``min(64, 2^floor(log2(N/1024)))·1024`` entries, ``N`` up to 1024 splats (:func:`kmeans_palette`,
   10 Lloyd iterations as splat-transform's default; entries no splat uses are dropped, and
-  ``shN.count`` is the number kept); every palette value is coded by a third codebook; ``shN_labels`` holds the entry (R low
-  byte, G high byte), ``shN_centroids`` entry ``p`` at row ``p // 64``, columns ``(p % 64)·K + k``
-  (RGB: the colour channels of coefficient ``k``).
+  ``shN.count`` is the number kept); every palette value is coded by a third codebook;
+  ``shN_labels`` holds the entry (R low byte, G high byte), ``shN_centroids`` entry ``p`` at row
+  ``p // 64``, columns ``(p % 64)·K + k`` (RGB: the colour channels of coefficient ``k``).
 
 Where splat-transform truncates a scaled value to its byte (means, quaternions, alpha) this writer
 rounds: the same decoding, half the error. Textures are lossless WebP from Pillow's libwebp
