@@ -34,12 +34,28 @@ if ! command -v chromium >/dev/null 2>&1; then
     echo "setup: chromium could not be installed; the report page's browser test will be skipped"
 fi
 
+# pip, quiet: its errors and warnings are printed, but not the two notices every install of this
+# package gives (setuptools' "Editable installation" note, an index location configured on the
+# machine that does not exist); a failure prints everything pip said
+pip_quiet() {
+  local log status=0
+  log=$(mktemp)
+  PYTHONWARNINGS="ignore:Editable installation" .venv/bin/python -m pip -q "$@" >"$log" 2>&1 || status=$?
+  if [ "$status" -ne 0 ]; then
+    cat "$log" >&2
+  else
+    grep -v -E "^WARNING: Location '[^']*' is ignored: it is neither a file nor a directory\.$" "$log" >&2 || true
+  fi
+  rm -f "$log"
+  return "$status"
+}
+
 stamp=.venv/.installed-$(sha256sum pyproject.toml | cut -c1-16)
 if [ ! -f "$stamp" ]; then
   echo "setup: creating .venv and installing the package (torch comes from the machine's wheel store)"
   [ -x .venv/bin/python ] || "$PY" -m venv .venv
-  .venv/bin/python -m pip install -q --upgrade pip
-  .venv/bin/python -m pip install -q -e ".[test,bench,ray]"
+  pip_quiet install --upgrade pip
+  pip_quiet install -e ".[test,bench,ray]"
   rm -f .venv/.installed-*
   touch "$stamp"
 fi

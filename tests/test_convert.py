@@ -163,6 +163,7 @@ def _splat_transform():
     ("x.ply", {}, 1e-6), ("x.compressed.ply", {}, 1e-6), ("x.spz", {"spz_version": 4}, 1e-6),
     ("x.spz", {"spz_version": 3}, 1e-6),
     ("x.splat", {}, 1 / 127.5),  # splat-transform decodes rotation bytes on another scale before normalising
+    ("x.sog", {}, 1e-6), ("meta.json", {}, 1e-6),
 ])
 def test_splat_transform_reads_what_we_write(tmp_path, name, options, quat_tol):
     path, ours = _ours(tmp_path, name, **options)
@@ -219,6 +220,8 @@ def test_plyfile_reads_our_ply_and_compressed_ply(tmp_path):
         ("o.compressed.ply", "PlayCanvas compressed.ply"),
         ("o.splat", "antimatter15 .splat"),
         ("o.spz", "Niantic .spz v4"),
+        ("o.sog", "PlayCanvas SOG (bundle)"),
+        ("meta.json", "PlayCanvas SOG (folder)"),
     ],
 )
 def test_convert_writes_the_format_the_name_asks_for(tmp_path, capsys, name, label):
@@ -227,12 +230,13 @@ def test_convert_writes_the_format_the_name_asks_for(tmp_path, capsys, name, lab
     report = json.loads(out)
     assert report["output"]["format"] == label and report["output"]["splats"] == 1000
     assert report["lossless"] == (name == "o.ply") and (report["loses"] is None) == (name == "o.ply")
-    assert report["output"]["bytes"] == (tmp_path / name).stat().st_size
+    written = [tmp_path / name] if name != "meta.json" else sorted(tmp_path.iterdir())  # the folder: meta + textures
+    assert report["output"]["bytes"] == sum(f.stat().st_size for f in written)
     assert len(load_scene(tmp_path / name)) == 1000
 
 
 @pytest.mark.parametrize("name, phrase", [
-    ("o.sog", "SOG is read but not written"), ("meta.json", "SOG is read but not written"),
+    ("lod-meta.json", "streamed SOG is read but not written"), ("x-lod-meta.json", "streamed SOG is read"),
     ("o.spx", "did you mean '.spz'"), ("o", "files without an extension"), ("o.ksplat", "not written"),
 ])
 def test_unwritable_names_are_refused_before_reading(tmp_path, capsys, name, phrase):
@@ -251,9 +255,56 @@ def test_convert_refuses_its_input_and_missing_folders(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.ply"]
 
 
+@pytest.mark.parametrize("name", ["o.splat", "o.spz", "o.compressed.ply", "o.sog"])
+def test_the_lossy_note_names_only_what_this_scene_loses(tmp_path, capsys, name):
+    plain = random_scene(300, 0, seed=2)
+    write_scene(plain, tmp_path / "sh0.ply")
+    write_scene(random_scene(300, 2, seed=2, extra=True), tmp_path / "rich.ply", comments=["made here"])
+    notes = {}
+    for src in ("sh0", "rich"):
+        status, out, _ = _convert(capsys, tmp_path / f"{src}.ply", tmp_path / f"{src}-{name}", "--json")
+        assert status == 0
+        notes[src] = json.loads(out)["loses"]
+    assert "SH" not in notes["sh0"] and "extra" not in notes["sh0"] and "comments" not in notes["sh0"]
+    assert "SH" in notes["rich"] and "extra properties dropped (nx, ny, nz)" in notes["rich"]
+    assert ("header comments dropped" in notes["rich"]) == (name != "o.compressed.ply")  # compressed.ply keeps them
+    status, out, _ = _convert(capsys, tmp_path / "sh0.ply", tmp_path / "again.ply")
+    assert status == 0 and "\n  lossless\n" in out and "lossy:" not in out
+
+
+@pytest.mark.parametrize("name, moved", [("o.compressed.ply", 1e30), ("o.spz", 1e6)])
+def test_outliers_that_move_the_other_splats_are_warned_about(tmp_path, capsys, caplog, name, moved):
+    """One far splat widens the quantisation range of the others (compressed.ply: its chunk; spz:
+    the fractional bits); SOG's log-scaled range keeps them within the bound, .ply is exact."""
+    scene = random_scene(100, 0, seed=1)
+    write_scene(scene, tmp_path / "quiet.ply")
+    assert _convert(capsys, tmp_path / "quiet.ply", tmp_path / f"quiet-{name}")[0] == 0
+    assert "warning" not in caplog.text
+    scene.means[0] = (moved, 0.0, 0.0)
+    write_scene(scene, tmp_path / "far.ply")
+    for out, warned in ((name, True), ("o.sog", False), ("o.ply", False)):
+        caplog.clear()
+        assert _convert(capsys, tmp_path / "far.ply", tmp_path / f"far-{out}")[0] == 0
+        assert ("splats are stored up to" in caplog.text) == warned, (out, caplog.text)
+    back = load_scene(tmp_path / f"far-{name}")  # what the warning says did happen: splats really moved
+    near = back.means[np.abs(back.means).max(1) < 10].astype(np.float64)
+    gap = np.linalg.norm(near[:, None] - scene.means[1:][None].astype(np.float64), axis=2).min(1)
+    assert gap.max() > 1e-3 * np.linalg.norm(np.ptp(scene.means[1:], axis=0))
+
+
+def test_spz_version_must_be_an_integer(tmp_path):
+    import harness
+
+    with pytest.raises(InputError, match="spz_version: must be an integer .* got '4' \\(str\\)"):
+        harness.save(source(), tmp_path / "x.spz", spz_version="4")
+    assert not (tmp_path / "x.spz").exists()
+    harness.save(source(), tmp_path / "x.spz", spz_version=np.int64(3))  # a numpy integer is an integer
+    assert (tmp_path / "x.spz").read_bytes()[:2] == b"\x1f\x8b"  # v3: one gzip stream
+
+
 def test_prune_writes_every_format_and_ratio_zero_scores_nothing(tmp_path, capsys, monkeypatch):
     src = HERE / "grape_1k.ply"
-    for name in ("p.spz", "p.splat", "p.compressed.ply"):
+    for name in ("p.spz", "p.splat", "p.compressed.ply", "p.sog"):
         assert main(["prune", str(src), str(tmp_path / name), "--ratio", "0.3", "--method", "opacity"]) == 0
         assert len(load_scene(tmp_path / name)) == 700
     capsys.readouterr()

@@ -51,7 +51,8 @@ def test_rig_npy_matches_a_direct_render(scene_file, tmp_path, capsys):
         np.testing.assert_allclose(img, renderer.render(scene, cam, background=(0.2, 0.3, 0.4)), atol=1e-6)
         assert rec["coverage"] == pytest.approx(coverage(img, (0.2, 0.3, 0.4)), abs=1e-4)
         assert 0.05 < rec["coverage"] < 1.0
-    assert "coverage" in capsys.readouterr().out
+    first = capsys.readouterr().out.splitlines()[0]
+    assert first.startswith("orbit_001  40x") and "coverage" in first  # the view's name first, no blank column
 
 
 def test_camera_file_png_split(scene_file, tmp_path):

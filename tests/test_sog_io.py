@@ -232,3 +232,30 @@ def test_real_playbot_lod_set(tmp_path):
     back = read_ply(tmp_path / "playbot.ply")
     for attr in ("means", "quats", "scales_log", "opacity_logit", "sh_dc", "sh_rest"):
         assert getattr(back, attr).tobytes() == getattr(scene, attr).tobytes(), attr
+
+
+def _rezip(src_folder, bundle, replace: dict[str, bytes]) -> None:
+    """``bundle``: the files of ``src_folder`` deflated, some replaced."""
+    with zipfile.ZipFile(bundle, "w", zipfile.ZIP_DEFLATED) as z:
+        for f in sorted(src_folder.iterdir()):
+            z.writestr(f.name, replace.get(f.name, f.read_bytes()))
+
+
+def test_bundle_members_are_refused_past_their_cap_before_inflating(tmp_path):
+    """A texture may take 8 bytes per allowed pixel + 1 MiB; a JSON member the JSON cap (64 MiB). A
+    few-hundred-KB .sog whose member inflates to 64 MiB (or a 65 MiB meta.json) is refused from
+    the zip directory, nothing inflated; a texture file on disk the same way."""
+    SogSpec(20, seed=6).write(tmp_path / "f")
+    quats = (tmp_path / "f" / "quats.webp").read_bytes()
+    _rezip(tmp_path / "f", tmp_path / "t.sog", {"quats.webp": quats + bytes(64 << 20)})
+    assert (tmp_path / "t.sog").stat().st_size < 1 << 20
+    with pytest.raises(InputError, match=r"t.sog:quats.webp: is 67,\d+,\d+ bytes, over the 1,\d+,\d+ allowed for "
+                                         "a texture"):
+        read_sog(tmp_path / "t.sog")
+    meta = (tmp_path / "f" / "meta.json").read_bytes()
+    _rezip(tmp_path / "f", tmp_path / "j.sog", {"meta.json": meta + b" " * (65 << 20)})
+    with pytest.raises(InputError, match="j.sog:meta.json: is 68,.* over the 67,108,864 allowed for a JSON file"):
+        read_sog(tmp_path / "j.sog")
+    (tmp_path / "f" / "quats.webp").write_bytes(quats + bytes(2 << 20))
+    with pytest.raises(InputError, match="quats.webp: is 2,.* allowed for a texture"):
+        read_sog(tmp_path / "f")

@@ -89,6 +89,52 @@ def metric_names(metrics, qmiv: bool = False) -> tuple[str, ...]:
     return names
 
 
+#: peak bytes per pixel of ``compare`` by the metrics asked (RSS over the image size, measured on
+#: 1024x768 and 2048x1536 PNG pairs: PSNR 97, SSIM 322, LPIPS-VGG 1,456, the MPEG set 357), rounded
+#: up; a metric not listed (a plugin's) is costed as SSIM
+BYTES_PER_PIXEL = {"psnr": 120, "ssim": 400, "lpips": 1500}
+MAX_COMPARE_BYTES = 4 << 30
+
+
+def memory_limit() -> int:
+    """compare's memory budget: :data:`MAX_COMPARE_BYTES`, or ``HARNESS_MAX_COMPARE_BYTES``."""
+    import os
+
+    text = os.environ.get("HARNESS_MAX_COMPARE_BYTES")
+    if not text:
+        return MAX_COMPARE_BYTES
+    try:
+        return int(text)
+    except ValueError:
+        raise InputError("HARNESS_MAX_COMPARE_BYTES", f"expected a number of bytes, got {text!r}") from None
+
+
+def _bytes_per_pixel(name: str) -> int:
+    """``lpips`` by itself, SSIM-like (``ssim``, ``yuv_ssim_om`` ...) and PSNR-like names by family."""
+    kind = "lpips" if name == "lpips" else "ssim" if "ssim" in name else "psnr" if "psnr" in name else "ssim"
+    return BYTES_PER_PIXEL[kind]
+
+
+def check_memory(path, names, budget: int | None = None) -> None:
+    """Refuse, from its header and before decoding, an image whose comparison by ``names`` would
+    need more than the budget: ``pixels × max(bytes per pixel of each metric)`` (a PSNR-like metric
+    120, SSIM-like 400, LPIPS 1,500; two 8192x8192 images need ~8 GB for PSNR alone)."""
+    from harness.core.cameras import MAX_SIDE
+    from harness.metrics.images import header_size
+
+    size = header_size(path)
+    if size is None or max(size) > MAX_SIDE:  # reading it says what is wrong
+        return
+    metric = max(names, key=_bytes_per_pixel)
+    cost = _bytes_per_pixel
+    need, budget = size[0] * size[1] * cost(metric), memory_limit() if budget is None else budget
+    if need > budget:
+        raise InputError(path, f"{size[0]}x{size[1]} images need about {need / 2**30:.1f} GiB to compare by "
+                               f"{metric} (~{cost(metric)} bytes per pixel), more than compare's "
+                               f"{budget / 2**30:.1f} GiB limit (at most {budget // cost(metric):,} pixels; "
+                               "HARNESS_MAX_COMPARE_BYTES raises it)")
+
+
 def _image(value, which: str):
     """(the image, what errors call it): a file is read (named by its path), an array kept."""
     from harness.metrics.images import read_image
@@ -104,7 +150,9 @@ def compare(a, b, metrics=DEFAULT_METRICS, *, device: str | None = None, yuv: bo
     (3DGS conventions), LPIPS-VGG, or the MPEG set (``metrics="mpeg"``: as mpeg-gsc-metrics, on 8-bit
     images; ``qmiv`` its QMIV mode, same keys plus ``mode``; ``mask`` an occupancy image for the OM
     metrics, non-zero = occupied, adding ``occupancy`` in %). ``yuv`` adds float BT.709 Y/U/V PSNRs.
-    An infinite PSNR (identical images) is ``inf``. Only LPIPS and SSIM run on torch (``device``)."""
+    An infinite PSNR (identical images) is ``inf``. Only LPIPS and SSIM run on torch (``device``).
+    Image files too large to compare within the memory budget are refused before they are decoded
+    (:func:`check_memory`)."""
     import numpy as np
 
     from harness.core.devices import check_device
@@ -112,6 +160,9 @@ def compare(a, b, metrics=DEFAULT_METRICS, *, device: str | None = None, yuv: bo
     from harness.metrics.suite import compare_images
 
     names = metric_names(metrics, qmiv)
+    for value in (a, b):
+        if isinstance(value, (str, Path)):
+            check_memory(value, names)
     (a, name_a), (b, name_b) = _image(a, "first image"), _image(b, "second image")
     check_same_size(np.asarray(a), np.asarray(b), name_a, name_b)
     occupied = None

@@ -68,9 +68,13 @@ def info(scene, *, lod: int | str | None = None, drop_nonfinite: bool = False) -
 def check_outputs(outputs: list[Path], inputs: list[Path]) -> None:
     """InputError naming the first output that cannot be written, before any work: its folder must
     exist and be writable (probed), the name must not be a folder or a special file, and no output
-    may be an input (or lie inside an input folder). Stale temporary files of an earlier killed
-    write in that folder are swept first."""
+    may be an input (or lie inside an input folder; a SOG ``meta.json`` input counts with the
+    textures it names). Stale temporary files of an earlier killed write in that folder are swept
+    first."""
     from harness.io.files import probe_writable, sweep_stale_temps
+    from harness.io.scenes import scene_files
+
+    inputs = [f for src in inputs for f in ([src] if src.is_dir() else scene_files(src))]
 
     for path in outputs:
         if not path.parent.is_dir():
@@ -90,19 +94,20 @@ def save(scene, path, *, spz_version: int | None = None) -> Path:
     """Write ``scene`` (a scene, or a path or name to read it from) atomically in the format
     ``path``'s name asks for, as ``harness convert`` (``.ply`` lossless, keeping extra properties
     and header comments; ``.compressed.ply``, ``.splat``, ``.spz`` lossy; ``spz_version`` 2, 3 or
-    4). The file the scene was read from is never replaced. Returns the path."""
+    4); ``.sog`` or ``meta.json`` for PlayCanvas SOG). The file the scene was read from is never
+    replaced. Returns the path."""
     from harness.core.scene import GaussianScene
     from harness.io.datasets import resolve_scene
     from harness.io.scenes import write_scene
     from harness.io.writers import writer_for
 
     out = Path(path)
-    writer_for(out)  # the format from the name, refused before anything else
+    files = writer_for(out).files(out)  # the format from the name, refused before anything else
     if isinstance(scene, GaussianScene):
         inputs = [Path(scene.meta.source)] if scene.meta.source else []
     else:
         inputs = [resolve_scene(_scene_argument(scene))]
-    check_outputs([out], inputs)
+    check_outputs(files, inputs)
     return write_scene(_scene(scene), out, spz_version=spz_version)
 
 

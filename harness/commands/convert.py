@@ -2,11 +2,14 @@
 
 Reads anything the harness reads (a path or a scene name; ``--lod`` picks a SOG LOD level) and
 writes ``.ply`` (lossless: every property, extra properties and header comments kept),
-``.compressed.ply``, ``.splat`` or ``.spz`` (lossy; ``--spz-version 2|3|4``, default 4), by the
-writers of :mod:`harness.io.writers`, which ``prune`` uses too. Outputs are checked before anything
-is read (format from the name, folder, not an input), written atomically; inputs are never
-modified. Prints the formats, splat counts, sizes, what the output format loses and the seconds
-(``--json``: one object). Rows may be reordered (compressed.ply is written in Morton order).
+``.compressed.ply``, ``.splat``, ``.spz`` (``--spz-version 2|3|4``, default 4) or PlayCanvas SOG
+(``.sog``: one zip; ``meta.json``: the JSON and its WebP textures in that folder), the lossy ones
+saying what this scene loses in them, by the writers of :mod:`harness.io.writers`, which ``prune``
+uses too. Outputs (every file a SOG folder set replaces) are checked before anything is read
+(format from the name, folder, not an input), written atomically; inputs are never modified.
+Prints the formats, splat counts, sizes (all of a scene's files), what the output loses and the
+seconds (``--json``: one object). Rows may be reordered (compressed.ply and SOG are written in
+Morton order).
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ import time
 from pathlib import Path
 
 NAME = "convert"
-HELP = "write a scene in another format (.ply, .compressed.ply, .splat, .spz), chosen by the output's name"
+HELP = "write a scene in another format (.ply, .compressed.ply, .splat, .spz, .sog), chosen by the output's name"
 
 
 def add_arguments(parser) -> None:
@@ -35,7 +38,9 @@ def add_arguments(parser) -> None:
 
 
 def _size(path: Path) -> int:
-    return sum(f.stat().st_size for f in path.rglob("*") if f.is_file()) if path.is_dir() else path.stat().st_size
+    from harness.io.scenes import scene_files
+
+    return sum(f.stat().st_size for f in scene_files(path))
 
 
 def run(args) -> int:
@@ -46,7 +51,7 @@ def run(args) -> int:
 
     out = Path(args.output)
     writer = writer_for(out)
-    check_outputs([out], [resolve_scene(args.input)])
+    check_outputs(writer.files(out), [resolve_scene(args.input)])
     seconds = {}
     t0 = time.perf_counter()
     loaded = read_scene(args.input, lod=args.lod, drop_nonfinite=args.drop_nonfinite)
@@ -55,11 +60,12 @@ def run(args) -> int:
     write_scene(loaded.scene, out, spz_version=args.spz_version)
     seconds["write"] = time.perf_counter() - t0
     version = f" v{args.spz_version}" if writer.ending == ".spz" else ""
+    loses = writer.loses(loaded.scene)
     report = {"input": {"path": str(loaded.path), "format": loaded.format_name, "splats": len(loaded.scene),
                         "bytes": _size(loaded.path)},
               "output": {"path": str(out), "format": writer.label + version, "splats": len(loaded.scene),
-                         "bytes": out.stat().st_size},
-              "lossless": not writer.loses, "loses": writer.loses or None,
+                         "bytes": _size(out)},
+              "lossless": not loses, "loses": loses or None,
               "dropped_nonfinite": loaded.dropped_nonfinite, "seconds": seconds}
     if args.json:
         from harness.core.jsonout import dumps
@@ -69,7 +75,7 @@ def run(args) -> int:
     i, o = report["input"], report["output"]
     print(f"{i['path']} ({i['format']}, {i['splats']:,} splats, {i['bytes']:,} bytes)")
     print(f"  -> {o['path']} ({o['format']}, {o['splats']:,} splats, {o['bytes']:,} bytes)")
-    print(f"  {'lossless' if report['lossless'] else 'lossy: ' + writer.loses}")
+    print(f"  {'lossless' if report['lossless'] else 'lossy: ' + loses}")
     if loaded.dropped_nonfinite:
         print(f"  dropped {loaded.dropped_nonfinite:,} splats with NaN/inf values")
     print("  " + ", ".join(f"{k} {v:.3f} s" for k, v in seconds.items()))

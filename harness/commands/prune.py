@@ -2,10 +2,11 @@
 
 The output is the input minus rows, written atomically in the format OUT's name asks for
 (:mod:`harness.io.writers`: ``.ply`` keeps every property, extras and header comments unchanged;
-``.compressed.ply``, ``.splat``, ``.spz`` are lossy); a failure leaves no partial file, and an output
-that is the input is refused. Removes exactly ``round(R·N)`` splats (``--keep K`` is ``R = 1 − K``),
-ties by index (:mod:`methods.targeting`). Prints splats before/after, τ (the score at the cut;
-"none" when nothing is removed) and seconds per stage; ``--json`` prints the same as one JSON object.
+``.compressed.ply``, ``.splat``, ``.spz`` and SOG ``.sog``/``meta.json`` are lossy); a failure leaves
+no partial file, and an output that is the input is refused. Removes exactly ``round(R·N)`` splats
+(``--keep K`` is ``R = 1 − K``), ties by index (:mod:`methods.targeting`). Prints splats
+before/after, τ (the score at the cut; "none" when nothing is removed) and seconds per stage;
+``--json`` prints the same as one JSON object.
 
 ``--ratio 0`` (``--keep 1``) removes nothing, so nothing is scored (unless ``--scores`` asks for the
 scores): the command is then ``harness convert IN OUT``, and says so; the method's parameters are
@@ -135,11 +136,11 @@ def _check_outputs(args) -> None:
     from harness.io.writers import writer_for
 
     out = Path(args.output)
-    writer_for(out)  # the format from the name, refused before any work
+    files = writer_for(out).files(out)  # the format from the name, refused before any work
     if args.scores is not None and Path(args.scores).suffix.lower() != ".npy":
         raise InputError(args.scores, "scores are saved as .npy; give a path ending in .npy")
     inputs = [resolve_scene(args.input)] + ([Path(args.cameras)] if args.cameras else [])
-    check_outputs([out] + ([Path(args.scores)] if args.scores is not None else []), inputs)
+    check_outputs(files + ([Path(args.scores)] if args.scores is not None else []), inputs)
     if args.scores is not None and Path(args.scores).resolve() == out.resolve():
         raise InputError(args.scores, "the scores file and the pruned scene are the same path")
 

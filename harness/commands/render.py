@@ -153,7 +153,8 @@ def run(args) -> int:
         raise InputError(err.filename or out, f"cannot write: {err.strerror or err}") from None
     finally:
         renderer.close()
+    name_width = max((len(r["view"]) for r in record), default=0)  # names left-aligned: no blank first column
     for r in record:
-        print(f"{r['view']:>24}  {r['width']}x{r['height']}  coverage {100 * r['coverage']:5.1f}%")
+        print(f"{r['view']:<{name_width}}  {r['width']}x{r['height']}  coverage {100 * r['coverage']:5.1f}%")
     print(f"wrote {len(cams)} views ({origin}), contact_sheet.png, cameras.json and coverage.json to {out}")
     return 0

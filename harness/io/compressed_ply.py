@@ -196,6 +196,26 @@ def _pack_rotation(quats: np.ndarray) -> np.ndarray:
         | (others[:, 1] << np.uint32(10)) | others[:, 2]
 
 
+def position_error(means: np.ndarray) -> np.ndarray:
+    """How far writing moves each centre (max over axes, scene order): its chunk's range at 11/10/11 bits."""
+    n = len(means)
+    if n == 0:
+        return np.zeros(0)
+    order = morton_order(means)
+    m = np.asarray(means, np.float32)[order]
+    lo, hi = _chunk_ranges(m)
+    t = _normalise(m.astype(np.float64), lo, hi)
+    ci = np.arange(n) // CHUNK
+    moved = np.zeros(n)
+    for axis, bits in enumerate((11, 10, 11)):
+        a, b = lo[ci, axis].astype(np.float64), hi[ci, axis].astype(np.float64)
+        u = _pack_unorm(t[:, axis], bits) / ((1 << bits) - 1)
+        moved = np.maximum(moved, np.abs(a * (1 - u) + b * u - m[:, axis]))
+    out = np.empty(n)
+    out[order] = moved
+    return out
+
+
 def encode_compressed_ply(scene: GaussianScene, comments=None, preamble=None) -> tuple[list, np.ndarray]:
     """(header bytes and data arrays, row order): file row ``j`` holds ``scene`` row ``order[j]``.
     Header comments default to the scene's own (``scene.meta``), each before or after ``format``."""

@@ -11,9 +11,15 @@
 * ``modules``: the source that reading it runs. Every registered format's modules version the
   cached scene stages (:func:`reader_modules`, the run toolkit's ``reader_modules``), so an edit to
   a reader invalidates what it read — no list to keep in step by hand.
-* ``ending`` + ``write(scene, path, **options)`` (+ ``loses``: "" when lossless): a writable format,
-  chosen by the output's name (:mod:`harness.io.writers`); a read-only one may say why it is not
-  written (``not_written``) for the names in ``endings``.
+* ``ending`` (one name ending or several) + ``write(scene, path, **options)``: a writable format,
+  chosen by the output's name (:mod:`harness.io.writers`). ``loses``: what writing a scene loses,
+  text or ``loses(scene) -> str`` naming only what that scene has ("" when nothing: an SH-0 scene
+  loses no SH). ``position_error(means) -> (N,)``: how far the format moves each centre (a
+  quantising format), so that a writer moving splats by more than a stated bound because of
+  outliers is reported (:mod:`harness.io.outliers`). ``outputs(path) -> [paths]``: every file
+  written (default: the path). Names in ``endings`` that are read but not written are refused,
+  with ``not_written`` saying why, even where a writable ending matches too (``lod-meta.json``
+  ends in ``meta.json``).
 
 Built-ins below; third-party packages add formats through the ``harness.formats`` entry-point group
 (a module whose import calls :func:`register_format`).
@@ -27,6 +33,7 @@ from functools import cached_property
 from pathlib import Path
 
 from harness.core.registry import Registry
+from harness.io import losses
 from harness.io.safe import open_regular
 
 ENTRY_POINT_GROUP = "harness.formats"
@@ -73,13 +80,16 @@ class SceneFormat:
     read: Callable
     modules: tuple[str, ...]
     lod_levels: Callable | None = None
-    ending: str | None = None
+    #: the name endings that select this format's writer
+    ending: tuple[str, ...] = ()
     write: Callable | None = None
-    loses: str = ""
-    #: names (endings) this read-only format is recognised by, and why it is not written
+    loses: str | Callable = ""
+    #: names (endings) recognised but not written, and why not
     endings: tuple[str, ...] = ()
     short: str = ""
     not_written: str = ""
+    position_error: Callable | None = None
+    outputs: Callable | None = None
 
 
 FORMATS: Registry[SceneFormat] = Registry("scene format", group=ENTRY_POINT_GROUP)
@@ -93,18 +103,21 @@ def register_format(
     read: Callable,
     modules: tuple[str, ...],
     lod_levels: Callable | None = None,
-    ending: str | None = None,
+    ending: str | tuple[str, ...] | None = None,
     write: Callable | None = None,
-    loses: str = "",
+    loses: str | Callable = "",
     endings: tuple[str, ...] = (),
     short: str = "",
     not_written: str = "",
+    position_error: Callable | None = None,
+    outputs: Callable | None = None,
 ) -> SceneFormat:
     """Register scene format ``kind`` (module docstring)."""
     if (ending is None) != (write is None):
         raise ValueError(f"format {kind!r}: give both ending= and write=, or neither")
-    fmt = SceneFormat(kind, label, detect, read, tuple(modules), lod_levels, ending, write, loses, tuple(endings),
-                      short or label, not_written)
+    written = () if ending is None else (ending,) if isinstance(ending, str) else tuple(ending)
+    fmt = SceneFormat(kind, label, detect, read, tuple(modules), lod_levels, written, write, loses, tuple(endings),
+                      short or label, not_written, position_error, outputs)
     same = lambda a, b: (a.kind, a.detect.__qualname__, a.read.__qualname__) == \
         (b.kind, b.detect.__qualname__, b.read.__qualname__)  # noqa: E731
     FORMATS.add(kind, fmt, same=same)
@@ -150,6 +163,12 @@ def _write_compressed_ply(scene, path, *, comments=None, **_):
     write_compressed_ply(scene, path, comments=comments)
 
 
+def _compressed_ply_error(means):
+    from harness.io.compressed_ply import position_error
+
+    return position_error(means)
+
+
 def _spz(p: Probe) -> str | None:
     from harness.io import spz
 
@@ -168,7 +187,13 @@ def _read_spz(path, lod=None):
 def _write_spz(scene, path, *, spz_version=None, **_):
     from harness.io.spz_write import DEFAULT_VERSION, write_spz
 
-    write_spz(scene, path, spz_version or DEFAULT_VERSION)
+    write_spz(scene, path, DEFAULT_VERSION if spz_version is None else spz_version)
+
+
+def _spz_error(means):
+    from harness.io.spz_write import position_error
+
+    return position_error(means)
 
 
 def _zip_has_meta(path: Path) -> bool:
@@ -203,6 +228,24 @@ def _sog_levels(path):
     from harness.io.sog import lod_levels
 
     return lod_levels(path)
+
+
+def _write_sog(scene, path, **_):
+    from harness.io.sog_write import write_sog
+
+    write_sog(scene, path)
+
+
+def _sog_error(means):
+    from harness.io.sog_write import position_error
+
+    return position_error(means)
+
+
+def _sog_outputs(path):
+    from harness.io.sog_write import output_files
+
+    return output_files(path)
 
 
 def _ksplat(p: Probe) -> str | None:
@@ -243,19 +286,17 @@ def _write_splat(scene, path, **_):
 
 register_format("compressed-ply", label="PlayCanvas compressed.ply", detect=_compressed_ply, read=_read_ply,
                 modules=("harness.io.ply", "harness.io.compressed_ply"), ending=".compressed.ply",
-                write=_write_compressed_ply, loses="quantised, Morton-reordered, extra properties dropped")
+                write=_write_compressed_ply, loses=losses.compressed_ply, position_error=_compressed_ply_error)
 register_format("ply", label="INRIA 3DGS .ply", detect=_ply, read=_read_ply, modules=("harness.io.ply",),
                 ending=".ply", write=_write_ply)
 register_format("spz", label="Niantic .spz", detect=_spz, read=_read_spz, modules=("harness.io.spz",),
-                ending=".spz", write=_write_spz,
-                loses="quantised (12-bit fixed-point positions, 8-bit scales/colour/opacity, 4-5-bit SH), "
-                      "extra properties dropped")
-register_format("sog", label="PlayCanvas SOG", detect=_sog, read=_read_sog, modules=("harness.io.sog",),
-                lod_levels=_sog_levels,
-                endings=(".sog", "meta.json"), short="SOG",
-                not_written=" (see harness/io/writers.py; splat-transform writes it)")
+                ending=".spz", write=_write_spz, loses=losses.spz, position_error=_spz_error)
+register_format("sog", label="PlayCanvas SOG", detect=_sog, read=_read_sog,
+                modules=("harness.io.sog", "harness.io.sog_files"),
+                lod_levels=_sog_levels, ending=(".sog", "meta.json"), write=_write_sog, loses=losses.sog,
+                position_error=_sog_error, outputs=_sog_outputs, endings=("lod-meta.json",), short="streamed SOG",
+                not_written=" (level-of-detail sets are not written; write one level as .sog or meta.json)")
 register_format("ksplat", label="mkkellogg .ksplat", detect=_ksplat, read=_read_ksplat, modules=("harness.io.ksplat",),
                 endings=(".ksplat",), short=".ksplat")
 register_format("splat", label="antimatter15 .splat", detect=_splat, read=_read_splat, modules=("harness.io.splat",),
-                ending=".splat", write=_write_splat,
-                loses="SH degree > 0 dropped, 8-bit colour, opacity and rotation")
+                ending=".splat", write=_write_splat, loses=losses.splat)

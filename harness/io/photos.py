@@ -71,15 +71,17 @@ def photo_size(path: Path) -> tuple[int, int]:
     """(width, height) from the image header."""
     from PIL import Image, UnidentifiedImageError
 
-    from harness.io.safe import open_regular
+    from harness.io.safe import open_regular, pillow_problem
 
-    try:
-        with open_regular(path, "image", "photo") as f, Image.open(f) as im:
-            if im.format not in ("PNG", "JPEG"):
-                raise InputError(path, f"is a {im.format} image; photos are PNG or JPEG")
-            w, h = im.size
-    except (UnidentifiedImageError, OSError, SyntaxError, ValueError, Image.DecompressionBombError) as err:
-        raise InputError(path, f"not a readable photo: {err}") from None
+    with open_regular(path, "image", "photo") as f:
+        try:
+            with Image.open(f) as im:
+                if im.format not in ("PNG", "JPEG"):
+                    raise InputError(path, f"is a {im.format} image; photos are PNG or JPEG")
+                w, h = im.size
+        except (UnidentifiedImageError, OSError, SyntaxError, ValueError, Image.DecompressionBombError) as err:
+            f.seek(0)
+            raise InputError(path, f"not a readable photo: {pillow_problem(err, f.read(24))}") from None
     if w > MAX_SIDE or h > MAX_SIDE or w * h > MAX_PIXELS:
         raise InputError(path, f"photo is {w}x{h} pixels, larger than the maximum ({MAX_SIDE} per side)")
     return w, h
@@ -119,17 +121,18 @@ def read_photo(path: Path, width: int, height: int) -> np.ndarray:
     """The photo as float32 (height, width, 3) in [0, 1], area-averaged to that size."""
     from PIL import Image, UnidentifiedImageError
 
-    from harness.io.safe import read_bytes
+    from harness.io.safe import pillow_problem, read_bytes
 
     photo_size(path)  # header checks before decoding
+    data = read_bytes(path, "image", "photo")
     try:
-        with Image.open(io.BytesIO(read_bytes(path, "image", "photo"))) as im:
+        with Image.open(io.BytesIO(data)) as im:
             im.load()
             if im.mode not in ("RGB", "L", "RGBA", "LA", "P"):
                 raise InputError(path, f"photo mode {im.mode} is not 8-bit colour or grey")
             rgb = np.asarray(im.convert("RGB"), np.float32) / np.float32(255.0)
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError, Image.DecompressionBombError) as err:
-        raise InputError(path, f"not a readable photo: {err}") from None
+        raise InputError(path, f"not a readable photo: {pillow_problem(err, data[:24])}") from None
     if rgb.shape[:2] == (height, width):
         return rgb
     if width > rgb.shape[1] or height > rgb.shape[0]:

@@ -15,7 +15,11 @@ Rules (issue 15):
   climbs out, and symlinks that lead out are refused.
 * **JSON**: bounded size; nesting too deep for the parser is an error, not a RecursionError.
 * **Images** (:func:`open_image`, :func:`image_size`): bytes read as above, the pixel count taken
-  from the header and checked against the maximum render size before anything is decoded.
+  from the header and checked against the maximum render size before anything is decoded. As every
+  image reader checks that count itself, Pillow's ``DecompressionBombWarning`` (printed for an image
+  above its own limit, before our check refuses it or for a large photo that is fine) is silenced
+  for the whole process once this module is imported; its ``DecompressionBombError`` still refuses.
+  :func:`pillow_problem` words what Pillow could not open (an empty PNG, an unknown format).
 * **What a command read is remembered** (:func:`recording_inputs`): while a CLI command runs,
   every file opened here is recorded by its identity ``(st_dev, st_ino)`` taken from the open
   descriptor, with the path the user gave. :mod:`harness.io.files` refuses to replace any of them,
@@ -34,6 +38,7 @@ from __future__ import annotations
 import json
 import os
 import stat
+import warnings
 from contextlib import contextmanager
 from pathlib import Path
 from typing import BinaryIO
@@ -41,6 +46,10 @@ from typing import BinaryIO
 from harness.core.errors import InputError
 
 KiB, MiB, GiB = 1 << 10, 1 << 20, 1 << 30
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+# Pillow's DecompressionBombWarning (a RuntimeWarning): the readers check pixel counts themselves
+warnings.filterwarnings("ignore", message=r"Image size \(\d+ pixels\) exceeds limit", category=RuntimeWarning)
 
 #: default size caps (bytes) per kind of file
 LIMITS = {
@@ -361,9 +370,24 @@ def image_size(path: str | Path, what: str = "image") -> tuple[int, int]:
         except Image.DecompressionBombError as err:
             raise InputError(path, _bomb(err)) from None
         except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as err:
-            raise InputError(path, f"not a readable image: {' '.join(str(err).split())[:160]}") from None
+            f.seek(0)
+            raise InputError(path, f"not a readable image: {pillow_problem(err, f.read(24))}") from None
     _check_pixels(path, w, h, None)
     return w, h
+
+
+def pillow_problem(err: BaseException, head: bytes = b"") -> str:
+    """What Pillow could not open, in one line: a PNG whose header says 0 pixels wide or high (which
+    Pillow reports as unidentified) is called empty; "cannot identify image file <_io.BytesIO object
+    at 0x…>" loses the object; anything else is Pillow's message (160 characters at most)."""
+    if head[:8] == PNG_SIGNATURE and head[12:16] == b"IHDR" and len(head) >= 24:
+        w, h = int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+        if w == 0 or h == 0:
+            return f"the PNG header says {w}x{h} pixels (an empty image)"
+    text = " ".join(str(err).split())
+    if text.startswith("cannot identify image file"):
+        return "not an image format Pillow knows (or truncated, or empty)"
+    return text[:160]
 
 
 def _bomb(err) -> str:
@@ -398,4 +422,4 @@ def open_image(path: str | Path, what: str = "image", mode: str | None = "RGB", 
     except Image.DecompressionBombError as err:
         raise InputError(path, _bomb(err)) from None
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as err:
-        raise InputError(path, f"not a readable image: {' '.join(str(err).split())[:160]}") from None
+        raise InputError(path, f"not a readable image: {pillow_problem(err, data[:24])}") from None

@@ -118,23 +118,37 @@ def load_scene(path_or_name, *, lod: int | str | None = None, drop_nonfinite: bo
 def write_scene(scene: GaussianScene, path, *, comments=None, sibr_layout: bool = False,
                 spz_version: int | None = None) -> Path:
     """Write ``scene`` atomically in the format its name asks for (:mod:`harness.io.writers`:
-    ``.ply`` lossless, ``.compressed.ply``, ``.splat``, ``.spz`` lossy); returns the path.
+    ``.ply`` lossless, ``.compressed.ply``, ``.splat``, ``.spz``, SOG ``.sog``/``meta.json`` lossy);
+    returns the path.
 
     A ``.ply`` or ``.compressed.ply`` keeps the scene's header comments (``scene.meta``; ``comments``
     replaces those after the ``format`` line); ``sibr_layout`` applies to ``.ply``, see
     :mod:`harness.io.ply`; ``spz_version`` to ``.spz`` (default 4).
     """
-    from harness.io.writers import writer_for
+    from harness.io.writers import write, writer_for
 
     path = Path(path)
-    writer = writer_for(path)
+    writer_for(path)
     if not path.parent.is_dir():
         raise InputError(path, "output folder does not exist")
     try:
-        writer.write(scene, path, comments=comments, sibr_layout=sibr_layout, spz_version=spz_version)
+        write(scene, path, comments=comments, sibr_layout=sibr_layout, spz_version=spz_version)
     except OSError as err:  # permission, read-only or full disk: the temp file is already gone
         raise InputError(path, f"cannot write: {err.strerror or err}") from None
     return path
+
+
+def scene_files(path) -> list[Path]:
+    """Every file a scene at ``path`` consists of: a folder's files, a SOG ``meta.json`` and the
+    textures it names, a ``lod-meta.json`` and its folder's files, or the file itself."""
+    p = Path(path)
+    if p.is_dir() or (p.name.endswith("lod-meta.json") and p.is_file()):
+        return sorted(f for f in (p if p.is_dir() else p.parent).rglob("*") if f.is_file())
+    if p.name.endswith("meta.json") and p.is_file():
+        from harness.io.sog_files import named_files
+
+        return [p] + [f for f in named_files(p) if f.is_file()]
+    return [p]
 
 
 def _stats(x: np.ndarray) -> dict:
@@ -169,7 +183,5 @@ def describe_scene(scene: GaussianScene, path=None, *, fmt: str | None = None, l
         "memory_bytes": scene.nbytes,
     }
     if path is not None:
-        p = Path(path)
-        files = [f for f in p.rglob("*") if f.is_file()] if p.is_dir() else [p]
-        info["file_bytes"] = int(sum(f.stat().st_size for f in files))
+        info["file_bytes"] = int(sum(f.stat().st_size for f in scene_files(path)))
     return info

@@ -25,141 +25,34 @@ taken in file order then offset order. ``lod=None`` means level 0 (the full-deta
 The optional ``environment`` SOG is not read.
 
 Inputs accepted: a folder holding ``lod-meta.json`` or ``meta.json``, either JSON file, or a
-``.sog`` zip bundle. Images are decoded with Pillow; lossy WebP is rejected because the codes
-must be exact.
-
-Safety (issue 15): every file a SOG set names is read through :mod:`harness.io.safe` — regular
-files only, size-capped — and must lie inside the scene's folder (the folder of the ``meta.json``
-or ``lod-meta.json`` given): absolute names, ``..`` climbing out and symlinks leading out are
-refused. Sizes are bounded before decoding: an image may hold at most :data:`MAX_PIXELS` pixels
-and at most ``2·count + 65536`` when the splat count is known; LOD references must be integers
-(``offset ≥ 0``, ``count ≥ 0``), name a listed file, and the ranges of one level may not overlap,
-so a level holds each stored splat at most once (no expansion beyond the referenced data).
+``.sog`` zip bundle. Its files are read by :mod:`harness.io.sog_files`: confined to the scene's
+folder, regular, and bounded before anything is inflated or decoded (lossy WebP refused: the codes
+must be exact). LOD references must be integers (``offset ≥ 0``, ``count ≥ 0``), name a listed
+file, and the ranges of one level may not overlap, so a level holds each stored splat at most once
+(no expansion beyond the referenced data). The writer is :mod:`harness.io.sog_write`.
 """
 
 from __future__ import annotations
 
-import io
 import posixpath
 import zipfile
 from pathlib import Path
-from typing import Self
 
 import numpy as np
 
 from harness.core.errors import InputError
 from harness.core.scene import SH_REST_COUNT, GaussianScene
+from harness.io.sog_files import MAX_PIXELS, SogFiles
 
 _SQRT2 = np.sqrt(2.0)
 _OPACITY_EPS = 1e-6
-#: most splats one SOG file may declare, and most pixels one texture may decode to (64 Mi: a
-#: 8192x8192 texture, ~20x the largest published scenes; WebP itself stops at 16383x16383)
-MAX_PIXELS = 1 << 26
 _MAX_COUNT = MAX_PIXELS
 _MAX_LOD_LEVELS = 64
 _MAX_TREE_NODES = 10_000_000
 _MAX_META_VALUE = 1e30  # codebooks / ranges beyond this overflow float32 maths downstream
 
 
-class _Files:
-    """Reads sibling files of a SOG set from a folder or a ``.sog`` zip."""
-
-    def __init__(self, root: Path, zip_path: Path | None = None, top: str | None = None):
-        from harness.io.safe import open_regular
-
-        self.root, self.zip_path = root, zip_path
-        self.top = top  # the metadata file the user named: read as given (the folder is its own)
-        self._handle = open_regular(zip_path, "scene", ".sog bundle") if zip_path else None
-        try:
-            self._zip = zipfile.ZipFile(self._handle) if zip_path else None
-        except BaseException:
-            self._handle.close()
-            raise
-
-    def __enter__(self) -> Self:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        if self._zip:
-            self._zip.close()
-        if self._handle:
-            self._handle.close()
-
-    def label(self, name: str) -> str:
-        return f"{self.zip_path}:{name}" if self._zip else str(self.root / name)
-
-    def read(self, name: str) -> bytes:
-        from harness.io.safe import confined, read_bytes
-
-        if not isinstance(name, str) or not name:
-            raise InputError(self.label(str(name)), "bad file name in the SOG metadata")
-        try:
-            if self._zip:
-                info = self._zip.getinfo(name)
-                if info.file_size > _limit("image"):
-                    raise InputError(self.label(name), f"is {info.file_size:,} bytes uncompressed, over the limit")
-                return self._zip.read(info)
-            kind = "json" if name.endswith(".json") else "image"
-            path = self.root / name if name == self.top else confined(self.root, name, self.label(name))
-            if not path.exists():
-                raise InputError(self.label(name), "missing (referenced by the SOG metadata)")
-            return read_bytes(path, kind, "SOG file")
-        except KeyError:
-            raise InputError(self.label(name), "missing from the .sog bundle") from None
-        except (zipfile.BadZipFile, OSError, RuntimeError) as err:
-            raise InputError(self.label(name), f"cannot read: {getattr(err, 'strerror', None) or err}") from None
-
-    def json(self, name: str) -> dict:
-        from harness.io.safe import parse_json
-
-        meta = parse_json(self.read(name), self.label(name))
-        if not isinstance(meta, dict):
-            raise InputError(self.label(name), "expected a JSON object")
-        return meta
-
-    def image(self, name: str, count: int | None) -> np.ndarray:
-        """(H, W, 4) uint8 pixels; checks there are at least ``count`` of them (and not too many)."""
-        from PIL import Image, UnidentifiedImageError
-
-        data = self.read(name)
-        if _is_lossy_webp(data):
-            raise InputError(self.label(name), "lossy WebP image; SOG codes need lossless images")
-        bound = MAX_PIXELS if count is None else min(MAX_PIXELS, 2 * count + 65536)
-        try:
-            with Image.open(io.BytesIO(data)) as img:
-                w, h = img.size
-                if w * h > bound:  # checked on the header, before decoding
-                    raise InputError(self.label(name), f"image is {w}x{h} pixels, more than the {bound:,} "
-                                                       f"allowed{'' if count is None else f' for {count} splats'}")
-                pixels = np.asarray(img.convert("RGBA"))
-        except (UnidentifiedImageError, OSError, ValueError, Image.DecompressionBombError) as err:
-            raise InputError(self.label(name), f"cannot decode image ({err})") from None
-        if count is not None and pixels.shape[0] * pixels.shape[1] < count:
-            raise InputError(self.label(name), f"image has {pixels.shape[1]}x{pixels.shape[0]} pixels, "
-                                               f"fewer than the {count} splats declared")
-        return pixels
-
-
-def _limit(kind: str) -> int:
-    from harness.io.safe import limit
-
-    return limit(kind)
-
-
-def _is_lossy_webp(data: bytes) -> bool:
-    """True for a RIFF/WEBP whose image chunk is ``VP8 `` (lossy) rather than ``VP8L``."""
-    if data[:4] != b"RIFF" or data[8:12] != b"WEBP":
-        return False
-    pos = 12
-    while pos + 8 <= len(data):
-        fourcc, size = data[pos:pos + 4], int.from_bytes(data[pos + 4:pos + 8], "little")
-        if fourcc in (b"VP8 ", b"VP8L"):
-            return fourcc == b"VP8 "
-        pos += 8 + size + (size & 1)
-    return False
-
-
-def _get(meta: dict, files: _Files, name: str, *keys):
+def _get(meta: dict, files: SogFiles, name: str, *keys):
     """``meta[k0][k1]...``; string keys index objects, integer keys index lists."""
     node = meta
     for key in keys:
@@ -213,7 +106,16 @@ def _decode_quats(px: np.ndarray) -> np.ndarray:
     return q
 
 
-def _read_meta_file(files: _Files, name: str) -> GaussianScene:
+def decode_means(q16: np.ndarray, mins: np.ndarray, maxs: np.ndarray) -> np.ndarray:
+    """Positions (float64) of 16-bit codes (module docstring): the lerp, then ``sign(v)·(e^|v| − 1)``."""
+    mins, maxs = np.asarray(mins, np.float64), np.asarray(maxs, np.float64)
+    span = np.where(maxs - mins == 0, 1.0, maxs - mins)
+    v = mins + span * (np.asarray(q16, np.float64) / 65535.0)
+    with np.errstate(over="ignore"):
+        return np.sign(v) * np.expm1(np.abs(v))
+
+
+def _read_meta_file(files: SogFiles, name: str) -> GaussianScene:
     meta = files.json(name)
     if meta.get("version") != 2:
         raise InputError(files.label(name), f"unsupported SOG version {meta.get('version')!r} (only version 2)")
@@ -230,10 +132,7 @@ def _read_meta_file(files: _Files, name: str) -> GaussianScene:
     q16 = lo[:, :3].astype(np.float64) + 256.0 * hi[:, :3]
     mins = _numbers(meta, files, name, "means", "mins", length=3)
     maxs = _numbers(meta, files, name, "means", "maxs", length=3)
-    span = np.where(maxs - mins == 0, 1.0, maxs - mins)
-    v = mins + span * (q16 / 65535.0)
-    with np.errstate(over="ignore"):
-        means = np.sign(v) * np.expm1(np.abs(v))
+    means = decode_means(q16, mins, maxs)
     if not np.all(np.isfinite(means.astype(np.float32))):
         raise InputError(files.label(name), "'means.mins/maxs' decode to positions outside float32 range")
 
@@ -249,7 +148,7 @@ def _read_meta_file(files: _Files, name: str) -> GaussianScene:
     return GaussianScene.from_arrays(means, scales_log, quats, opacity_logit, sh_dc, sh_rest)
 
 
-def _decode_sh_rest(meta: dict, files: _Files, name: str, count: int, folder: str) -> np.ndarray:
+def _decode_sh_rest(meta: dict, files: SogFiles, name: str, count: int, folder: str) -> np.ndarray:
     bands = _get(meta, files, name, "shN", "bands")
     if bands not in (1, 2, 3):
         raise InputError(files.label(name), f"'shN.bands' is {bands!r}, expected 1, 2 or 3")
@@ -259,7 +158,7 @@ def _decode_sh_rest(meta: dict, files: _Files, name: str, count: int, folder: st
         raise InputError(files.label(name), f"'shN.count' is {palette!r}, expected 1..65536 palette entries")
     book = _codebook(meta, files, name, "shN")
     cent_name, label_name = (posixpath.join(folder, _file_name(meta, files, name, "shN", "files", i)) for i in (0, 1))
-    cent = files.image(cent_name, None)
+    cent = files.image(cent_name, None, pixels=64 * k * -(-palette // 64))
     if cent.shape[1] != 64 * k or cent.shape[0] * 64 < palette:
         raise InputError(files.label(cent_name), f"SH centroid image is {cent.shape[1]}x{cent.shape[0]}; "
                                                  f"expected width {64 * k} and room for {palette} entries")
@@ -286,7 +185,7 @@ def lod_levels(path: str | Path) -> int | None:
         return _levels(files.json(meta_name), files, meta_name) if is_lod else None
 
 
-def _levels(meta: dict, files: _Files, name: str) -> int:
+def _levels(meta: dict, files: SogFiles, name: str) -> int:
     levels = _get(meta, files, name, "lodLevels")
     if not _is_int(levels) or not 1 <= levels <= _MAX_LOD_LEVELS:
         raise InputError(files.label(name), f"bad lodLevels {levels!r} (expected an integer 1..{_MAX_LOD_LEVELS})")
@@ -297,7 +196,7 @@ def _is_int(v) -> bool:
     return isinstance(v, int) and not isinstance(v, bool)
 
 
-def _lod_refs(meta: dict, files: _Files, name: str, level: int) -> dict[int, list[tuple[int, int]]]:
+def _lod_refs(meta: dict, files: SogFiles, name: str, level: int) -> dict[int, list[tuple[int, int]]]:
     """{file index: [(offset, count)]} of one level; every reference checked (module docstring)."""
     refs: dict[int, list[tuple[int, int]]] = {}
     stack = [_get(meta, files, name, "tree")]
@@ -336,7 +235,7 @@ def _lod_refs(meta: dict, files: _Files, name: str, level: int) -> dict[int, lis
     return refs
 
 
-def _read_lod_level(files: _Files, name: str, meta: dict, level: int) -> GaussianScene:
+def _read_lod_level(files: SogFiles, name: str, meta: dict, level: int) -> GaussianScene:
     filenames = _get(meta, files, name, "filenames")
     if not isinstance(filenames, list) or not all(isinstance(f, str) and f for f in filenames):
         raise InputError(files.label(name), "'filenames' must be a list of file names")
@@ -357,19 +256,19 @@ def _read_lod_level(files: _Files, name: str, meta: dict, level: int) -> Gaussia
     return parts[0] if len(parts) == 1 else concat_scenes(parts)
 
 
-def _open(path: Path) -> tuple[_Files, str, bool]:
+def _open(path: Path) -> tuple[SogFiles, str, bool]:
     """(file access, metadata file name, whether it is a lod-meta.json)."""
     if path.is_dir():
         for meta_name, is_lod in (("lod-meta.json", True), ("meta.json", False)):
             if (path / meta_name).is_file():
-                return _Files(path, top=meta_name), meta_name, is_lod
+                return SogFiles(path, top=meta_name), meta_name, is_lod
         raise InputError(path, "folder holds neither lod-meta.json nor meta.json (not a SOG scene)")
     if path.suffix.lower() == ".sog":
         try:
-            return _Files(path.parent, path), "meta.json", False
+            return SogFiles(path.parent, path), "meta.json", False
         except zipfile.BadZipFile:
             raise InputError(path, "not a valid .sog zip bundle") from None
-    return _Files(path.parent, top=path.name), path.name, path.name.endswith("lod-meta.json")
+    return SogFiles(path.parent, top=path.name), path.name, path.name.endswith("lod-meta.json")
 
 
 def read_sog(path: str | Path, lod: int | str | None = None) -> GaussianScene:
@@ -384,7 +283,7 @@ def read_sog(path: str | Path, lod: int | str | None = None) -> GaussianScene:
         return _read_lod_set(path, files, meta_name, lod)
 
 
-def _read_lod_set(path: Path, files: _Files, meta_name: str, lod) -> GaussianScene:
+def _read_lod_set(path: Path, files: SogFiles, meta_name: str, lod) -> GaussianScene:
     meta = files.json(meta_name)
     levels = _levels(meta, files, meta_name)
     if lod == "all":

@@ -69,6 +69,14 @@ def fractional_bits(means: np.ndarray, source="scene") -> int:
                              f"holds at most {_LIMIT:,} units")
 
 
+def position_error(means: np.ndarray) -> np.ndarray:
+    """How far writing moves each centre (max over axes): ``|round(x·2^f)/2^f − x|``."""
+    bits = fractional_bits(means)
+    m = np.asarray(means, _F)
+    fixed = round_half_away(m * _F(1 << bits)).astype(np.float64)
+    return np.abs(fixed / (1 << bits) - m).max(1, initial=0.0)
+
+
 def _positions(means: np.ndarray, bits: int) -> np.ndarray:
     fixed = round_half_away(np.asarray(means, _F) * _F(1 << bits)).astype(np.int32)
     return np.stack([fixed & 0xFF, (fixed >> 8) & 0xFF, (fixed >> 16) & 0xFF], axis=-1).astype(np.uint8).reshape(-1)
@@ -111,6 +119,9 @@ def _sh(sh_rest: np.ndarray) -> np.ndarray:
 
 def encode_streams(scene: GaussianScene, version: int = DEFAULT_VERSION, source="scene") -> tuple[int, list[bytes]]:
     """(fractional bits, [positions, alphas, colours, scales, rotations, sh]) as stored."""
+    if not isinstance(version, (int, np.integer)) or isinstance(version, bool):
+        raise InputError("spz_version", f"must be an integer ({', '.join(map(str, VERSIONS))}), "
+                                        f"got {version!r} ({type(version).__name__})")
     if version not in VERSIONS:
         raise InputError(source, f"spz version {version} cannot be written (choose {', '.join(map(str, VERSIONS))})")
     bits = fractional_bits(scene.means, source)

@@ -60,6 +60,25 @@ def _check_dims(path, w: int, h: int) -> None:
         raise InputError(path, f"image is {w}x{h} pixels, larger than the maximum ({MAX_SIDE} per side)")
 
 
+def header_size(path: str | Path) -> tuple[int, int] | None:
+    """(width, height) from a PNG's IHDR or a ``.npy`` header, nothing decoded; None when the
+    header says nothing readable (:func:`read_image` then says what is wrong)."""
+    from harness.io.safe import npy_header, open_regular
+
+    path = Path(path)
+    with open_regular(path, "image", "image file") as f:
+        if path.suffix.lower() == ".npy":
+            try:
+                shape = npy_header(f, path)[0]
+            except InputError:
+                return None
+            return (shape[1], shape[0]) if len(shape) >= 2 else None
+        head = f.read(24)
+    if head[:8] == b"\x89PNG\r\n\x1a\n" and head[12:16] == b"IHDR":
+        return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+    return None
+
+
 def read_image(path: str | Path) -> np.ndarray:
     """Read a PNG or ``.npy`` image file as float32 ``(H, W, 3)``."""
     from harness.io.safe import check_regular, load_npy
@@ -81,13 +100,16 @@ def _read_png(path: Path) -> np.ndarray:
 
     from PIL import Image, UnidentifiedImageError
 
-    from harness.io.safe import read_bytes
+    from harness.io.safe import pillow_problem, read_bytes
 
     data = read_bytes(path, "image", "image file")
     head = data[:26]
     # IHDR: signature (8) + length (4) + "IHDR" (4) + width, height (8) + bit depth + colour type
     if len(head) == 26 and head[12:16] == b"IHDR":
-        _check_dims(path, int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big"))
+        w, h = int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+        if w == 0 or h == 0:
+            raise InputError(path, f"image is empty: its PNG header says {w}x{h} pixels")
+        _check_dims(path, w, h)
         if head[24] == 16 and head[25] in (2, 6):
             raise InputError(path, "16-bit colour PNG is not supported (Pillow reads it as 8-bit); save it as .npy")
         if head[24] == 16 and head[25] == 4:
@@ -107,7 +129,7 @@ def _read_png(path: Path) -> np.ndarray:
                 im = im.convert("RGB")
             return np.asarray(im, dtype=np.uint8)
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError, Image.DecompressionBombError) as err:
-        raise InputError(path, f"not a readable PNG image: {err}") from None
+        raise InputError(path, f"not a readable PNG image: {pillow_problem(err, head)}") from None
 
 
 def check_same_size(a: np.ndarray, b: np.ndarray, source_a="first image", source_b="second image") -> None:

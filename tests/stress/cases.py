@@ -66,6 +66,9 @@ class Setup:
     umask: int | None = None                             # the child's umask
     timeout: float = TIMEOUT_S                           # wall-clock limit (a hang past it)
     skip: str | None = None                              # the case cannot be set up here (why)
+    python: str | None = None                            # run this Python code instead of `harness ARGV`
+    stderr_has: str | None = None                        # stderr must say this (a warning, the wording)
+    stderr_lacks: str | None = None                      # ... and must not say this
 
 
 @dataclass
@@ -835,7 +838,8 @@ def run_case(c: Case, root: Path = ROOT, work: Path | None = None) -> dict:
         env = {**os.environ, "PYTHONPATH": str(root), "HARNESS_CACHE": str(hcache), "PYTHONWARNINGS": "ignore",
                **s.env}
         t0 = time.perf_counter()
-        proc = subprocess.Popen([PY, "-m", "harness", *s.argv], cwd=d, env=env, stdout=subprocess.PIPE,
+        command = [PY, "-c", s.python] if s.python is not None else [PY, "-m", "harness", *s.argv]
+        proc = subprocess.Popen(command, cwd=d, env=env, stdout=subprocess.PIPE,
                                 stderr=subprocess.PIPE, stdin=subprocess.DEVNULL,
                                 preexec_fn=_limits(s.fsize, s.mem_limit, s.umask))
         try:
@@ -875,6 +879,10 @@ def classify(c: Case, s: Setup, rc, out: str, err: str, before: dict, d: Path) -
     problem = s.check() if s.check is not None else None
     if problem:
         return problem
+    if s.stderr_has is not None and s.stderr_has not in err:
+        return f"stderr lacks {s.stderr_has!r}"
+    if s.stderr_lacks is not None and s.stderr_lacks in err:
+        return f"stderr says {s.stderr_lacks!r}"
     if c.want == "scene error":  # one scene failed: the run finished, wrote its results and exits 1
         return "scene error" if rc == 1 and (d / "out" / "results.parquet").exists() else \
             f"exit {rc}: {lines[-1][:80] if lines else ''}"
@@ -894,7 +902,7 @@ def classify(c: Case, s: Setup, rc, out: str, err: str, before: dict, d: Path) -
     # `harness run` prints its progress on stderr before a failure: the error is then its last line
     # and the only `harness: ` line
     errors = [ln for ln in lines if ln.startswith("harness: ")]
-    progress_ok = s.argv[0] == "run" and len(errors) == 1 and lines[-1] == errors[0]
+    progress_ok = s.argv[:1] == ["run"] and len(errors) == 1 and lines[-1] == errors[0]
     if rc == 2 and ((len(lines) == 1 and lines[0].startswith("harness: ")) or progress_ok):
         import re
 
@@ -952,8 +960,8 @@ def main(argv=None) -> int:
     return 0 if good == len(results) - skipped else 1
 
 
-# the families of issue 24 (they register into CASES above)
-from tests.stress import cases_issue24  # noqa: E402,F401
+# the families of issue 24, and family M (they register into CASES above)
+from tests.stress import cases_issue24, cases_memory  # noqa: E402,F401
 
 if __name__ == "__main__":
     sys.exit(main())
