@@ -82,7 +82,7 @@ class SceneFormat:
     not_written: str = ""
 
 
-FORMATS: Registry[SceneFormat] = Registry("scene format", group=ENTRY_POINT_GROUP)
+FORMATS: Registry[SceneFormat] = Registry("scene format", modules=(__name__,), group=ENTRY_POINT_GROUP)
 
 
 def register_format(

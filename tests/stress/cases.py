@@ -66,6 +66,8 @@ class Setup:
     umask: int | None = None                             # the child's umask
     timeout: float = TIMEOUT_S                           # wall-clock limit (a hang past it)
     skip: str | None = None                              # the case cannot be set up here (why)
+    path: list[Path] = field(default_factory=list)       # folders on PYTHONPATH after the tree (installed plugins)
+    output_check: Callable[[str, str], "str | None"] | None = None  # a check of (stdout, stderr): a problem or None
 
 
 @dataclass
@@ -832,8 +834,8 @@ def run_case(c: Case, root: Path = ROOT, work: Path | None = None) -> dict:
         for sub in ("weights", "data"):
             if (real / sub).is_dir():
                 (hcache / sub).symlink_to(real / sub)
-        env = {**os.environ, "PYTHONPATH": str(root), "HARNESS_CACHE": str(hcache), "PYTHONWARNINGS": "ignore",
-               **s.env}
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join(map(str, [root, *s.path])), "HARNESS_CACHE": str(hcache),
+               "PYTHONWARNINGS": "ignore", **s.env}
         t0 = time.perf_counter()
         proc = subprocess.Popen([PY, "-m", "harness", *s.argv], cwd=d, env=env, stdout=subprocess.PIPE,
                                 stderr=subprocess.PIPE, stdin=subprocess.DEVNULL,
@@ -872,7 +874,7 @@ def classify(c: Case, s: Setup, rc, out: str, err: str, before: dict, d: Path) -
     wrote = [p for p in s.absent if p.exists()]
     if _tmp_files(d):
         return "tmp left"
-    problem = s.check() if s.check is not None else None
+    problem = (s.check() if s.check is not None else None) or (s.output_check(out, err) if s.output_check else None)
     if problem:
         return problem
     if c.want == "scene error":  # one scene failed: the run finished, wrote its results and exits 1
@@ -952,8 +954,8 @@ def main(argv=None) -> int:
     return 0 if good == len(results) - skipped else 1
 
 
-# the families of issue 24 (they register into CASES above)
-from tests.stress import cases_issue24  # noqa: E402,F401
+# the families of issue 24 and the plugins' (they register into CASES above)
+from tests.stress import cases_issue24, cases_plugins  # noqa: E402,F401
 
 if __name__ == "__main__":
     sys.exit(main())
