@@ -138,14 +138,14 @@ def made_elsewhere(built: dict[str, Built]) -> set[str]:
 
 def tables_html(built: dict[str, Built]) -> str:
     """Every table, folded, grouped by held-out view protocol (each summary names it too)."""
-    from harness.report.summary import PROTOCOL_NOTES
     from harness.report.tables import base_title
+    from harness.views.protocols import notes
 
     out = []
     for proto in dict.fromkeys(b.protocol for b in built.values()):
         if proto:
             out.append(
-                f"<h3>Held-out views: {esc(proto)} <small>({esc(PROTOCOL_NOTES.get(proto, 'a named view protocol'))})"
+                f"<h3>Held-out views: {esc(proto)} <small>({esc(notes(proto))})"
                 "</small></h3>"
             )
         made = made_elsewhere(built)

@@ -2,7 +2,7 @@
 
 Columns (see :func:`columns`): identification (``run, scene, label, kind, frame, method, variant,
 params`` as canonical JSON, ``ratio``, ``keep = 1 - ratio``, ``protocol`` — the held-out view
-protocol, :class:`harness.views.rigs.ViewProtocol`: ``rig`` or e.g. ``shifted`` — ``view``), ``status`` (``ok``,
+protocol, :mod:`harness.views.protocols`: ``rig`` or e.g. ``shifted`` — ``view``), ``status`` (``ok``,
 ``skipped``, ``error``) with ``reason``, one column per registered metric (:func:`metric_columns`:
 ``psnr`` — +inf for identical images — ``ssim``, ``lpips``; the MPEG set ``rgb_psnr, yuv_psnr,
 yuv_ssim, …_om``, the ``gt_`` twins, plugins' metrics; ``occupancy`` % when measured), counts

@@ -13,6 +13,7 @@ import pandas as pd
 
 from harness.metrics import registry
 from harness.report.results import metric_columns
+from harness.views.protocols import PRIMARY
 
 CELL = ["scene", "label", "method", "variant", "ratio"]
 
@@ -70,15 +71,8 @@ def _means(values: pd.Series, keys, finite_only: bool):
     return v.groupby(keys, sort=False, dropna=False)
 
 
-#: the held-out view protocol of the training rig (harness.views.rigs.PROTOCOLS)
-PRIMARY_PROTOCOL = "rig"
-PROTOCOL_NOTES = {"rig": "held-out views of the rig the camera-aware methods train on",
-                  "shifted": "held-out views from another camera distribution (higher rings, narrower field of "
-                             "view, other azimuths) than the camera-aware methods' training views",
-                  "real": "the real capture's held-out cameras; camera-aware methods train on its training cameras; "
-                          "'vs photo' metrics compare with the captured photos, the others with the unpruned render",
-                  "independent": "random held-out views (positions, look-at jitter, fields of view, close-ups) "
-                                 "defined independently of the training rig and of any virtual rig"}
+#: the held-out view protocol of the training rig (:mod:`harness.views.heldout`)
+PRIMARY_PROTOCOL = PRIMARY
 
 
 def protocol_subsets(df: pd.DataFrame) -> list[tuple[str, str, pd.DataFrame]]:

@@ -37,7 +37,7 @@ import pandas as pd
 from harness.core.registry import Registry
 from harness.io.files import atomic_write_text
 from harness.report import bd, catalog, cells, claims, photos, sensitivity
-from harness.report.summary import PROTOCOL_NOTES, protocol_subsets, summarise
+from harness.report.summary import protocol_subsets, summarise
 from harness.report.tabledata import Built, Missing, Table, Written, as_table
 
 #: the runtime table's overhead percentage needs at least this many seconds in its denominator
@@ -166,9 +166,10 @@ def base_title(name: str) -> str:
 def title(name: str, protocol: str) -> str:
     """A table's title, with the held-out view protocol its rows come from (every protocol, the
     primary one too; none only for results that carry no protocol)."""
+    from harness.views.protocols import notes
+
     base = base_title(name)
-    return base + (f" — held-out views: {protocol} ({PROTOCOL_NOTES.get(protocol, 'a named view protocol')})"
-                   if protocol else "")
+    return base + (f" — held-out views: {protocol} ({notes(protocol)})" if protocol else "")
 
 
 def with_caption(t: Table | Missing) -> Table | Missing:

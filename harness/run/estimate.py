@@ -12,12 +12,13 @@ Counting follows the runner's stages (:mod:`harness.run.runner`) and reads no mo
   pruners cost ``score_splat[m] · N``.
 * **prune** — one selection per distinct (score task, ratio): ``select_splat · N`` (serial, driver).
 * **render_ref** — one per (scene, frame, protocol, held-out view): ``render(N, W·H)``.
-* **real** protocol (a scene's capture, :mod:`harness.io.capture`): its held-out cameras at the
-  capture's size (capped at the photos'), measured with the masks of a second training set — a
-  camera-aware pruner scores again on the capture's training cameras (an extra score task and
-  pruned sets), a camera-free one shares its scores — and each image also against the photo:
-  the metric passes again except the LPIPS trunk (its pass is shared), plus once per view for the
-  unpruned render.
+* **view protocols** (:mod:`harness.views.protocols`): each protocol's views as its ``sizes`` says
+  (``n_test`` views of the run's size unless it says otherwise). One that brings its own training
+  set (``real``: a scene's capture, its held-out cameras at the capture's size capped at the
+  photos') is measured with the masks of a second training set — a camera-aware pruner scores again
+  on its training cameras (an extra score task and pruned sets), a camera-free one shares its
+  scores — and views with photos are measured against them too: the metric passes again except
+  the LPIPS trunk (its pass is shared), plus once per view for the unpruned render.
 * **render+metrics** — one image per pruned set × held-out view: ``render(N·keep, W·H)`` plus the
   metric passes of the config's metrics (:func:`metric_passes`: 3dgs = PSNR + SSIM + LPIPS; mpeg =
   4 PSNR-like passes on 8-bit images + 2 SSIM passes, YUV and occupancy-masked) plus
@@ -76,16 +77,40 @@ class Assumptions:
 
 
 @dataclass
+class OwnViews:
+    """A protocol's held-out views (W, H) measured with a training set of its own (``train``), and
+    whether they are measured against photos too."""
+
+    protocol: str
+    views: list[tuple[int, int]]
+    train: list[tuple[int, int]]
+    photos: bool = False
+
+
+@dataclass
 class SceneInfo:
     name: str
     status: str                    # "read" or "assumed"
     note: str                      # what was read, or why it is assumed
     splats: list[int]              # per frame
-    views: list[tuple[int, int]]   # (W, H) of every held-out view, all protocols
-    train: list[tuple[int, int]]   # (W, H) of the views handed to camera-aware pruners
-    #: the ``real`` protocol's held-out views and training cameras (W, H): measured against photos too
-    real_views: list[tuple[int, int]] = field(default_factory=list)
-    real_train: list[tuple[int, int]] = field(default_factory=list)
+    views: list[tuple[int, int]]   # (W, H) of the held-out views measured with the scene's training views
+    train: list[tuple[int, int]]   # (W, H) of the scene's training views, handed to camera-aware pruners
+    #: the protocol of each of ``views`` (default: the run's first)
+    protocols: list[str] = field(default_factory=list)
+    #: the protocols that bring a training set of their own (``real``: the capture's cameras)
+    own: list[OwnViews] = field(default_factory=list)
+
+    def view_protocols(self, default: str) -> list[str]:
+        """The protocol of every held-out view: ``views`` (``default`` where ``protocols`` says none),
+        then each of ``own`` in turn."""
+        named = list(self.protocols[:len(self.views)]) + [default] * (len(self.views) - len(self.protocols))
+        return named + [o.protocol for o in self.own for _ in o.views]
+
+    def every_view(self) -> list[tuple[int, int]]:
+        return list(self.views) + [v for o in self.own for v in o.views]
+
+    def every_train(self) -> list[tuple[int, int]]:
+        return list(self.train) + [v for o in self.own for v in o.train]
 
 
 @dataclass
@@ -179,7 +204,9 @@ def _sizes(cams) -> list[tuple[int, int]]:
     return [(c.width, c.height) for c in cams]
 
 
-def _present_views(spec, config, toolkit, base, dataset):
+def _own_views(spec, config, toolkit, base, dataset) -> tuple[list, list]:
+    """(held-out, training) sizes of the scene's own views: its MPEG content's, its camera file's,
+    or ``n_test`` and ``n_train`` views of its rig."""
     from harness.run.plan import select_test
 
     if spec.sequence is not None:
@@ -195,32 +222,41 @@ def _present_views(spec, config, toolkit, base, dataset):
         train, test = select_test(cams, spec.cameras)
         return _sizes(test), _sizes(train)
     size = _rig_size(spec, config, dataset)
-    from harness.io.capture import CaptureProtocol
-
-    rig = [p for p in config.protocols if not isinstance(p, CaptureProtocol)]
-    return [size] * (spec.n_test * len(rig)), [size] * spec.n_train * bool(rig)
+    return [size] * spec.n_test, [size] * spec.n_train
 
 
-def _real_views(spec, config, toolkit, base):
-    """(held-out sizes, training sizes) of the ``real`` protocol on a scene, or two empty lists
-    (no such protocol, no capture, or one not on this machine)."""
-    from harness.io import capture as cap
-    from harness.run.captured import capture_spec
+def _protocol_views(spec, config, toolkit, base, own: tuple[list, list], capture: bool = True) -> dict:
+    """The :class:`SceneInfo` fields ``views``, ``train``, ``protocols`` and ``own`` of a scene: each
+    protocol's view sizes (:meth:`harness.views.protocols.Protocol.sizes`), given the scene's own
+    (``own``: held-out, training); without ``capture`` the scene is taken to carry none. A bad
+    capture is an error, not an assumption."""
+    from harness.run.protocol_views import request
 
-    proto = next((p for p in config.protocols if isinstance(p, cap.CaptureProtocol)), None)
-    cs = capture_spec(spec, toolkit) if proto is not None else None
-    if cs is None or (cs.named and cap.capture_root(cs.named) is None):
-        return [], []
-    train, test, _ = cap.protocol_views(cap.load_capture(cs, base), proto, config.protocol.longest_side)
-    return _sizes(test), _sizes(train)
+    req = request(spec, config, toolkit, base, own_sizes=lambda: own[0])
+    if not capture:
+        req.capture = None
+    views, protocols, mine = [], [], []
+    for proto in config.protocols:
+        s = proto.sizes(req)
+        if s is None or not s.test:
+            continue
+        if s.train is None:
+            views += s.test
+            protocols += [proto.name] * len(s.test)
+        else:
+            mine.append(OwnViews(proto.name, s.test, s.train, s.photos))
+    return {"views": views, "train": own[1] if views else [], "protocols": protocols, "own": mine}
 
 
 def _assumed(spec, config, assume: Assumptions, dataset, reason: str) -> SceneInfo:
+    from harness.run.toolkit import Toolkit
+
     frames = 1 if spec.source is not None else assume.frames
     if spec.sequence is None and spec.cameras is None:  # a rig: its views need no scene
-        views, train = _present_views(spec, config, None, Path("."), dataset)
+        own = _own_views(spec, config, None, Path("."), dataset)
         return SceneInfo(spec.name, "assumed", f"{reason}; assumed {frames} frame(s) of {assume.splats:,} splats",
-                         [assume.splats] * frames, views, train)
+                         [assume.splats] * frames,
+                         **_protocol_views(spec, config, Toolkit(), Path("."), own, capture=False))
     n = assume.views or next((v for k, v in KNOWN_VIEWS.items() if k in spec.name.lower()), DEFAULT_VIEWS)
     if spec.sequence is not None:
         size = (spec.width, spec.height) if spec.width else assume.size
@@ -232,7 +268,9 @@ def _assumed(spec, config, assume: Assumptions, dataset, reason: str) -> SceneIn
         n_train, n_test = _split(n, spec.cameras.test, spec.cameras.test_every)
     note = (f"{reason}; assumed {frames} frame(s) × {assume.splats:,} splats, {n} cameras at "
             f"{size[0]}×{size[1]} ({n_test} measured, {n_train} for training)")
-    return SceneInfo(spec.name, "assumed", note, [assume.splats] * frames, [size] * n_test, [size] * n_train)
+    return SceneInfo(spec.name, "assumed", note, [assume.splats] * frames,
+                     **_protocol_views(spec, config, Toolkit(), Path("."), ([size] * n_test, [size] * n_train),
+                                       capture=False))
 
 
 def scene_info(spec: SceneSpec, config: RunConfig, assume: Assumptions, toolkit=None, base: Path | None = None):
@@ -245,13 +283,14 @@ def scene_info(spec: SceneSpec, config: RunConfig, assume: Assumptions, toolkit=
     frames, reason = resolve_paths(spec, toolkit, base)
     reason = reason or cameras_missing(spec, base)
     if not reason:
-        real = _real_views(spec, config, toolkit, base)  # a bad capture is an error, not an assumption
         try:
             splats = [splat_count(Path(p), spec.lod) for _, p in frames]
-            views, train = _present_views(spec, config, toolkit, base, dataset)
-            return SceneInfo(spec.name, "read", f"{len(frames)} frame(s) read", splats, views, train, *real)
+            own = _own_views(spec, config, toolkit, base, dataset)
         except InputError as err:
             reason = f"cannot read it ({err})"
+        else:
+            return SceneInfo(spec.name, "read", f"{len(frames)} frame(s) read", splats,
+                             **_protocol_views(spec, config, toolkit, base, own))
     return _assumed(spec, config, assume, dataset, reason)
 
 
@@ -317,7 +356,7 @@ def estimate(config: RunConfig, infos: list[SceneInfo], units: UnitCosts | None)
     for info in infos:
         tasks = _score_tasks(config, specs[info.name], info, cost.notes)
         keeps = [1.0 - r for _, _, rs in tasks.values() for r in rs]
-        protos = _view_protocols(config, specs[info.name], info)
+        protos = info.view_protocols(config.protocols[0].name)
         by_proto = {p: _keeps(config, specs[info.name], tasks, p) for p in set(protos)}
         before = {k: (s.units, s.core_s) for k, s in st.items()}
         for n in info.splats:
@@ -336,28 +375,13 @@ def _score_tasks(config: RunConfig, spec, info: SceneInfo, notes: set) -> dict[s
     tasks: dict[str, tuple] = {}
     for mv in (m for m in config.methods if m.scenes is None or spec.name in m.scenes):
         pruner = get_pruner(mv.method)
-        if "cameras" in pruner.needs and not (info.train or info.real_train):
+        if "cameras" in pruner.needs and not info.every_train():
             notes.add(f"{spec.name}: {mv.method} needs training cameras and is skipped")
             continue
         key = f"{mv.method}|{sorted(mv.params.to_dict().items())!r}"
         prev = tasks.get(key, (mv, pruner, ()))
         tasks[key] = (prev[0], pruner, tuple(dict.fromkeys(prev[2] + tuple(mv.ratios))))
     return tasks
-
-
-def _view_protocols(config: RunConfig, spec, info: SceneInfo) -> list[str]:
-    """The protocol of each held-out view of ``info`` (``info.views`` then ``info.real_views``): a
-    rig scene's views are ``n_test`` per rig protocol, in the config's order; a scene with its own
-    cameras measures them under the first rig protocol."""
-    from harness.io.capture import CaptureProtocol
-
-    rig = [p.name for p in config.protocols if not isinstance(p, CaptureProtocol)]
-    real = next((p.name for p in config.protocols if isinstance(p, CaptureProtocol)), "real")
-    if rig and spec.sequence is None and spec.cameras is None and len(info.views) == spec.n_test * len(rig):
-        own = [p for p in rig for _ in range(spec.n_test)]
-    else:
-        own = [rig[0] if rig else real] * len(info.views)
-    return own + [real] * len(info.real_views)
 
 
 def _keeps(config: RunConfig, spec, tasks: dict, protocol: str) -> list[float]:
@@ -372,14 +396,15 @@ def _keeps(config: RunConfig, spec, tasks: dict, protocol: str) -> list[float]:
 
 
 def _cost_frame(st: dict, n: int, info: SceneInfo, tasks: dict, keeps: list[list[float]], cost: _Costing) -> None:
-    """Add one frame of ``n`` splats to the stages: its load; per training set (the rig's, and the
-    capture's for the real protocol: :mod:`harness.run.plan`) its score tasks and selections; per
-    held-out view its reference render and one view task measuring the pruned sets of its protocol
-    (``keeps``: their keep fractions, per view of ``info.views`` then ``info.real_views``)."""
+    """Add one frame of ``n`` splats to the stages: its load; per training set (the scene's, and each
+    one a protocol brings: :mod:`harness.run.plan`) its score tasks and selections; per held-out view
+    its reference render and one view task measuring the pruned sets of its protocol (``keeps``:
+    their keep fractions, per view of :meth:`SceneInfo.view_protocols`); views with photos are also
+    measured against them."""
     u = cost.u
-    sets = [(train, views, False) for train, views in ((info.train, info.views),) if views] \
-        + [(info.real_train, info.real_views, True)] * bool(info.real_views)
+    sets = [(info.train, info.views, False)] * bool(info.views) + [(o.train, o.views, o.photos) for o in info.own]
     st["load"].add(1, u.read_splat * n)
+    first = 0
     for j, (train, views, photos) in enumerate(sets):
         for mv, pruner, rs in tasks.values():
             aware = "cameras" in pruner.needs
@@ -390,7 +415,6 @@ def _cost_frame(st: dict, n: int, info: SceneInfo, tasks: dict, keeps: list[list
             st["score"].detail["training_renders"] += renders
             st["score"].detail["camera_aware_tasks"] += aware
             st["prune"].add(len(rs), u.select_splat * n * len(rs), u.select_splat * n)
-        first = 0 if not j and info.views else len(info.views)
         for (w, h), kept in zip(views, keeps[first:first + len(views)]):
             px = w * h
             st["render_ref"].add(1, u.render(n, px), u.render(n, px))
@@ -402,15 +426,16 @@ def _cost_frame(st: dict, n: int, info: SceneInfo, tasks: dict, keeps: list[list
             task = ref_cost + sum(image)  # one task per view
             st["render+metrics"].add(len(kept), task, task)
             st["render+metrics"].detail["view_tasks"] += 1
+        first += len(views)
 
 
 def _scene_row(info: SceneInfo, st: dict, before: dict, n_sets: int) -> dict:
     """The scene's row of the estimate: what was read or assumed, and its share of each stage."""
-    sizes = sorted(set(info.views + info.real_views))
+    sizes = sorted(set(info.every_view()))
     return {"scene": info.name, "status": info.status, "note": info.note, "frames": len(info.splats),
             "splats": round(sum(info.splats) / max(1, len(info.splats))),
-            "views": len(info.views) + len(info.real_views),
-            "train_views": len(info.train) + len(info.real_train),
+            "views": len(info.every_view()),
+            "train_views": len(info.every_train()),
             "size": "/".join(f"{w}×{h}" for w, h in sizes[:3]) + ("/…" if len(sizes) > 3 else ""),
             "score_tasks": st["score"].units - before["score"][0], "sets": n_sets,
             "images": st["render+metrics"].units - before["render+metrics"][0],
