@@ -174,16 +174,21 @@ def _(d):
                  output_check=_warned("broken-table", "harness.tables", "ImportError", alone=False))
 
 
-@case("P10", "plugins", "harness methods with a pruner plugin and a renderer plugin that exit on import", want="ok")
+@case("P10", "plugins", "harness plugins --json with a renderer and a protocol plugin that exit on import", want="ok")
 def _(d):
     site = _plugin(d, "quitting-renderer", "harness.renderers", EXITS)
-    _plugin(d, "quitting-pruner", "harness.pruners", EXITS)
+    _plugin(d, "quitting-protocol", "harness.protocols", EXITS)
 
     def check(out: str, err: str) -> str | None:
         lines = [ln for ln in err.strip().splitlines() if ln.strip()]
-        return None if len(lines) <= 2 and all("quitting-" in ln for ln in lines) else \
-            f"{len(lines)} stderr lines: {lines[-1][:60] if lines else ''}"
-    return Setup(["methods", "--json"], path=[site], strict_json=True, output_check=check)
+        if len(lines) != 2 or not all("quitting-" in ln and "sys.exit(3)" in ln for ln in lines):
+            return f"{len(lines)} stderr lines: {lines[-1][:60] if lines else ''}"
+        try:
+            skipped = {p["distribution"] for p in json.loads(out) if p["status"] == "skipped"}
+        except (ValueError, TypeError, KeyError):
+            return "no JSON list of plugins on stdout"
+        return None if skipped == {"quitting-renderer", "quitting-protocol"} else f"skipped: {sorted(skipped)}"
+    return Setup(["plugins", "--json"], path=[site], strict_json=True, output_check=check)
 
 
 @case("P11", "plugins", "prune --method boom: a plugin pruner that raises while scoring (names the plugin)")
