@@ -189,3 +189,15 @@ def test_the_plugins_command_lists_loaded_and_skipped(site, capsys):
     text = capsys.readouterr().out
     assert "harness.protocols (view protocols): none installed" in text
     assert "skipped  broken-metric 0.1  p = broken_metric  ImportError: needs numpyy" in text
+
+
+def test_the_tools_own_entry_points_are_always_visited(site, tmp_path, monkeypatch):
+    """HARNESS_PLUGINS narrows third-party plugins; an entry point into the tool's own packages (a
+    study's tables, say) is part of the tool."""
+    info = tmp_path / "host_part-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: host-part\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text("[harness.pruners]\nown = methods.simple\n")
+    monkeypatch.setenv(plugins.ENV, "none")
+    PRUNERS.names()
+    assert _visit("host-part").status == "loaded"

@@ -10,9 +10,10 @@ its ``pyproject.toml`` — whose import registers its entries. Importing it is a
   wrong field, a name a built-in or an earlier plugin holds: a plugin never shadows one) — skips the
   plugin: whatever it had registered is taken back, one warning names its distribution and entry
   point (logger ``harness.plugins``), and the built-ins go on working;
-* ``HARNESS_PLUGINS`` chooses the distributions visited: unset, every installed one; ``none``, none;
-  ``a,b``, only those (names compared as PEP 503 normalises them, ``Mae_Metric`` = ``mae-metric``),
-  so a user can shut a broken plugin out and a test can shut out whatever else is installed.
+* ``HARNESS_PLUGINS`` chooses the third-party distributions visited: unset, every installed one;
+  ``none``, none; ``a,b``, only those (names compared as PEP 503 normalises them, ``Mae_Metric`` =
+  ``mae-metric``), so a user can shut a broken plugin out and a test can shut out whatever else is
+  installed. Entry points of the tool's own packages (:data:`HOST_PACKAGES`) are always visited.
 
 :func:`records` lists every visit and its outcome (``harness plugins``); :func:`blame` names the
 plugin whose code raised an exception later, while it worked (a plugin pruner failing as it scores).
@@ -33,6 +34,9 @@ GROUPS = {"harness.pruners": "pruners", "harness.metrics": "metrics", "harness.f
           "harness.tables": "tables", "harness.plots": "plots", "harness.renderers": "renderers",
           "harness.protocols": "view protocols"}
 ENV = "HARNESS_PLUGINS"
+#: the tool's own top-level packages: an entry point into one is the tool's own (always visited), and
+#: owns that module only, not the package (:func:`blame`)
+HOST_PACKAGES = ("harness", "methods", "renderers")
 log = logging.getLogger("harness.plugins")
 
 
@@ -114,10 +118,12 @@ def _distribution(ep: EntryPoint) -> tuple[str, str]:
 
 
 def group_entry_points(group: str) -> list[EntryPoint]:
-    """The entry points of ``group`` that ``HARNESS_PLUGINS`` lets in, in a stable order."""
+    """The entry points of ``group`` that ``HARNESS_PLUGINS`` lets in, in a stable order (the host's
+    own, whose modules live in :data:`HOST_PACKAGES`, always: they are part of the tool)."""
     allowed = chosen()
     eps = sorted(entry_points(group=group), key=lambda ep: (_distribution(ep)[0].lower(), ep.name, ep.value))
-    return [ep for ep in eps if allowed is None or normalise(_distribution(ep)[0]) in allowed]
+    return [ep for ep in eps if allowed is None or normalise(_distribution(ep)[0]) in allowed
+            or _top(ep.value) in HOST_PACKAGES]
 
 
 def visit_group(group: str) -> list[Visit]:
@@ -163,9 +169,8 @@ def records() -> list[Visit]:
     return list(_visits.values())
 
 
-#: the host's own top-level packages: a plugin module inside one (the project's own entry points)
-#: owns that module only, not the package
-HOST_PACKAGES = ("harness", "methods", "renderers")
+def _top(value: str) -> str:
+    return value.split(":", 1)[0].strip().split(".", 1)[0]
 
 
 def _home(value: str) -> str:
