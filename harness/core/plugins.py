@@ -137,7 +137,12 @@ def visit_group(group: str) -> list[Visit]:
 
 
 def visit(ep: EntryPoint, group: str) -> Visit:
-    """Import the module of ``ep`` as a guest (module docstring)."""
+    """Import the module of ``ep`` as a guest (module docstring).
+
+    "A plugin that fails to import, raises, calls ``sys.exit``, or shadows a built-in is skipped with
+    one warning naming its distribution and entry point": at its import — later, while it works, its
+    exception (``sys.exit`` too) is the command's one error line, naming the plugin (:func:`blame`). A
+    plugin taking an earlier plugin's name is skipped like one shadowing a built-in: the first keeps it."""
     dist, version = _distribution(ep)
     v = Visit(group, ep.name, ep.value, dist, version)
     _visits[(group, ep.name, ep.value)] = v

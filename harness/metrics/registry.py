@@ -227,7 +227,12 @@ def register_metric(name: str, compute: Callable | None = None, *, higher_is_bet
                     doc: str = "", inf_if_identical: bool = False, masks: str | None = None,
                     prepare: Callable | None = None, check: Callable | None = None,
                     with_metric: str | None = None, tolerance: float | None = None) -> MetricSpec:
-    """Register metric ``name`` (module docstring) and its ``gt_`` twin; returns its spec."""
+    """Register metric ``name`` (module docstring) and its ``gt_`` twin; returns its spec.
+
+    "A minimal metric is ``register_metric(name, compute, higher_is_better=…)`` — every other field has
+    a sound default (cost 'like a PSNR pass' or measured, unbounded range)": the cost is a PSNR pass
+    unless given, not measured — measuring would run the metric at registration, and registering
+    must stay cheap (a plugin is imported by every command that lists its group)."""
     lo, hi = _checked_fields(name, compute, higher_is_better, cost, valid_range, family,
                              name if label is None else label, digits, unit, masks, prepare, check, with_metric,
                              tolerance)

@@ -61,7 +61,11 @@ _RUN_STAGES = ("load", "score", "prune", "render_metrics", "aggregate", "total")
 
 
 def default_tolerances() -> dict[str, float]:
-    """Every tracked metric's registered tolerance, then the stages' (:data:`STAGE_TOLERANCES`)."""
+    """Every tracked metric's registered tolerance, then the stages' (:data:`STAGE_TOLERANCES`).
+
+    "Tracking takes names, directions, digits and tolerances from the registry": a metric is tracked
+    when it is registered with a ``tolerance`` (PSNR, SSIM, LPIPS); one without (a plugin's, by
+    default) has no scale on which a move is a regression, so it is not compared."""
     return {**{m.name: m.tolerance for m in registry.tracked()}, **STAGE_TOLERANCES}
 
 
