@@ -25,6 +25,7 @@ import argparse
 import importlib
 import importlib.util
 import inspect
+import logging
 import os
 import sys
 import traceback
@@ -124,13 +125,38 @@ def _debug_flag(argv: list[str]) -> tuple[list[str], bool]:
 
 def _unexpected_line(command: str, err: BaseException) -> str:
     """One line for an exception no command turned into a HarnessError: the command, the file it
-    involves (its own ``filename``, else the input read last), the exception and its first line."""
+    involves (its own ``filename``, else the input read last), the exception and its first line —
+    and the plugin whose code raised it, when one did (:func:`harness.core.plugins.blame`)."""
+    from harness.core.plugins import ENV, blame
     from harness.io.safe import last_input
 
     where = getattr(err, "filename", None) or last_input()
-    text = " ".join(str(err).split())[:300] or "(no message)"
+    if isinstance(err, SystemExit):
+        text = f"sys.exit({err.code!r}) was called"
+    else:
+        text = " ".join(str(err).split())[:300] or "(no message)"
+    guest = blame(err)
+    cause = (f"; raised by the plugin {guest.who}: report it to its authors, or leave it out with {ENV}"
+             if guest is not None else "; this is a bug or an unreadable input")
     return (f"harness: {command}: {type(err).__name__}: {text}" + (f" (last input read: {where})" if where else "")
-            + "; this is a bug or an unreadable input: rerun with --debug for the traceback")
+            + cause + ": rerun with --debug for the traceback")
+
+
+class _WarningLines(logging.Handler):
+    """What the library logs at WARNING and above, as ``harness: warning: ...`` lines on stderr."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            print(f"harness: warning: {record.getMessage()}", file=sys.stderr, flush=True)
+        except (OSError, ValueError):  # stderr closed: nothing to tell
+            pass
+
+
+def _show_warnings() -> None:
+    logger = logging.getLogger("harness")
+    if not any(isinstance(h, _WarningLines) for h in logger.handlers):
+        handler = _WarningLines(logging.WARNING)
+        logger.addHandler(handler)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -138,6 +164,7 @@ def main(argv: list[str] | None = None) -> int:
     from harness.io.safe import recording_inputs
 
     argv, debug = _debug_flag(list(sys.argv[1:] if argv is None else argv))
+    _show_warnings()
     args = parse_args(argv)
     if not getattr(args, "_run", None):
         build_parser().print_help()
@@ -181,7 +208,11 @@ def _run(args, debug: bool) -> int:
             traceback.print_exc()
         print(f"harness: {_os_error_line(err)}", file=sys.stderr)
         return HarnessError.exit_status
-    except Exception as err:  # the last resort: one line naming what failed (traceback with --debug)
+    except (Exception, SystemExit) as err:  # the last resort: one line naming what failed (traceback with --debug)
+        from harness.core.plugins import blame
+
+        if isinstance(err, SystemExit) and blame(err) is None:
+            raise  # not a plugin's: whoever exits means it
         if debug:
             traceback.print_exc()
         print(_unexpected_line(args.command, err), file=sys.stderr)

@@ -51,7 +51,7 @@ def capabilities(renderer) -> frozenset[str]:
     return frozenset(getattr(type(renderer), "capabilities", ()))
 
 
-RENDERERS: Registry[RendererSpec] = Registry("renderer", group="harness.renderers")
+RENDERERS: Registry[RendererSpec] = Registry("renderer", modules=(__name__,), group="harness.renderers")
 
 
 def register_renderer(spec: RendererSpec) -> RendererSpec:

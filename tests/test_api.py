@@ -124,7 +124,7 @@ def test_other_errors_name_the_argument(tmp_path):
         (lambda: harness.compare(np.zeros((4, 4, 3)), np.zeros((4, 5, 3)), "psnr"),
          "first image vs second image: image sizes differ"),
         (lambda: harness.compare(np.zeros((4, 4, 3)), np.zeros((4, 4, 3)), "psnrr"),
-         "metrics: unknown metric or family psnrr"),
+         "metrics: unknown metric or family 'psnrr' (did you mean 'psnr'"),
         (lambda: harness.render(scene, []), "cameras: expected a camera file"),
         (lambda: harness.render(scene, tmp_path / "no.json"), "no such file or folder"),
         (lambda: harness.evaluate(tmp_path / "no.yaml"), "cannot read config: no such file"),

@@ -256,8 +256,9 @@ def test_a_good_capture_loads(tmp_path):
     spec = cap.CaptureSpec(c["cameras"], c["images"], split=c["split"])
     got = cap.load_capture(spec)
     assert [x.name for x in got.test] == ["img0", "img2", "img4"] and [x.name for x in got.train] == ["img1", "img3"]
-    train, test, side = cap.protocol_views(got, cap.CaptureProtocol(n_test=2), 384)
-    assert side == 160 and [x.name for x in test] == ["real/img0", "real/img2"]  # capped at the photos' size
+    train, test, side = cap.protocol_views(got, 2, 384)
+    assert side == 160 and [x.name for x in test] == ["img0", "img2"]  # capped at the photos' size (the run names
+    # them real/img0 ...: harness.run.protocol_views)
     assert (test[0].width, test[0].height) == (160, 120) and len(train) == 2
 
 

@@ -10,10 +10,11 @@ import torch
 
 from harness.core.cameras import Camera
 from harness.run.config import load_config, parse_config
-from harness.run.toolkit import Toolkit, protocol_views
+from harness.run.toolkit import Toolkit
 from harness.views.independent import CLOSE_UP_SHARE, FOV_RANGE, independent_views, scene_seed
 from harness.views.placement import placement
-from harness.views.rigs import PROTOCOLS, scene_rig
+from harness.views.protocols import ViewRequest, protocol
+from harness.views.rigs import scene_rig
 from renderers.projection import project_gaussians
 from tests.test_rigs import blob, room
 from tests.test_virtualrig import REPO
@@ -57,14 +58,21 @@ def test_room_views_stand_inside_the_room():
     assert np.all(np.abs(eyes[:, [0, 2]]) < 10.0) and np.all(eyes[:, 1] < 3.0)  # inside walls, above the floor
 
 
+def request(scene, **over) -> ViewRequest:
+    """What a run asks a protocol for an orbit scene of its own file."""
+    base = dict(name="b", dataset=None, rig="orbit", kind="object-centric", n_train=0, n_test=3, longest_side=64,
+                aspect=None, seed=0, scene=lambda: scene, held_out=lambda: [])
+    return ViewRequest(**{**base, **over})
+
+
 def test_protocol_plugs_into_the_runner_like_shifted():
-    proto = PROTOCOLS["independent"]
-    assert proto.shifted and proto.distribution == "independent"
-    cams = protocol_views("orbit", blob(), proto, kind="object-centric", dataset=None, n_test=3, longest_side=64,
-                          aspect=None, seed=0)
-    direct = independent_views(None, blob(), "orbit", n_test=3, longest_side=64, seed=proto.seed_offset)
-    assert [c.name for c in cams] == [f"independent/independent_{i:03d}" for i in range(3)]
+    proto = protocol("independent")
+    assert not proto.primary and proto.params.seed_offset == 2000
+    cams = proto.views(request(blob())).test
+    direct = independent_views(None, blob(), "orbit", n_test=3, longest_side=64, seed=proto.params.seed_offset)
+    assert [c.name for c in cams] == [f"independent_{i:03d}" for i in range(3)]  # the run names them independent/...
     assert _same(cams, direct)
+    assert proto.views(request(blob(), synthetic=False)) is None  # a camera file's scene has no such views
     assert "harness.views.independent" in Toolkit().rig_modules  # its code versions the cached views
     cfg = parse_config({"scenes": [{"name": "luigi"}], "methods": ["opacity"], "ratios": [0.1],
                         "protocols": ["rig", "shifted", "independent"]}, "c.yaml")

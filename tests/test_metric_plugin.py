@@ -10,20 +10,17 @@ the project's files are byte-for-byte what they were.
 
 from __future__ import annotations
 
-import hashlib
 import json
-import os
-import subprocess
-import sys
-import textwrap
+from importlib.metadata import entry_points
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
 
-REPO = Path(__file__).resolve().parent.parent
+from tests.plugin_support import harness, install, project_digest
 
+DIST = "mae-metric"
 PLUGIN = '''
 """Mean absolute error, a metric of a package that is not the harness."""
 import numpy as np
@@ -40,53 +37,21 @@ register_metric("mae", compute=mae, higher_is_better=False, valid_range=(0.0, 1.
 '''
 
 
-def _project_digest() -> str:
-    h = hashlib.sha256()
-    for root in ("harness", "methods", "renderers", "ctc_configs"):
-        for p in sorted((REPO / root).rglob("*")):
-            if p.is_file() and "__pycache__" not in p.parts:
-                h.update(str(p.relative_to(REPO)).encode() + p.read_bytes())
-    h.update((REPO / "pyproject.toml").read_bytes())
-    return h.hexdigest()
-
-
 @pytest.fixture(scope="module")
 def plugin_site(tmp_path_factory) -> Path:
     """The plugin package built and installed into a folder of its own."""
-    src = tmp_path_factory.mktemp("mae-src")
-    (src / "mae_metric").mkdir()
-    (src / "mae_metric" / "__init__.py").write_text(PLUGIN)
-    (src / "pyproject.toml").write_text(textwrap.dedent("""
-        [build-system]
-        requires = ["setuptools>=68"]
-        build-backend = "setuptools.build_meta"
-        [project]
-        name = "mae-metric"
-        version = "0.1.0"
-        [project.entry-points."harness.metrics"]
-        mae = "mae_metric"
-        [tool.setuptools]
-        packages = ["mae_metric"]
-    """))
-    site = tmp_path_factory.mktemp("mae-site")
-    done = subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation",
-                           "--no-index", "--target", str(site), str(src)], capture_output=True, text=True)
-    if done.returncode:
-        pytest.skip(f"cannot build the plugin package here: {done.stderr.strip().splitlines()[-1:]}")
+    site = install(tmp_path_factory.mktemp("mae"), DIST, {"mae_metric/__init__.py": PLUGIN},
+                   {"harness.metrics": {"mae": "mae_metric"}})
     assert list(site.glob("mae_metric-0.1.0.dist-info/entry_points.txt"))
     return site
 
 
-def _harness(site: Path, *args, cwd: Path) -> subprocess.CompletedProcess:
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), str(site)])}
-    return subprocess.run([sys.executable, "-m", "harness", *args], capture_output=True, text=True, env=env,
-                          cwd=cwd, timeout=600)
+def _harness(site: Path, *args, cwd: Path):
+    return harness(site, DIST, *args, cwd=cwd)
 
 
 def test_the_plugin_is_not_there_without_its_package():
-    from harness.metrics.registry import requestable
-
-    assert "mae" not in requestable()
+    assert not [ep for ep in entry_points(group="harness.metrics") if ep.dist and ep.dist.name == DIST]
 
 
 def test_compare_measures_the_plugin_metric(plugin_site, tmp_path):
@@ -108,7 +73,7 @@ def test_compare_measures_the_plugin_metric(plugin_site, tmp_path):
 def test_run_tables_and_estimate_carry_the_plugin_metric(plugin_site, tmp_path):
     from tests import runner_fakes as fakes
 
-    before = _project_digest()
+    before = project_digest()
     scenes = fakes.write_two_scenes(tmp_path)
     doc = {"name": "plugin", "protocol": {"longest_side": 32, "metrics": ["psnr", "extra"], "n_train": 3,
                                           "n_test": 2},
@@ -132,4 +97,4 @@ def test_run_tables_and_estimate_carry_the_plugin_metric(plugin_site, tmp_path):
     plan = _harness(plugin_site, "plan", "c.yaml", "--estimate", cwd=tmp_path)
     assert plan.returncode == 0, plan.stderr
     assert "metrics psnr, mae" in plan.stdout and "— per image 0 LPIPS, 0 SSIM, 2 PSNR-like passes" in plan.stdout
-    assert _project_digest() == before  # no project file touched
+    assert project_digest() == before  # no project file touched

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from harness.report import plots
+from harness.report import curves, drawing, plots
 from harness.report.record import image_name
 from harness.report.results import to_frame
 
@@ -36,14 +36,14 @@ def figures(monkeypatch):
         saved[path.name] = fig
         return path
 
-    monkeypatch.setattr(plots, "_save", keep)
-    monkeypatch.setattr(plots._plt(), "close", lambda fig=None: None)
+    monkeypatch.setattr(drawing, "save", keep)
+    monkeypatch.setattr(drawing.pyplot(), "close", lambda fig=None: None)
     return saved
 
 
 def test_a_near_identical_point_does_not_stretch_the_psnr_axis(figures, tmp_path):
     """Issue 16: one 192 dB point stretched grape-small's PSNR axis to 200."""
-    plots.plot_curves(_rows(), tmp_path)
+    curves.plot_curves(_rows(), tmp_path)
     fig = figures["curves_grape-small.png"]
     psnr = fig.axes[0]
     lo, hi = psnr.get_ylim()
@@ -55,13 +55,13 @@ def test_a_near_identical_point_does_not_stretch_the_psnr_axis(figures, tmp_path
 
 
 def test_a_high_but_informative_point_stays_on_the_scale(figures, tmp_path):
-    plots.plot_curves(_rows(near=92.0).assign(psnr=lambda d: d["psnr"].replace(math.inf, 92.0)), tmp_path)
+    curves.plot_curves(_rows(near=92.0).assign(psnr=lambda d: d["psnr"].replace(math.inf, 92.0)), tmp_path)
     assert figures["curves_grape-small.png"].axes[0].get_ylim()[1] > 92.0
 
 
 def test_the_legend_is_outside_every_axis(figures, tmp_path):
     """Issue 16: luigi's legend hid a data point."""
-    plots.plot_curves(_rows(), tmp_path)
+    curves.plot_curves(_rows(), tmp_path)
     fig = figures["curves_grape-small.png"]
     fig.canvas.draw()
     r = fig.canvas.get_renderer()
@@ -123,7 +123,7 @@ def test_om_and_bytes_panels_when_the_results_carry_them(figures, tmp_path, monk
     register_metric("psnr_om", label="OM-PSNR", compute=psnr_pair, higher_is_better=True, unit="dB", cost="psnr",
                     family="test", digits=2, masks="psnr")
     df = _rows().assign(psnr_om=lambda d: d["psnr"] - 1.0, bytes=lambda d: 1000 * (1 - d["ratio"]))
-    plots.plot_curves(df, tmp_path)
+    curves.plot_curves(df, tmp_path)
     axes = figures["curves_grape-small.png"].axes
     assert [ax.get_ylabel() for ax in axes] == ["PSNR (↑)", "OM-PSNR (↑)", "LPIPS (↓)", "PSNR (↑)"]
     assert axes[-1].get_xlabel() == "pruned .ply size (MiB)"

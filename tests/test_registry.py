@@ -139,6 +139,7 @@ def test_third_party_pruner_through_an_entry_point(tmp_path, monkeypatch):
     (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: plugin-pruners\nVersion: 0.1\n")
     (dist / "entry_points.txt").write_text("[harness.pruners]\nplugin = plugin_pruners\n")
     monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setenv("HARNESS_PLUGINS", "plugin-pruners")  # this test's plugin, whatever else is installed
     monkeypatch.setattr(PRUNERS, "_plugins_loaded", False)
     monkeypatch.setattr(PRUNERS, "_entries", dict(PRUNERS._entries))
     spec = get_pruner("plugin-x")

@@ -178,14 +178,13 @@ def test_run_rig_honours_the_protocol_aspect(dataset, aspect, size):
 def test_shifted_protocol_views_come_from_another_distribution():
     """The shifted protocol's test views sit on higher rings, with a narrower field of view, at other
     azimuths than the rig's — no test camera coincides with a training camera's distribution."""
-    from harness.run.toolkit import protocol_views
-    from harness.views.rigs import PROTOCOLS
+    from harness.views.protocols import ViewRequest, protocol
 
     scene = blob()
     place = placement(scene)
     rig = scene_rig(None, scene, "orbit", n_train=12, n_test=6)
-    shifted = protocol_views("orbit", scene, PROTOCOLS["shifted"], kind="object-centric", dataset=None, n_test=6,
-                             longest_side=1024, aspect=None, seed=0)
+    shifted = protocol("shifted").views(ViewRequest("b", None, "orbit", "object-centric", 12, 6, 1024, None, 0,
+                                                    lambda: scene, lambda: list(rig.test))).test
 
     def elevation(cam):
         d = cam.center - place.center
@@ -194,4 +193,3 @@ def test_shifted_protocol_views_come_from_another_distribution():
     assert min(elevation(c) for c in shifted) > max(elevation(c) for c in rig.train) - 5.0
     assert np.mean([elevation(c) for c in shifted]) > np.mean([elevation(c) for c in rig.train]) + 15.0
     assert all(c.fov_x < 0.7 * rig.train[0].fov_x for c in shifted)
-    assert all(c.name.startswith("shifted/") for c in shifted)

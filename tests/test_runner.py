@@ -308,4 +308,5 @@ def test_protocol_config_errors():
         with pytest.raises(InputError, match=msg):
             parse_config({**base, "protocols": protocols}, "c.yaml")
     cfg = parse_config({**base, "protocols": ["rig", {"name": "steep", "rings_above": [40]}]}, "c.yaml")
-    assert [p.name for p in cfg.protocols] == ["rig", "steep"] and cfg.protocols[1].rings_above == (40.0,)
+    assert [p.name for p in cfg.protocols] == ["rig", "steep"] and cfg.protocols[1].params.rings_above == (40.0,)
+    assert cfg.protocols[1].spec.name == "shifted" and cfg.protocols[1].params.fov_scale == 1.0  # only what it names

@@ -74,14 +74,15 @@ def render(scene, cameras, *, backend: str = "gl", device: str | None = None, ba
 def metric_names(metrics, qmiv: bool = False) -> tuple[str, ...]:
     """Metric names from metric and family names (a comma-separated string or a sequence:
     ``"mpeg"``, ``("psnr", "lpips")``); with ``qmiv`` the MPEG names become their QMIV-mode twins."""
+    from harness.core.suggest import did_you_mean
     from harness.metrics.registry import METRICS, expand, requestable
 
     words = [w.strip() for w in (metrics.split(",") if isinstance(metrics, str) else metrics) if str(w).strip()]
     known = requestable()
-    bad = [w for w in words if w not in known]
+    bad = [str(w) for w in words if w not in known]
     if bad or not words:
-        raise InputError("metrics", f"unknown metric or family {', '.join(map(str, bad)) or repr(metrics)}; "
-                                    f"known: {', '.join(known)}")
+        named = ", ".join(f"'{w}'{did_you_mean(w, known)}" for w in bad) or repr(metrics)
+        raise InputError("metrics", f"unknown metric or family {named}; known: {', '.join(known)}")
     names = expand(words)
     if qmiv:
         qm = {m.name for m in METRICS if m.family == "mpeg-qmiv"}

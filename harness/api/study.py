@@ -76,16 +76,16 @@ def run_study(config_or_path, *, out=None, executor: str | None = None, address:
     from harness.core.paths import cache_dir
     from harness.io.files import make_output_folder, sweep_stale_temps
     from harness.run.cache import is_url
-    from harness.run.captured import check_captures
     from harness.run.executors import make_executor, preflight
     from harness.run.finish import finish_run
     from harness.run.plan import check_sources
     from harness.run.progress import StageProgress
+    from harness.run.protocol_views import check_protocols
     from harness.run.runner import Runner
     from harness.run.toolkit import Toolkit
 
     config = _config(config_or_path)
-    check_captures(config, Path.cwd())  # a bad capture: one line, before any output
+    check_protocols(config, Path.cwd())  # a bad capture: one line, before any output
     workers = workers if workers is not None else config.workers
     if not 1 <= workers <= 256:
         raise InputError("workers", f"must be 1..256, got {workers}")

@@ -252,8 +252,8 @@ def _machine() -> str:
 
 def _smallest(specs) -> str:
     """The name of the scene of ``specs`` with the fewest splats (its file's header; absent ones last)."""
-    from harness.run.estimate import splat_count
     from harness.run.plan import resolve_paths
+    from harness.run.scene_sizes import splat_count
     from harness.run.toolkit import Toolkit
 
     def size(spec) -> float:

@@ -11,7 +11,9 @@ instance every later stage uses; :meth:`Params.parse_text` does the same for com
 A problem is a :class:`ParamError` naming the key (callers add the file or flag). Accepted types:
 ``bool`` (YAML booleans; on the command line true/false/yes/no/1/0), ``int`` (integers only, never
 booleans), ``float`` (finite numbers; integers accepted), ``str`` and ``Literal[...]`` (one of the
-listed values), each optionally ``| None`` (YAML ``null``; ``none`` on the command line).
+listed values), each optionally ``| None`` (YAML ``null``; ``none`` on the command line), and
+``tuple[float, ...]`` / ``tuple[int, ...]`` (a YAML list, comma-separated on the command line; the
+bounds hold for every element).
 ``to_dict()`` is the canonical plain form (cache keys, result rows, ``harness methods``).
 """
 
@@ -63,15 +65,16 @@ class ParamSpec:
     choices: tuple | None = None
     bounds: tuple = ()             # ((op, value), ...) with op in ">=", ">", "<=", "<"
     reading: str = ""
+    many: bool = False             # a tuple of such values
 
     def describe(self) -> str:
-        """``float > 0, <= 1`` / ``one of ucb, lcb`` / ``int or none`` ..."""
+        """``float > 0, <= 1`` / ``one of ucb, lcb`` / ``int or none`` / ``list of float >= -80`` ..."""
         if self.choices:
             text = "one of " + ", ".join(str(c) for c in self.choices)
         else:
             text = self.kind + "".join(f" {op} {v:g}" if i == 0 else f", {op} {v:g}"
                                        for i, (op, v) in enumerate(self.bounds))
-        return text + (" or none" if self.optional else "")
+        return ("list of " if self.many else "") + text + (" or none" if self.optional else "")
 
 
 _OPS = {"ge": (">=", lambda v, b: v >= b), "gt": (">", lambda v, b: v > b),
@@ -79,8 +82,8 @@ _OPS = {"ge": (">=", lambda v, b: v >= b), "gt": (">", lambda v, b: v > b),
 _TRUE, _FALSE = {"true", "yes", "1", "on"}, {"false", "no", "0", "off"}
 
 
-def _kind(hint) -> tuple[str, bool, tuple | None]:
-    """(kind, optional, choices) of a field's type hint."""
+def _kind(hint) -> tuple[str, bool, tuple | None, bool]:
+    """(kind, optional, choices, many) of a field's type hint."""
     optional = False
     origin = typing.get_origin(hint)
     if origin in (typing.Union, types.UnionType):
@@ -91,9 +94,12 @@ def _kind(hint) -> tuple[str, bool, tuple | None]:
         hint, origin = args[0], typing.get_origin(args[0])
     if origin is Literal:
         choices = typing.get_args(hint)
-        return type(choices[0]).__name__, optional, tuple(choices)
+        return type(choices[0]).__name__, optional, tuple(choices), False
     if hint in (bool, int, float, str):
-        return hint.__name__, optional, None
+        return hint.__name__, optional, None, False
+    args = typing.get_args(hint)
+    if origin is tuple and len(args) == 2 and args[1] is Ellipsis and args[0] in (int, float):
+        return args[0].__name__, optional, None, True
     raise TypeError(f"unsupported parameter type {hint!r}")
 
 
@@ -109,11 +115,11 @@ class Params:
             hints = typing.get_type_hints(cls)
             out = []
             for f in dataclasses.fields(cls):
-                kind, optional, choices = _kind(hints[f.name])
+                kind, optional, choices, many = _kind(hints[f.name])
                 meta = f.metadata
                 bounds = tuple((_OPS[k][0], meta[k]) for k in ("ge", "gt", "le", "lt") if meta.get(k) is not None)
                 out.append(ParamSpec(f.name, kind, optional, f.default, meta.get("doc", ""), choices, bounds,
-                                     meta.get("reading", "")))
+                                     meta.get("reading", ""), many))
             Params._specs[cls] = tuple(out)
         return Params._specs[cls]
 
@@ -152,11 +158,17 @@ class Params:
 
 
 def check_value(spec: ParamSpec, value):
-    """``value`` if it is a valid value of ``spec`` (ints widened to float for float fields)."""
+    """``value`` if it is a valid value of ``spec`` (ints widened to float for float fields; a list
+    of a ``many`` field becomes a tuple, each element checked)."""
     if value is None:
         if spec.optional:
             return None
         raise ParamError(spec.name, "must not be null")
+    if spec.many:
+        if not isinstance(value, (list, tuple)):
+            raise ParamError(spec.name, f"expected a list of {spec.kind} values, got {value!r}")
+        one = dataclasses.replace(spec, many=False, optional=False)
+        return tuple(check_value(one, v) for v in value)
     kind = spec.kind
     if kind == "bool":
         if not isinstance(value, bool):
@@ -186,6 +198,9 @@ def from_text(spec: ParamSpec, text: str):
     t = text.strip()
     if spec.optional and t.lower() in ("none", "null"):
         return None
+    if spec.many:
+        one = dataclasses.replace(spec, many=False, optional=False)
+        return [from_text(one, part) for part in t.split(",") if part.strip()]
     try:
         if spec.kind == "bool":
             if t.lower() in _TRUE:

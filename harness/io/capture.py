@@ -20,14 +20,15 @@ data the package ships; the photos and the camera file are read from the mirror 
 ``harness fetch``-ed copy, never from the repository). Cameras are derived from the pinned camera
 file + transform on every use; every file is verified against its pinned sha256 when used.
 
-The ``real`` view protocol (:class:`CaptureProtocol`) measures the held-out cameras of a scene's
-capture against the photos; camera-aware pruners train on the capture's training cameras under it.
+The ``real`` view protocol (:mod:`harness.views.heldout`) measures the held-out cameras of a
+scene's capture against the photos; camera-aware pruners train on the capture's training cameras
+under it.
 """
 
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
@@ -39,16 +40,6 @@ _MANIFESTS = Path(__file__).with_name("manifests")
 #: named scenes (harness.io.datasets) -> the named capture they were trained from
 SCENE_CAPTURES = {"bonsai-7k": "bonsai-capture", "bonsai-7k-mini": "bonsai-capture"}
 CAPTURES = {"bonsai-capture": "bonsai_capture.json"}
-
-
-@dataclass(frozen=True)
-class CaptureProtocol:
-    """Held-out views = a scene's captured held-out cameras (all, or the first ``n_test`` in name
-    order), measured against the photos as well as against the unpruned render."""
-
-    name: str = "real"
-    n_test: int | None = None
-    shifted: bool = False  # not a synthetic rig distribution (harness.views.rigs.ViewProtocol)
 
 
 @dataclass(frozen=True)
@@ -218,14 +209,12 @@ def load_capture(spec: CaptureSpec, base: Path = Path("."), digest=None) -> Capt
     return Capture(describe(spec), train, test, photos, digests, size, notes)
 
 
-def protocol_views(capture: Capture, protocol: CaptureProtocol, longest_side: int):
+def protocol_views(capture: Capture, n_test: int | None, longest_side: int):
     """(train, test, side) of the ``real`` protocol: cameras at ``longest_side`` capped at the photos'
-    long side (a photo is never upsampled), held-out views the first ``n_test`` by name, named
-    ``<protocol>/<camera>``."""
+    long side (a photo is never upsampled), held-out views the first ``n_test`` by name (None: all)."""
     side = min(int(longest_side), max(capture.photo_size))
-    test = capture.test[:protocol.n_test] if protocol.n_test else capture.test
-    name = lambda c: replace(c.resized(side), name=f"{protocol.name}/{c.name}")  # noqa: E731
-    return [c.resized(side) for c in capture.train], [name(c) for c in test], side
+    test = capture.test[:n_test] if n_test else capture.test
+    return [c.resized(side) for c in capture.train], [c.resized(side) for c in test], side
 
 
 def _sha256(path: Path) -> str:

@@ -92,7 +92,7 @@ class SceneFormat:
     outputs: Callable | None = None
 
 
-FORMATS: Registry[SceneFormat] = Registry("scene format", group=ENTRY_POINT_GROUP)
+FORMATS: Registry[SceneFormat] = Registry("scene format", modules=(__name__,), group=ENTRY_POINT_GROUP)
 
 
 def register_format(

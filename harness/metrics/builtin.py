@@ -63,13 +63,14 @@ def lpips_check() -> None:
 
 
 register_metric("psnr", compute=psnr_pair, higher_is_better=True, valid_range=(0, INF), inf_if_identical=True,
-                unit="dB", cost="psnr", family="3dgs", label="PSNR", digits=2,
+                unit="dB", cost="psnr", family="3dgs", label="PSNR", digits=2, tolerance=0.5,
                 doc="dB on [0, 1]-clamped float images; +inf if identical")
 register_metric("ssim", compute=ssim_pair, prepare=ssim_reference, higher_is_better=True, valid_range=(-1, 1),
-                cost="ssim", family="3dgs", label="SSIM", digits=3,
+                cost="ssim", family="3dgs", label="SSIM", digits=3, tolerance=0.005,
                 doc="11×11 Gaussian σ 1.5, zero padding, data range 1")
 register_metric("lpips", compute=lpips_pair, check=lpips_check, higher_is_better=False, valid_range=(0, INF),
-                cost="lpips", family="3dgs", label="LPIPS", digits=3, doc="LPIPS v0.1 VGG, inputs in [-1, 1]")
+                cost="lpips", family="3dgs", label="LPIPS", digits=3, tolerance=0.005,
+                doc="LPIPS v0.1 VGG, inputs in [-1, 1]")
 register_metric("gt_psnr_om", higher_is_better=True, valid_range=(0, INF), inf_if_identical=True, unit="dB",
                 cost="psnr", family=GT_FAMILY, label="OM-PSNR vs photo", digits=2, masks="gt_psnr",
                 with_metric="psnr",

@@ -1,39 +1,55 @@
 """The metrics a run can measure: one registration per metric carries everything every tool needs.
 
+    register_metric("mae", mae, higher_is_better=False)          # the minimum: every other field defaults
+
     register_metric("psnr", compute=psnr_pair, higher_is_better=True, valid_range=(0, inf),
-                    inf_if_identical=True, unit="dB", cost="psnr", family="3dgs", label="PSNR", digits=2)
+                    inf_if_identical=True, unit="dB", cost="psnr", family="3dgs", label="PSNR", digits=2,
+                    tolerance=0.5)
 
 * ``compute(reference, test) -> float`` on two float32 (H, W, 3) images in [0, 1] (it may also take
   the keywords ``device`` and ``mask``; with ``prepare(reference, device)`` given, ``reference`` is
   what ``prepare`` made of it, computed once per view). A family that computes its metrics together
   (the MPEG tool's set shares its 8-bit/YUV reference planes) registers a joint computer with
   :func:`register_family`, and its members no ``compute`` of their own.
-* ``valid_range`` (and ``inf_if_identical``: +inf for identical images, PSNR's convention): what
-  the stage cache accepts as a stored value (:func:`harness.run.verify.metrics_check`).
-* ``cost``: the calibrated pass it costs per pixel (:data:`PASS_KINDS`; ``harness plan --estimate``).
+* ``higher_is_better``: the direction every table, plot, verdict and tracking check reads.
+* ``valid_range`` (default unbounded; and ``inf_if_identical``: +inf for identical images, PSNR's
+  convention): what the stage cache accepts as a stored value (:func:`harness.run.verify.metrics_check`).
+* ``cost`` (default ``"psnr"``: like a PSNR pass): the calibrated pass it costs per pixel
+  (:data:`PASS_KINDS`; ``harness plan --estimate``).
 * ``needs_alpha``: the renders' accumulated alpha (the occupancy-masked metrics).
 * ``unit="dB"``: a PSNR; views at or above 100 dB are *near-identical* (:mod:`harness.report.stats`).
-* ``label``, ``digits``, ``higher_is_better``: how tables show it; ``masks``: the full-frame metric an
-  occupancy-masked one restricts (shown beside it); ``family``: the set a config asks for by name
-  (``metrics: [3dgs]``); ``check()``: raises :class:`~harness.core.errors.InputError` before any work
-  when the metric cannot run here (weights not fetched).
+* ``label`` (default the name), ``digits`` (default 3): how tables show it; ``masks``: the full-frame
+  metric an occupancy-masked one restricts (shown beside it); ``family`` (default ``"other"``): the
+  set a config asks for by name (``metrics: [3dgs]``); ``check()``: raises
+  :class:`~harness.core.errors.InputError` before any work when the metric cannot run here (weights
+  not fetched).
+* ``tolerance`` (default None: not tracked): how far a run's mean may move the wrong way before
+  ``harness track`` calls it a regression.
 
-Every metric gets a ``gt_`` twin (the same measure of a render against the view's captured photo).
-Built-in registrations live in :mod:`harness.metrics.builtin`; third-party packages add theirs through
-the ``harness.metrics`` entry-point group (a module whose import calls :func:`register_metric`),
-like pruners. Cheap to import (no torch): configs and tables use it.
+A registration the registry cannot accept is one :class:`~harness.core.registry.RegistrationError`
+naming the metric and the field. Every metric gets a ``gt_`` twin (the same measure of a render
+against the view's captured photo). The metrics of :data:`HEADLINE_FAMILY` are the ones a command
+measures when it is given none, and come first in results and summaries. Built-in registrations live
+in :mod:`harness.metrics.builtin`; third-party packages add theirs through the ``harness.metrics``
+entry-point group (a module whose import calls :func:`register_metric`), like pruners. Cheap to
+import (no torch): configs and tables use it.
 """
 
 from __future__ import annotations
 
 import inspect
 import math
+import re
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
-from harness.core.registry import Registry
+from harness.core import plugins
+from harness.core.registry import RegistrationError, Registry
 
 ENTRY_POINT_GROUP = "harness.metrics"
+#: the family a command measures when it is given no metric (``harness compare``), whose metrics come
+#: first in results, summaries and tracking
+HEADLINE_FAMILY = "3dgs"
 #: the calibrated per-pixel passes a metric can cost (:class:`harness.run.unit_costs.UnitCosts`):
 #: an LPIPS-VGG trunk, a 3-plane SSIM, a PSNR-like pass (squared errors, 8-bit, colour conversion)
 PASS_KINDS = ("lpips", "ssim", "psnr")
@@ -63,6 +79,9 @@ class MetricSpec:
     check: Callable | None = None
     #: a photo metric measured whenever this metric is (``gt_psnr_om`` with ``psnr``)
     with_metric: str | None = None
+    #: how far a run's mean may move the wrong way before ``harness track`` calls it a regression
+    #: (None: not tracked)
+    tolerance: float | None = None
 
     @property
     def heading(self) -> str:
@@ -125,31 +144,105 @@ FAMILIES: dict[str, MetricFamily] = {}
 
 def register_family(name: str, *, compute: Callable, prepare: Callable | None = None) -> MetricFamily:
     """Register the joint computer of the metrics of family ``name`` (module docstring)."""
+    where = f"metric family {name!r}"
+    if not callable(compute) or (prepare is not None and not callable(prepare)):
+        raise RegistrationError(where, "compute (and prepare, when given) must be callable")
     fam = MetricFamily(name, compute, prepare)
+    old = FAMILIES.get(name)
+    if old is not None and _code(old.compute, old.prepare) != _code(compute, prepare):
+        raise RegistrationError(where, "the name is already registered")
     FAMILIES[name] = fam
+    plugins.registered(where, lambda: FAMILIES.pop(name, None))
     return fam
 
 
-def register_metric(name: str, *, higher_is_better: bool, cost: str, compute: Callable | None = None,
+def _code(*fns) -> tuple:
+    """Which code the functions are (module, qualified name): a module imported twice registers the same."""
+    return tuple(None if f is None else (getattr(f, "__module__", None), getattr(f, "__qualname__", None))
+                 for f in fns)
+
+
+_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]*")
+
+
+def _callable(where: str, field: str, fn, optional: bool = True) -> None:
+    if not (fn is None and optional) and not callable(fn):
+        raise RegistrationError(where, f"{field} must be a function, got {type(fn).__name__}")
+
+
+def _checked_fields(name, compute, higher_is_better, cost, valid_range, family, label, digits, unit, masks,
+                    prepare, check, with_metric, tolerance) -> tuple[float, float]:
+    """Every field of a registration checked; a wrong one is a RegistrationError naming it. Returns
+    the valid range as floats."""
+    where = f"metric {name!r}"
+    if not isinstance(name, str) or not _NAME.fullmatch(name):
+        raise RegistrationError(f"metric {name!r}", "the name must be letters, digits and _ . + - (it becomes a "
+                                                    "results column and a word of --metrics)")
+    if not isinstance(higher_is_better, bool):
+        raise RegistrationError(where, f"higher_is_better must be True or False, got {higher_is_better!r}")
+    if cost not in PASS_KINDS:
+        raise RegistrationError(where, f"cost must be one of {', '.join(PASS_KINDS)}, got {cost!r}")
+    try:
+        lo, hi = (float(x) for x in valid_range)
+    except (TypeError, ValueError):
+        raise RegistrationError(where, f"valid_range must be two numbers (low, high), got {valid_range!r}") from None
+    if not lo <= hi:
+        raise RegistrationError(where, f"valid_range {valid_range!r} is empty")
+    for field_name, value in (("family", family), ("label", label), ("unit", unit)):
+        if not isinstance(value, str):
+            raise RegistrationError(where, f"{field_name} must be text, got {value!r}")
+    if not family or not _NAME.fullmatch(family):
+        raise RegistrationError(where, f"family must be a name (letters, digits and _ . + -), got {family!r}")
+    if name.startswith(GT_PREFIX) != (family == GT_FAMILY):
+        raise RegistrationError(where, f"a name starting with {GT_PREFIX!r} is a metric against the photo: it and "
+                                       f"only it has family {GT_FAMILY!r}")
+    if isinstance(digits, bool) or not isinstance(digits, int) or not 0 <= digits <= 12:
+        raise RegistrationError(where, f"digits must be a whole number of decimals from 0 to 12, got {digits!r}")
+    for field_name, value in (("masks", masks), ("with_metric", with_metric)):
+        if value is not None and not isinstance(value, str):
+            raise RegistrationError(where, f"{field_name} must be a metric name or None, got {value!r}")
+    if tolerance is not None and (isinstance(tolerance, bool) or not isinstance(tolerance, (int, float))
+                                  or not math.isfinite(tolerance) or tolerance < 0):
+        raise RegistrationError(where, f"tolerance must be a finite number >= 0 or None, got {tolerance!r}")
+    _callable(where, "prepare", prepare)
+    _callable(where, "check", check)
+    if compute is None:
+        if family not in FAMILIES and family != GT_FAMILY:
+            raise RegistrationError(where, f"compute is missing: give compute=, or register family {family!r}'s "
+                                           "joint computer first (register_family)")
+        return lo, hi
+    _callable(where, "compute", compute, optional=False)
+    try:
+        inspect.signature(compute).bind(None, None)
+    except TypeError:
+        raise RegistrationError(where, "compute must take two images: compute(reference, test)") from None
+    except ValueError:  # a builtin without a signature: taken as it is
+        pass
+    return lo, hi
+
+
+def register_metric(name: str, compute: Callable | None = None, *, higher_is_better: bool, cost: str = "psnr",
                     valid_range: tuple[float, float] = (-math.inf, math.inf), needs_alpha: bool = False,
                     family: str = "other", label: str | None = None, digits: int = 3, unit: str = "",
                     doc: str = "", inf_if_identical: bool = False, masks: str | None = None,
                     prepare: Callable | None = None, check: Callable | None = None,
-                    with_metric: str | None = None) -> MetricSpec:
-    """Register metric ``name`` (module docstring) and its ``gt_`` twin; returns its spec."""
-    if cost not in PASS_KINDS:
-        raise ValueError(f"metric {name!r}: cost must be one of {', '.join(PASS_KINDS)}, got {cost!r}")
-    lo, hi = (float(x) for x in valid_range)
-    if not lo <= hi:
-        raise ValueError(f"metric {name!r}: valid_range {valid_range!r} is empty")
-    if compute is None and family not in FAMILIES and family != GT_FAMILY:
-        raise ValueError(f"metric {name!r}: give compute=, or register family {family!r}'s joint computer first")
-    spec = MetricSpec(name, label or name, bool(higher_is_better), int(digits), family, doc, compute, (lo, hi),
-                      bool(inf_if_identical), cost, bool(needs_alpha), unit, masks, prepare, check, with_metric)
+                    with_metric: str | None = None, tolerance: float | None = None) -> MetricSpec:
+    """Register metric ``name`` (module docstring) and its ``gt_`` twin; returns its spec.
+
+    "A minimal metric is ``register_metric(name, compute, higher_is_better=…)`` — every other field has
+    a sound default (cost 'like a PSNR pass' or measured, unbounded range)": the cost is a PSNR pass
+    unless given, not measured — measuring would run the metric at registration, and registering
+    must stay cheap (a plugin is imported by every command that lists its group)."""
+    lo, hi = _checked_fields(name, compute, higher_is_better, cost, valid_range, family,
+                             name if label is None else label, digits, unit, masks, prepare, check, with_metric,
+                             tolerance)
+    spec = MetricSpec(name, label or name, higher_is_better, digits, family, str(doc), compute, (lo, hi),
+                      bool(inf_if_identical), cost, bool(needs_alpha), unit, masks, prepare, check, with_metric,
+                      None if tolerance is None else float(tolerance))
     METRICS.add(name, spec, same=lambda a, b: a.identity() == b.identity())
     twin = GT_PREFIX + name
     if family != GT_FAMILY and not METRICS.registered(twin):  # a photo metric of that name stays
-        gt = replace(spec, name=twin, label=f"{spec.label} vs photo", family=GT_FAMILY,
+        gt = replace(spec, name=twin, label=f"{spec.label} vs photo", family=GT_FAMILY, tolerance=None,
                      masks=GT_PREFIX + masks if masks else None,
                      doc=f"{doc}; the render against the view's captured photo".lstrip("; "))
         METRICS.add(twin, gt, same=lambda a, b: a.identity() == b.identity())
@@ -180,6 +273,16 @@ def expand(names) -> tuple[str, ...]:
 def family_names(family: str) -> tuple[str, ...]:
     """The metric names of ``family``, registry order."""
     return tuple(m.name for m in METRICS if m.family == family)
+
+
+def headline() -> tuple[str, ...]:
+    """The metrics of :data:`HEADLINE_FAMILY` (PSNR, SSIM, LPIPS), registry order."""
+    return family_names(HEADLINE_FAMILY)
+
+
+def tracked() -> list[MetricSpec]:
+    """The metrics ``harness track`` compares (those registered with a ``tolerance``), registry order."""
+    return [m for m in METRICS if m.tolerance is not None]
 
 
 def requestable() -> list[str]:

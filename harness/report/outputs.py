@@ -50,7 +50,7 @@ def publish(run_dir: str | Path, df: pd.DataFrame, meta: dict, *, tables=None, p
     tables = names if tables is None else list(tables)
     plots = plot_names if plots is None else list(plots)
     with catalog.budget_notes(df):  # e.g. "ConfSplatPrune — lower bound (100 iterations)"
-        written = (write_tables(df, run_dir, tables, reference=reference, anchor=anchor)
-                   + write_plots(df, run_dir, plots))
-        page = write_report(run_dir, df, meta, written.built, written.missing)
+        drawn = write_plots(df, run_dir, plots)
+        written = write_tables(df, run_dir, tables, reference=reference, anchor=anchor) + drawn
+        page = write_report(run_dir, df, meta, written.built, written.missing, plots=drawn.paths)
     return Published(written, page)

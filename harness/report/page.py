@@ -138,14 +138,14 @@ def made_elsewhere(built: dict[str, Built]) -> set[str]:
 
 def tables_html(built: dict[str, Built]) -> str:
     """Every table, folded, grouped by held-out view protocol (each summary names it too)."""
-    from harness.report.summary import PROTOCOL_NOTES
     from harness.report.tables import base_title
+    from harness.views.protocols import notes
 
     out = []
     for proto in dict.fromkeys(b.protocol for b in built.values()):
         if proto:
             out.append(
-                f"<h3>Held-out views: {esc(proto)} <small>({esc(PROTOCOL_NOTES.get(proto, 'a named view protocol'))})"
+                f"<h3>Held-out views: {esc(proto)} <small>({esc(notes(proto))})"
                 "</small></h3>"
             )
         made = made_elsewhere(built)
@@ -161,11 +161,10 @@ def tables_html(built: dict[str, Built]) -> str:
 
 
 # --------------------------------------------------------------------------- plots, images
-def plots_html(plots_dir: Path, protocol: str = "") -> str:
-    files = sorted(plots_dir.glob("curves_*.png")) + [plots_dir / f for f in ("figure1.png", "figure3.png")] \
-        + sorted(plots_dir.glob("photos-*.png"))  # photo | unpruned | pruned (harness.report.photofigure)
+def plots_html(files, protocol: str = "") -> str:
+    """The plots just drawn (:func:`harness.report.plots.write_plots`), each folded, in their order."""
     out = [f"<details><summary>{esc(f.name)}</summary><figure><img alt='{esc(f.stem)}' src='{file_uri(f)}'>"
-           f"</figure></details>" for f in files if f.is_file()]
+           f"</figure></details>" for f in map(Path, files) if f.is_file()]
     if not out:
         return "<p class='warn'>no plots in this run folder</p>"
     note = f"<p class='notes'>Held-out views: {esc(protocol)} (the primary protocol).</p>" if protocol else ""
@@ -304,10 +303,11 @@ def render_page(*, title: str, subtitle: str, warnings, summary: str, tables: st
 """
 
 
-def write_report(run_dir: str | Path, df: pd.DataFrame, meta: dict, built: dict[str, Built], missing=()) -> Path:
-    """Write ``<run>/report.html`` from the tables just built (``{file stem: Built}``), the results,
-    the run records, ``plots/`` and ``images/``; ``missing``: lines about what else could not be
-    made (plots). Called by :func:`harness.report.outputs.publish` only."""
+def write_report(run_dir: str | Path, df: pd.DataFrame, meta: dict, built: dict[str, Built], missing=(),
+                 plots=()) -> Path:
+    """Write ``<run>/report.html`` from the tables just built (``{file stem: Built}``), the plots just
+    drawn (``plots``: their files), the results, the run records and ``images/``; ``missing``: lines
+    about what else could not be made (plots). Called by :func:`harness.report.outputs.publish` only."""
     from harness.io.files import atomic_write_text
 
     run_dir = Path(run_dir)
@@ -328,7 +328,7 @@ def write_report(run_dir: str | Path, df: pd.DataFrame, meta: dict, built: dict[
                 + f"; commit {meta.get('commit', 'unknown')}; {meta.get('when', '')}")
     page = render_page(title=f"harness run {meta.get('name') or run_dir.name}", subtitle=subtitle,
                        warnings=warnings, summary=summary_html(built), tables=tables_html(built),
-                       plots=plots_html(run_dir / "plots", protocols[0] if protocols else ""), images=images,
+                       plots=plots_html(plots, protocols[0] if protocols else ""), images=images,
                        records=records_html(records, unreadable), notes=notes)
     path = run_dir / "report.html"
     atomic_write_text(path, page)

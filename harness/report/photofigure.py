@@ -1,4 +1,4 @@
-"""``plots/photos-<scene>.png``: a held-out view of the ``real`` protocol as photo | unpruned | pruned.
+"""``plots/photos-<scene>.png``: a held-out view with a photo (the ``real`` protocol's) as photo | unpruned | pruned.
 
 From the images a run keeps of its first captured view (``images/<scene>[/<frame>]/real/``:
 ``photo.png`` — the photo area-averaged to the render size —, ``input.png`` — the unpruned render —
@@ -72,8 +72,9 @@ def _panels(df: pd.DataFrame, scene: str, d: Path, ratio: float) -> list[tuple[P
     return out
 
 
-def write_photo_figures(df: pd.DataFrame, run_dir: str | Path, protocol: str = "real") -> list[Path]:
-    """One figure per scene with a stored captured view; returns the files written."""
+def write_photo_figures(df: pd.DataFrame, run_dir: str | Path) -> list[Path]:
+    """One figure per scene with a stored captured view (of the protocol whose rows carry the photo
+    metrics); returns the files written."""
     from PIL import Image, ImageDraw
 
     from harness.io.files import atomic_write_with
@@ -83,8 +84,9 @@ def write_photo_figures(df: pd.DataFrame, run_dir: str | Path, protocol: str = "
         return []
     out = []
     for scene in dict.fromkeys(df.loc[df["gt_psnr"].notna(), "scene"]):
-        d = _real_dir(run_dir / "images", scene, protocol)
         sub = df[(df["scene"] == scene) & df["gt_psnr"].notna()]
+        protocol = str(sub["protocol"].iloc[0]) if "protocol" in sub and len(sub) else ""
+        d = _real_dir(run_dir / "images", scene, protocol)
         ratio = next((r for r in LEVELS if ((sub["ratio"] - r).abs() < 1e-9).any()), None)
         if d is None or ratio is None:
             continue

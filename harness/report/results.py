@@ -1,10 +1,11 @@
 """Tidy results: one row per (scene, frame, method, variant, ratio, view), written atomically.
 
-Columns (see :data:`COLUMNS`): identification (``run, scene, label, kind, frame, method, variant,
+Columns (see :func:`columns`): identification (``run, scene, label, kind, frame, method, variant,
 params`` as canonical JSON, ``ratio``, ``keep = 1 - ratio``, ``protocol`` — the held-out view
-protocol, :class:`harness.views.rigs.ViewProtocol`: ``rig`` or e.g. ``shifted`` — ``view``), ``status`` (``ok``,
-``skipped``, ``error``) with ``reason``, metrics (``psnr`` — +inf for identical images — ``ssim``,
-``lpips``; the MPEG set ``rgb_psnr, yuv_psnr, yuv_ssim, …_om`` and ``occupancy`` % when measured), counts
+protocol, :mod:`harness.views.protocols`: ``rig`` or e.g. ``shifted`` — ``view``), ``status`` (``ok``,
+``skipped``, ``error``) with ``reason``, one column per registered metric (:func:`metric_columns`:
+``psnr`` — +inf for identical images — ``ssim``, ``lpips``; the MPEG set ``rgb_psnr, yuv_psnr,
+yuv_ssim, …_om``, the ``gt_`` twins, plugins' metrics; ``occupancy`` % when measured), counts
 (``splats_in``, ``splats_out``, and ``bytes``: the size of the pruned ``.ply`` the harness writes — the
 rate of a rate point), the cut (``tau``: score value at the cut,
 ``tau_quantile = removed / N``), and stage timings in seconds (``score_s`` per (scene, method) —
@@ -23,28 +24,45 @@ import numpy as np
 import pandas as pd
 
 from harness.io.files import atomic_write_with
-from harness.metrics.registry import METRICS as _METRICS
-from harness.metrics.registry import is_gt
+from harness.metrics import registry
 
-#: metrics beyond the 3DGS set (the MPEG families, :mod:`harness.metrics.registry`), then occupancy (%)
-EXTRA_METRICS = [m.name for m in _METRICS if m.name not in ("psnr", "ssim", "lpips")] + ["occupancy"]
-#: on a view with a photo: the unpruned render's photo metrics (``gt_`` names) and the share of the
-#: frame its splats occupy (%), repeated on every row of the view (the pruned render's are ``gt_*``)
-UNPRUNED_GT = [f"unpruned_{m.name}" for m in _METRICS if is_gt(m.name)] + ["unpruned_gt_occupancy"]
-COLUMNS = [
-    "run", "scene", "label", "kind", "frame", "method", "variant", "params", "ratio", "keep", "protocol", "view",
-    "status", "reason", "psnr", "ssim", "lpips", *EXTRA_METRICS, *UNPRUNED_GT, "splats_in", "splats_out", "bytes",
-    "tau", "tau_quantile", "score_s", "prune_s", "render_ref_s", "render_s", "metrics_s", "renderer", "width", "height",
-]
+#: identification and status columns, before the metrics
+ID_COLUMNS = ["run", "scene", "label", "kind", "frame", "method", "variant", "params", "ratio", "keep", "protocol",
+              "view", "status", "reason"]
+#: counts, the cut and the timings, after the metrics
+TAIL_COLUMNS = ["splats_in", "splats_out", "bytes", "tau", "tau_quantile", "score_s", "prune_s", "render_ref_s",
+                "render_s", "metrics_s", "renderer", "width", "height"]
+
+
+def metric_columns() -> list[str]:
+    """The registered metrics as result columns: the headline family first (``psnr, ssim, lpips``),
+    then every other in registration order (the MPEG families, the ``gt_`` twins, plugins'), then
+    ``occupancy`` (%)."""
+    head = list(registry.headline())
+    return head + [m.name for m in registry.METRICS if m.name not in head] + ["occupancy"]
+
+
+def unpruned_gt_columns() -> list[str]:
+    """On a view with a photo: the unpruned render's photo metrics (``gt_`` names) and the share of
+    the frame its splats occupy (%), repeated on every row of the view (the pruned render's are ``gt_*``)."""
+    return [f"unpruned_{m.name}" for m in registry.METRICS if registry.is_gt(m.name)] + ["unpruned_gt_occupancy"]
+
+
+def columns() -> list[str]:
+    """Every column of the tidy results, in order (module docstring)."""
+    return ID_COLUMNS + metric_columns() + unpruned_gt_columns() + TAIL_COLUMNS
+
+
 _TEXT = {"run", "scene", "label", "kind", "frame", "method", "variant", "params", "protocol", "view", "status",
          "reason", "renderer"}
 _INT = {"splats_in", "splats_out", "bytes", "width", "height"}
 
 
 def to_frame(rows: list[dict]) -> pd.DataFrame:
-    """Rows -> DataFrame with every column of :data:`COLUMNS` in order and stable dtypes."""
-    df = pd.DataFrame(rows, columns=COLUMNS)
-    for c in COLUMNS:
+    """Rows -> DataFrame with every column of :func:`columns` in order and stable dtypes."""
+    cols = columns()
+    df = pd.DataFrame(rows, columns=cols)
+    for c in cols:
         if c in _TEXT:
             df[c] = df[c].astype(object).where(df[c].notna(), "").astype(str)
         elif c in _INT:
@@ -69,10 +87,13 @@ def write_results(df: pd.DataFrame, out_dir: str | Path) -> tuple[Path, Path]:
     return pq, csv
 
 
-#: columns every stored result must have (identification, status, and the metrics tracked)
+#: columns every stored result must have (identification and status)
 REQUIRED = ("scene", "method", "variant", "ratio", "status")
-_NUMERIC = ("ratio", "keep", "psnr", "ssim", "lpips", "splats_in", "splats_out", "tau", "tau_quantile",
-            "score_s", "prune_s", "render_ref_s", "render_s", "metrics_s", "width", "height")
+
+
+def _numeric() -> list[str]:
+    """The columns that must hold numbers: ratios, every registered metric, counts and timings."""
+    return ["ratio", "keep", *metric_columns(), *(c for c in TAIL_COLUMNS if c != "renderer")]
 
 
 def read_results(run_dir: str | Path) -> pd.DataFrame:
@@ -104,7 +125,7 @@ def read_results(run_dir: str | Path) -> pd.DataFrame:
     missing = [c for c in REQUIRED if c not in df.columns]
     if missing:
         raise InputError(source, f"results lack the column(s) {', '.join(missing)}")
-    for c in _NUMERIC:
+    for c in _numeric():
         if c in df.columns and not (pd.api.types.is_numeric_dtype(df[c]) or df[c].isna().all()):
             bad = next((v for v in df[c] if not isinstance(v, (int, float, np.number)) and v is not None), None)
             raise InputError(source, f"column {c!r} holds non-numbers (e.g. {str(bad)[:40]!r})")

@@ -37,7 +37,7 @@ import pandas as pd
 from harness.core.registry import Registry
 from harness.io.files import atomic_write_text
 from harness.report import bd, catalog, cells, claims, photos, sensitivity
-from harness.report.summary import PROTOCOL_NOTES, protocol_subsets, summarise
+from harness.report.summary import protocol_subsets, summarise
 from harness.report.tabledata import Built, Missing, Table, Written, as_table
 
 #: the runtime table's overhead percentage needs at least this many seconds in its denominator
@@ -103,7 +103,7 @@ class TableSpec:
 
 #: every table, in registration order (built-ins below; third-party ones through the ``harness.tables``
 #: entry-point group: a module whose import calls :func:`register_table`)
-TABLE_SPECS: Registry[TableSpec] = Registry("table", group="harness.tables")
+TABLE_SPECS: Registry[TableSpec] = Registry("table", modules=(__name__,), group="harness.tables")
 
 
 def register_table(name: str, *, build: Callable, title: str, reads: str = "results",
@@ -150,8 +150,12 @@ def build_tables(df: pd.DataFrame, names, **opts) -> dict[str, Table | Missing]:
     return {name: as_table(_call(t.build, s if t.reads == "summary" else df, opts)) for name, t in specs.items()}
 
 
-#: the tables a config or ``harness tables --tables`` can name
-TABLES = tuple(TABLE_SPECS.names())
+def __getattr__(name: str):
+    """``TABLES``: the tables a config or ``harness tables --tables`` can name, built-ins and plugins'
+    (looked up when first imported, once this module is whole: a plugin's tables are then its own)."""
+    if name == "TABLES":
+        return tuple(TABLE_SPECS.names())
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def base_title(name: str) -> str:
@@ -162,9 +166,10 @@ def base_title(name: str) -> str:
 def title(name: str, protocol: str) -> str:
     """A table's title, with the held-out view protocol its rows come from (every protocol, the
     primary one too; none only for results that carry no protocol)."""
+    from harness.views.protocols import notes
+
     base = base_title(name)
-    return base + (f" — held-out views: {protocol} ({PROTOCOL_NOTES.get(protocol, 'a named view protocol')})"
-                   if protocol else "")
+    return base + (f" — held-out views: {protocol} ({notes(protocol)})" if protocol else "")
 
 
 def with_caption(t: Table | Missing) -> Table | Missing:

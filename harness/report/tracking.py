@@ -2,11 +2,15 @@
 
 **Summary** of a run folder (``harness run`` output: tidy ``results.parquet`` + ``run.json``):
 
-* ``groups``: per (scene, method, variant, ratio), over the rows with ``status == "ok"``: mean PSNR
-  over the *finite* values with the count of +inf views apart (identical renders), mean SSIM, mean
-  LPIPS, each with its sample standard deviation beside it (``psnr_std``, ``ssim_std``, ``lpips_std``;
-  ddof = 1, null below two views), the number of measured views. Key ``"scene|method[variant]|ratio"``
-  (``scene@protocol`` for a held-out view protocol other than the primary one).
+* ``groups``: per (scene, method, variant, ratio), over the rows with ``status == "ok"``: the mean of
+  every *tracked* metric — one registered with a ``tolerance`` (:mod:`harness.metrics.registry`:
+  PSNR, SSIM, LPIPS) — with its sample standard deviation beside it (``psnr_std``, ``ssim_std``, ...;
+  ddof = 1, null below two views); a metric that is +inf on identical renders (PSNR) is averaged
+  over its *finite* values with the count of +inf views apart (``psnr_n_inf``); and the number of
+  measured views. A metric the run did not measure is null; one that is NaN on some measured views
+  (or infinite where it cannot be) is an error, never averaged over the others. Key
+  ``"scene|method[variant]|ratio"`` (``scene@protocol`` for a held-out view protocol other than the
+  primary one).
 * ``run`` (the config's name) and ``protocols`` (the held-out view protocols, primary first): what
   the run is, so it is compared only with a baseline of the same config and protocols.
 * ``stages``: seconds per stage — the run's wall time per stage from ``run.json`` (``run:load``,
@@ -24,9 +28,10 @@ and protocols (:func:`check_like`; anything else is an error, not a list of fals
 regression is
 
 * a baseline group missing from the run or without a measured view (a pruner that errors or is skipped);
-* ``psnr`` falling by more than ``tolerances.psnr`` dB (finite means); a group whose every view was
-  +inf in the baseline (pruning changed nothing) regresses when it now has finite views;
-* ``ssim`` falling by more than ``tolerances.ssim``; ``lpips`` rising by more than ``tolerances.lpips``;
+* a tracked metric moving the wrong way (its registered direction) by more than its tolerance —
+  ``tolerances.<metric>``, default the registered one (PSNR 0.5 dB, SSIM 0.005, LPIPS 0.005); a group
+  whose every view was +inf in the baseline (pruning changed nothing) regresses when it now has
+  finite views;
 * a stage whose *normalised* time t / calibration_s grew by more than the factor ``1 + tolerances.stage``
   — machine speed cancels in the ratio — when the run's stage took at least ``tolerances.min_stage_s``
   seconds (shorter stages are timer noise on a shared machine).
@@ -46,11 +51,28 @@ import numpy as np
 import pandas as pd
 
 from harness.core.errors import InputError
+from harness.metrics import registry
 from harness.report.machine import describe_machine, git_commit, time_calibration
 
 SCHEMA = 1
-DEFAULT_TOLERANCES = {"psnr": 0.5, "ssim": 0.005, "lpips": 0.005, "stage": 0.5, "min_stage_s": 1.0}
+#: the tolerances of the stages (their time may grow by the factor 1 + stage; shorter ones are not judged)
+STAGE_TOLERANCES = {"stage": 0.5, "min_stage_s": 1.0}
 _RUN_STAGES = ("load", "score", "prune", "render_metrics", "aggregate", "total")
+
+
+def default_tolerances() -> dict[str, float]:
+    """Every tracked metric's registered tolerance, then the stages' (:data:`STAGE_TOLERANCES`).
+
+    "Tracking takes names, directions, digits and tolerances from the registry": a metric is tracked
+    when it is registered with a ``tolerance`` (PSNR, SSIM, LPIPS); one without (a plugin's, by
+    default) has no scale on which a move is a regression, so it is not compared."""
+    return {**{m.name: m.tolerance for m in registry.tracked()}, **STAGE_TOLERANCES}
+
+
+def __getattr__(name: str):
+    if name == "DEFAULT_TOLERANCES":  # the registry's, as of now (plugins' metrics included)
+        return default_tolerances()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 # --------------------------------------------------------------------------- summary
@@ -75,20 +97,13 @@ def summarize_groups(df: pd.DataFrame) -> dict[str, dict]:
             out.update(summarize_groups(sub.drop(columns=["protocol"])))
         return out
     ok = df[df["status"] == "ok"]
+    tracked = [m for m in registry.tracked() if m.name in df]
     out: dict[str, dict] = {}
     for (scene, method, variant, ratio), g in ok.groupby(["scene", "method", "variant", "ratio"], sort=True):
-        psnr = g["psnr"].astype(float).to_numpy()
-        if np.isnan(psnr).any() or np.isneginf(psnr).any():
-            raise InputError(f"results of {scene} / {method}[{variant}]", "PSNR column holds NaN or -inf on "
-                                                                        "measured rows")
-        finite = psnr[np.isfinite(psnr)]
+        where = f"results of {scene} / {method}[{variant}]"
         out[group_key(scene, method, variant, ratio)] = {
-            "scene": scene, "method": method, "variant": variant, "ratio": float(ratio),
-            "n_views": len(g),
-            "psnr": float(finite.mean()) if finite.size else None,
-            "psnr_std": float(finite.std(ddof=1)) if finite.size > 1 else None,
-            "psnr_n_inf": int(psnr.size - finite.size),
-            **{k: v for m in ("ssim", "lpips") for k, v in _mean_std(g, m).items()},
+            "scene": scene, "method": method, "variant": variant, "ratio": float(ratio), "n_views": len(g),
+            **{k: v for m in tracked for k, v in _metric_summary(g[m.name], m, where).items()},
         }
     # groups the run attempted but never measured (errors, skips) are listed with n_views = 0
     for (scene, method, variant, ratio), _ in df[df["status"] != "ok"].groupby(
@@ -96,16 +111,31 @@ def summarize_groups(df: pd.DataFrame) -> dict[str, dict]:
         key = group_key(scene, method, variant, 0.0 if pd.isna(ratio) else ratio)
         out.setdefault(key, {"scene": scene, "method": method, "variant": variant,
                              "ratio": None if pd.isna(ratio) else float(ratio), "n_views": 0,
-                             "psnr": None, "psnr_n_inf": 0, "ssim": None, "lpips": None})
+                             **{k: v for m in tracked for k, v in
+                                ({m.name: None} | ({f"{m.name}_n_inf": 0} if m.inf_if_identical else {})).items()}})
     return out
 
 
-def _mean_std(g: pd.DataFrame, metric: str) -> dict:
-    """``{metric: mean, metric_std: sample std}`` of a group (None where absent or undefined)."""
-    if metric not in g:
-        return {metric: None, f"{metric}_std": None}
-    v = g[metric].astype(float)
-    return {metric: _finite_or_none(v.mean()), f"{metric}_std": _finite_or_none(v.std(ddof=1)) if len(v) > 1 else None}
+def _metric_summary(values: pd.Series, m, where: str) -> dict:
+    """``{name: mean, name_std: sample std}`` (+ ``name_n_inf`` for a metric that is +inf on identical
+    renders: its mean and std over the finite values) of one group's views; None where the run did
+    not measure it (every value NaN) or undefined (std below two)."""
+    v = pd.to_numeric(values, errors="coerce").to_numpy(np.float64)
+    nan = np.isnan(v)
+    if nan.all():
+        return {m.name: None, f"{m.name}_std": None} | ({f"{m.name}_n_inf": 0} if m.inf_if_identical else {})
+    bad = nan | (np.isneginf(v) if m.inf_if_identical else np.isinf(v))
+    if bad.any():
+        raise InputError(where, f"{m.label} column holds NaN or {'-inf' if m.inf_if_identical else 'inf'} on "
+                                "measured rows")
+    if not m.inf_if_identical:
+        s = pd.Series(v)
+        return {m.name: _finite_or_none(s.mean()), f"{m.name}_std": _finite_or_none(s.std(ddof=1)) if v.size > 1
+                else None}
+    finite = v[np.isfinite(v)]
+    return {m.name: float(finite.mean()) if finite.size else None,
+            f"{m.name}_std": float(finite.std(ddof=1)) if finite.size > 1 else None,
+            f"{m.name}_n_inf": int(v.size - finite.size)}
 
 
 def summarize_stages(df: pd.DataFrame, run_json: dict) -> dict[str, float]:
@@ -145,7 +175,7 @@ def read_run(run_dir: str | Path) -> tuple[pd.DataFrame, dict]:
     if not run_dir.is_dir():
         raise InputError(run_dir, "is not a folder (expected a `harness run` output folder)")
     df = read_results(run_dir)
-    for c in ("psnr", "ssim", "lpips", "score_s", "render_s", "metrics_s", "view"):
+    for c in (*registry.headline(), "score_s", "render_s", "metrics_s", "view"):
         if c not in df.columns:
             raise InputError(run_dir / "results.parquet", f"results lack the column {c!r}")
     meta_path = run_dir / "run.json"
@@ -244,25 +274,25 @@ def _metric_findings(key: str, base: dict, cur: dict | None, tol: dict) -> list[
             return []
         return [Finding("regression", key, f"{key}: measured on {base['n_views']} views in the baseline, "
                                            "no measured view now (error or skip)")]
-    out = []
-    bp, cp = base.get("psnr"), cur.get("psnr")
-    if bp is None and base.get("psnr_n_inf", 0) > 0 and cp is not None:
-        out.append(Finding("regression", key, f"{key}: PSNR was +inf on every view (identical renders), now "
-                                              f"{cp:.3f} dB on {cur['n_views'] - cur['psnr_n_inf']} views"))
-    elif bp is not None and cp is not None:
-        d = cp - bp
-        kind = "regression" if d < -tol["psnr"] else "ok"
-        out.append(Finding(kind, key, f"{key}: PSNR {bp:.3f} -> {cp:.3f} dB ({d:+.3f}, tolerance -{tol['psnr']})"))
-    for name, sign in (("ssim", -1.0), ("lpips", +1.0)):
-        b, c = base.get(name), cur.get(name)
-        if b is None or c is None:
-            continue
-        d = c - b
-        worse = d * sign > tol[name]
-        bound = f"{'-' if sign < 0 else '+'}{tol[name]}"
-        out.append(Finding("regression" if worse else "ok", key,
-                           f"{key}: {name.upper()} {b:.4f} -> {c:.4f} ({d:+.4f}, tolerance {bound})"))
-    return out
+    return [f for m in registry.tracked() if m.name in tol for f in _moved(key, m, base, cur, tol[m.name])]
+
+
+def _moved(key: str, m, base: dict, cur: dict, tol: float) -> list[Finding]:
+    """How metric ``m`` of a group moved from the baseline: ``ok`` or ``regression`` (more than
+    ``tol`` the wrong way), printed with one decimal more than its tables show."""
+    b, c, k = base.get(m.name), cur.get(m.name), m.digits + 1
+    unit = f" {m.unit}" if m.unit else ""
+    inf_before = m.inf_if_identical and b is None and base.get(f"{m.name}_n_inf", 0) > 0
+    if inf_before and c is not None:
+        return [Finding("regression", key, f"{key}: {m.label} was +inf on every view (identical renders), now "
+                                           f"{c:.{k}f}{unit} on {cur['n_views'] - cur[f'{m.name}_n_inf']} views")]
+    if b is None or c is None:
+        return []
+    d = c - b
+    worse = -d if m.higher_is_better else d
+    bound = f"{'-' if m.higher_is_better else '+'}{tol}"
+    return [Finding("regression" if worse > tol else "ok", key,
+                    f"{key}: {m.label} {b:.{k}f} -> {c:.{k}f}{unit} ({d:+.{k}f}, tolerance {bound})")]
 
 
 def _stage_findings(base: dict, cur: dict, tol: dict) -> list[Finding]:
@@ -285,7 +315,7 @@ def _stage_findings(base: dict, cur: dict, tol: dict) -> list[Finding]:
 
 def compare(baseline: dict, summary: dict) -> list[Finding]:
     """Findings of ``summary`` against ``baseline`` (``{"tolerances", "summary"}``)."""
-    tol = {**DEFAULT_TOLERANCES, **(baseline.get("tolerances") or {})}
+    tol = {**default_tolerances(), **(baseline.get("tolerances") or {})}
     base = baseline["summary"]
     out: list[Finding] = []
     for key, g in sorted(base["groups"].items()):
@@ -311,9 +341,10 @@ def load_baseline(path: str | Path) -> dict:
     tol = data.get("tolerances") or {}
     if not isinstance(tol, dict):
         raise InputError(path, "'tolerances' must be an object")
-    unknown = sorted(set(tol) - set(DEFAULT_TOLERANCES))
+    known = default_tolerances()
+    unknown = sorted(set(tol) - set(known))
     if unknown:
-        raise InputError(path, f"unknown tolerance(s) {', '.join(unknown)}; known: {', '.join(DEFAULT_TOLERANCES)}")
+        raise InputError(path, f"unknown tolerance(s) {', '.join(unknown)}; known: {', '.join(known)}")
     for k, v in tol.items():
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
             raise InputError(path, f"tolerance {k!r} must be a finite number >= 0, got {v!r}")
@@ -325,7 +356,7 @@ def load_baseline(path: str | Path) -> dict:
     for key, g in data["summary"]["groups"].items():
         if not isinstance(g, dict):
             raise InputError(path, f"group {key!r} is not an object")
-        for m in ("psnr", "ssim", "lpips"):
+        for m in (m.name for m in registry.tracked()):
             v = g.get(m)
             if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)):
                 raise InputError(path, f"group {key!r}: {m} must be a finite number or null, got {v!r}")
@@ -337,7 +368,7 @@ def write_baseline(path: str | Path, summary: dict, tolerances: dict | None = No
     from harness.io.files import atomic_write_text
 
     path = Path(path)
-    payload = {"tolerances": {**DEFAULT_TOLERANCES, **(tolerances or {})}, "summary": summary}
+    payload = {"tolerances": {**default_tolerances(), **(tolerances or {})}, "summary": summary}
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         atomic_write_text(path, json.dumps(payload, indent=2, sort_keys=True, allow_nan=False) + "\n")

@@ -12,12 +12,13 @@ Counting follows the runner's stages (:mod:`harness.run.runner`) and reads no mo
   pruners cost ``score_splat[m] · N``.
 * **prune** — one selection per distinct (score task, ratio): ``select_splat · N`` (serial, driver).
 * **render_ref** — one per (scene, frame, protocol, held-out view): ``render(N, W·H)``.
-* **real** protocol (a scene's capture, :mod:`harness.io.capture`): its held-out cameras at the
-  capture's size (capped at the photos'), measured with the masks of a second training set — a
-  camera-aware pruner scores again on the capture's training cameras (an extra score task and
-  pruned sets), a camera-free one shares its scores — and each image also against the photo:
-  the metric passes again except the LPIPS trunk (its pass is shared), plus once per view for the
-  unpruned render.
+* **view protocols** (:mod:`harness.views.protocols`): each protocol's views as its ``sizes`` says
+  (``n_test`` views of the run's size unless it says otherwise). One that brings its own training
+  set (``real``: a scene's capture, its held-out cameras at the capture's size capped at the
+  photos') is measured with the masks of a second training set — a camera-aware pruner scores again
+  on its training cameras (an extra score task and pruned sets), a camera-free one shares its
+  scores — and views with photos are measured against them too: the metric passes again except
+  the LPIPS trunk (its pass is shared), plus once per view for the unpruned render.
 * **render+metrics** — one image per pruned set × held-out view: ``render(N·keep, W·H)`` plus the
   metric passes of the config's metrics (:func:`metric_passes`: 3dgs = PSNR + SSIM + LPIPS; mpeg =
   4 PSNR-like passes on 8-bit images + 2 SSIM passes, YUV and occupancy-masked) plus
@@ -35,17 +36,17 @@ the workers halves a stage's wall time until its longest single task — camera-
 largest scene, or one view task of the largest — bounds it from below.
 
 Scenes whose files are absent (the MPEG sequences are not public) are estimated from
-:class:`Assumptions`, and every row says whether it was read or assumed.
+:class:`~harness.run.scene_sizes.Assumptions`, and every row says whether it was read or assumed
+(:mod:`harness.run.scene_sizes`).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 
-from harness.core.errors import InputError
-from harness.run.config import RunConfig, SceneSpec
+from harness.run.config import RunConfig
+from harness.run.scene_sizes import Assumptions, SceneInfo, scene_info  # noqa: F401  (estimate's inputs)
 from harness.run.unit_costs import UnitCosts, train_pixels
 
 #: per pool stage: spawning workers, importing torch/lpips, numba's first compile (default study:
@@ -55,37 +56,8 @@ STARTUP_S = 20.0
 #: PNGs, cache writes, the driver (default study, second half on this machine: 2,009 CPU-s for
 #: 1,498 images where the render and metric units give 1.23 core-s each: +0.1 s)
 IMAGE_OVERHEAD_S = 0.1
-#: held-out cameras of the MPEG sequences whose count is public (VGSC evaluation scripts: test
-#: views 0..20, 0..14, 0..20); other sequences: :data:`DEFAULT_VIEWS`
-KNOWN_VIEWS = {"bartender": 21, "breakfast": 15, "cinema": 21}
-DEFAULT_VIEWS = 21
 STAGES = ("load", "score", "prune", "render_ref", "render+metrics")
 SERIAL = ("load", "prune")
-
-
-@dataclass(frozen=True)
-class Assumptions:
-    """What an absent scene is taken to be: ``frames`` per sequence (the issue's 32), ``views``
-    cameras (None: :data:`KNOWN_VIEWS` by name, else :data:`DEFAULT_VIEWS`), ``splats`` per frame
-    and the native ``size`` (the CTC's 1920×1080)."""
-
-    frames: int = 32
-    views: int | None = None
-    splats: int = 1_000_000
-    size: tuple[int, int] = (1920, 1080)
-
-
-@dataclass
-class SceneInfo:
-    name: str
-    status: str                    # "read" or "assumed"
-    note: str                      # what was read, or why it is assumed
-    splats: list[int]              # per frame
-    views: list[tuple[int, int]]   # (W, H) of every held-out view, all protocols
-    train: list[tuple[int, int]]   # (W, H) of the views handed to camera-aware pruners
-    #: the ``real`` protocol's held-out views and training cameras (W, H): measured against photos too
-    real_views: list[tuple[int, int]] = field(default_factory=list)
-    real_train: list[tuple[int, int]] = field(default_factory=list)
 
 
 @dataclass
@@ -132,127 +104,6 @@ class Estimate:
             if self.wall_s(n * cores, efficiency) <= hours * 3600:
                 return by_cpu, n
         return by_cpu, None
-
-
-# --------------------------------------------------------------------------- what the scenes are
-def splat_count(path: Path, lod=None) -> int:
-    """Splats in a scene file from its header (PLY) or size (.splat); other formats are read."""
-    from harness.io.detect import detect
-
-    kind = detect(path).kind
-    if kind in ("ply", "compressed-ply"):
-        from harness.io.ply import read_ply_header
-
-        vertex = read_ply_header(path).element("vertex")
-        if vertex is not None and kind == "ply":
-            return vertex.count
-    if kind == "splat":
-        from harness.io.splat import SPLAT_RECORD
-
-        return path.stat().st_size // SPLAT_RECORD.itemsize
-    from harness.io.scenes import load_scene
-
-    return len(load_scene(path, lod=lod))
-
-
-def _rig_size(spec: SceneSpec, config: RunConfig, dataset: str | None) -> tuple[int, int]:
-    from harness.views import rigs
-
-    aspect = config.protocol.aspect
-    if aspect is None and spec.rig == "default" and dataset in rigs.SCENE_RIGS:
-        aspect = rigs.SCENE_RIGS[dataset].aspect
-    return rigs.image_size(config.protocol.longest_side, aspect or rigs.ASPECT)
-
-
-def _split(n: int, names: tuple, every: int) -> tuple[int, int]:
-    """(train, test) counts of ``n`` cameras split by test names / every k-th (none: all are both)."""
-    if names:
-        test = min(len(names), n)
-    elif every:
-        test = math.ceil(n / every)
-    else:
-        return n, n
-    return n - test, test
-
-
-def _sizes(cams) -> list[tuple[int, int]]:
-    return [(c.width, c.height) for c in cams]
-
-
-def _present_views(spec, config, toolkit, base, dataset):
-    from harness.run.plan import select_test
-
-    if spec.sequence is not None:
-        from harness.io.sequences import find_sequence, sequence_cameras
-
-        root = Path(spec.sequence) if Path(spec.sequence).is_absolute() else base / spec.sequence
-        cams = sequence_cameras(find_sequence(root)[0], spec.width, spec.height)
-        train, test = select_test(cams, spec) if spec.test or spec.test_every else (cams, cams)
-        return _sizes(test), _sizes(train)
-    if spec.cameras is not None:
-        path = Path(spec.cameras.path) if Path(spec.cameras.path).is_absolute() else base / spec.cameras.path
-        cams = [c.resized(config.protocol.longest_side) for c in toolkit.load_cameras(str(path))]
-        train, test = select_test(cams, spec.cameras)
-        return _sizes(test), _sizes(train)
-    size = _rig_size(spec, config, dataset)
-    from harness.io.capture import CaptureProtocol
-
-    rig = [p for p in config.protocols if not isinstance(p, CaptureProtocol)]
-    return [size] * (spec.n_test * len(rig)), [size] * spec.n_train * bool(rig)
-
-
-def _real_views(spec, config, toolkit, base):
-    """(held-out sizes, training sizes) of the ``real`` protocol on a scene, or two empty lists
-    (no such protocol, no capture, or one not on this machine)."""
-    from harness.io import capture as cap
-    from harness.run.captured import capture_spec
-
-    proto = next((p for p in config.protocols if isinstance(p, cap.CaptureProtocol)), None)
-    cs = capture_spec(spec, toolkit) if proto is not None else None
-    if cs is None or (cs.named and cap.capture_root(cs.named) is None):
-        return [], []
-    train, test, _ = cap.protocol_views(cap.load_capture(cs, base), proto, config.protocol.longest_side)
-    return _sizes(test), _sizes(train)
-
-
-def _assumed(spec, config, assume: Assumptions, dataset, reason: str) -> SceneInfo:
-    frames = 1 if spec.source is not None else assume.frames
-    if spec.sequence is None and spec.cameras is None:  # a rig: its views need no scene
-        views, train = _present_views(spec, config, None, Path("."), dataset)
-        return SceneInfo(spec.name, "assumed", f"{reason}; assumed {frames} frame(s) of {assume.splats:,} splats",
-                         [assume.splats] * frames, views, train)
-    n = assume.views or next((v for k, v in KNOWN_VIEWS.items() if k in spec.name.lower()), DEFAULT_VIEWS)
-    if spec.sequence is not None:
-        size = (spec.width, spec.height) if spec.width else assume.size
-        n_train, n_test = _split(n, spec.test, spec.test_every)
-    else:
-        from harness.views import rigs
-
-        size = rigs.image_size(config.protocol.longest_side, config.protocol.aspect or rigs.ASPECT)
-        n_train, n_test = _split(n, spec.cameras.test, spec.cameras.test_every)
-    note = (f"{reason}; assumed {frames} frame(s) × {assume.splats:,} splats, {n} cameras at "
-            f"{size[0]}×{size[1]} ({n_test} measured, {n_train} for training)")
-    return SceneInfo(spec.name, "assumed", note, [assume.splats] * frames, [size] * n_test, [size] * n_train)
-
-
-def scene_info(spec: SceneSpec, config: RunConfig, assume: Assumptions, toolkit=None, base: Path | None = None):
-    """A scene as the estimate sees it: read (file headers, camera files) when present, else assumed."""
-    from harness.run.plan import cameras_missing, resolve_paths
-    from harness.run.toolkit import Toolkit
-
-    toolkit, base = toolkit or Toolkit(), Path(base or ".")
-    dataset = spec.source if spec.source and toolkit.resolve_dataset(spec.source) else None
-    frames, reason = resolve_paths(spec, toolkit, base)
-    reason = reason or cameras_missing(spec, base)
-    if not reason:
-        real = _real_views(spec, config, toolkit, base)  # a bad capture is an error, not an assumption
-        try:
-            splats = [splat_count(Path(p), spec.lod) for _, p in frames]
-            views, train = _present_views(spec, config, toolkit, base, dataset)
-            return SceneInfo(spec.name, "read", f"{len(frames)} frame(s) read", splats, views, train, *real)
-        except InputError as err:
-            reason = f"cannot read it ({err})"
-    return _assumed(spec, config, assume, dataset, reason)
 
 
 # --------------------------------------------------------------------------- counting and costing
@@ -317,7 +168,7 @@ def estimate(config: RunConfig, infos: list[SceneInfo], units: UnitCosts | None)
     for info in infos:
         tasks = _score_tasks(config, specs[info.name], info, cost.notes)
         keeps = [1.0 - r for _, _, rs in tasks.values() for r in rs]
-        protos = _view_protocols(config, specs[info.name], info)
+        protos = info.view_protocols(config.protocols[0].name)
         by_proto = {p: _keeps(config, specs[info.name], tasks, p) for p in set(protos)}
         before = {k: (s.units, s.core_s) for k, s in st.items()}
         for n in info.splats:
@@ -336,28 +187,13 @@ def _score_tasks(config: RunConfig, spec, info: SceneInfo, notes: set) -> dict[s
     tasks: dict[str, tuple] = {}
     for mv in (m for m in config.methods if m.scenes is None or spec.name in m.scenes):
         pruner = get_pruner(mv.method)
-        if "cameras" in pruner.needs and not (info.train or info.real_train):
+        if "cameras" in pruner.needs and not info.every_train():
             notes.add(f"{spec.name}: {mv.method} needs training cameras and is skipped")
             continue
         key = f"{mv.method}|{sorted(mv.params.to_dict().items())!r}"
         prev = tasks.get(key, (mv, pruner, ()))
         tasks[key] = (prev[0], pruner, tuple(dict.fromkeys(prev[2] + tuple(mv.ratios))))
     return tasks
-
-
-def _view_protocols(config: RunConfig, spec, info: SceneInfo) -> list[str]:
-    """The protocol of each held-out view of ``info`` (``info.views`` then ``info.real_views``): a
-    rig scene's views are ``n_test`` per rig protocol, in the config's order; a scene with its own
-    cameras measures them under the first rig protocol."""
-    from harness.io.capture import CaptureProtocol
-
-    rig = [p.name for p in config.protocols if not isinstance(p, CaptureProtocol)]
-    real = next((p.name for p in config.protocols if isinstance(p, CaptureProtocol)), "real")
-    if rig and spec.sequence is None and spec.cameras is None and len(info.views) == spec.n_test * len(rig):
-        own = [p for p in rig for _ in range(spec.n_test)]
-    else:
-        own = [rig[0] if rig else real] * len(info.views)
-    return own + [real] * len(info.real_views)
 
 
 def _keeps(config: RunConfig, spec, tasks: dict, protocol: str) -> list[float]:
@@ -372,14 +208,15 @@ def _keeps(config: RunConfig, spec, tasks: dict, protocol: str) -> list[float]:
 
 
 def _cost_frame(st: dict, n: int, info: SceneInfo, tasks: dict, keeps: list[list[float]], cost: _Costing) -> None:
-    """Add one frame of ``n`` splats to the stages: its load; per training set (the rig's, and the
-    capture's for the real protocol: :mod:`harness.run.plan`) its score tasks and selections; per
-    held-out view its reference render and one view task measuring the pruned sets of its protocol
-    (``keeps``: their keep fractions, per view of ``info.views`` then ``info.real_views``)."""
+    """Add one frame of ``n`` splats to the stages: its load; per training set (the scene's, and each
+    one a protocol brings: :mod:`harness.run.plan`) its score tasks and selections; per held-out view
+    its reference render and one view task measuring the pruned sets of its protocol (``keeps``:
+    their keep fractions, per view of :meth:`SceneInfo.view_protocols`); views with photos are also
+    measured against them."""
     u = cost.u
-    sets = [(train, views, False) for train, views in ((info.train, info.views),) if views] \
-        + [(info.real_train, info.real_views, True)] * bool(info.real_views)
+    sets = [(info.train, info.views, False)] * bool(info.views) + [(o.train, o.views, o.photos) for o in info.own]
     st["load"].add(1, u.read_splat * n)
+    first = 0
     for j, (train, views, photos) in enumerate(sets):
         for mv, pruner, rs in tasks.values():
             aware = "cameras" in pruner.needs
@@ -390,7 +227,6 @@ def _cost_frame(st: dict, n: int, info: SceneInfo, tasks: dict, keeps: list[list
             st["score"].detail["training_renders"] += renders
             st["score"].detail["camera_aware_tasks"] += aware
             st["prune"].add(len(rs), u.select_splat * n * len(rs), u.select_splat * n)
-        first = 0 if not j and info.views else len(info.views)
         for (w, h), kept in zip(views, keeps[first:first + len(views)]):
             px = w * h
             st["render_ref"].add(1, u.render(n, px), u.render(n, px))
@@ -402,15 +238,16 @@ def _cost_frame(st: dict, n: int, info: SceneInfo, tasks: dict, keeps: list[list
             task = ref_cost + sum(image)  # one task per view
             st["render+metrics"].add(len(kept), task, task)
             st["render+metrics"].detail["view_tasks"] += 1
+        first += len(views)
 
 
 def _scene_row(info: SceneInfo, st: dict, before: dict, n_sets: int) -> dict:
     """The scene's row of the estimate: what was read or assumed, and its share of each stage."""
-    sizes = sorted(set(info.views + info.real_views))
+    sizes = sorted(set(info.every_view()))
     return {"scene": info.name, "status": info.status, "note": info.note, "frames": len(info.splats),
             "splats": round(sum(info.splats) / max(1, len(info.splats))),
-            "views": len(info.views) + len(info.real_views),
-            "train_views": len(info.train) + len(info.real_train),
+            "views": len(info.every_view()),
+            "train_views": len(info.every_train()),
             "size": "/".join(f"{w}×{h}" for w, h in sizes[:3]) + ("/…" if len(sizes) > 3 else ""),
             "score_tasks": st["score"].units - before["score"][0], "sets": n_sets,
             "images": st["render+metrics"].units - before["render+metrics"][0],

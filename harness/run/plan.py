@@ -15,12 +15,13 @@ Stages and their cache keys (every key also holds the code digest of what comput
   a photo (the ``real`` protocol) also keys on the photo's sha256 and holds the ``gt_`` metrics.
 * **gt** — per (reference render, photo digest): the unpruned render against the photo.
 
-**Protocols and training sets.** Every protocol measures its held-out views with the masks of one
-*training set*: ``rig`` (the synthetic rig's training views; protocols ``rig``, ``shifted`` and the
-other :class:`harness.views.rigs.ViewProtocol` s) or ``capture`` (the capture's training cameras;
-the ``real`` protocol, :class:`harness.io.capture.CaptureProtocol`). Camera-aware pruners score
-once per training set (their score keys hold the cameras); the others score once — their keys do
-not depend on the training set, so the second set's entry is the first's.
+**Protocols and training sets.** Each view protocol of the run (:mod:`harness.views.protocols`,
+asked by :mod:`harness.run.protocol_views`) gives a scene its held-out views, measured with the
+masks of one *training set*: ``rig`` (the scene's own training views: ``rig``, ``shifted``,
+``independent`` and every protocol that brings none) or one the protocol brings (``capture``: the
+capture's training cameras, the ``real`` protocol). Camera-aware pruners score once per training
+set (their score keys hold the cameras); the others score once — their keys do not depend on the
+training set, so the second set's entry is the first's.
 
 Scenes are resolved before any work (:func:`check_sources`): a scene the config does not mark
 ``optional: true`` whose files are absent is an error naming it (a misspelt name gets "did you
@@ -34,12 +35,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from harness.core.cameras import Camera
-from harness.io.capture import CaptureProtocol
 from harness.run.cache import StageCache, digest_json
 from harness.run.cache.versions import Versions
-from harness.run.captured import RealViews, capture_views
 from harness.run.config import MethodVariant, RunConfig, SceneSpec
 from harness.run.toolkit import Toolkit
+from harness.views.protocols import HeldOut
 
 
 @dataclass
@@ -57,37 +57,35 @@ class SceneItem:
     test: list[Camera]
     ply_base: int = 0  # size model of the pruned .ply (harness.io.plysize): base + digits + N·row
     ply_row: int = 0
-    #: held-out views of the other rig protocols (the rig protocol's are ``test``)
-    shifted: dict[str, list[Camera]] = field(default_factory=dict)
-    #: the ``real`` protocol's views of the scene's capture (None: not measured)
-    real: RealViews | None = None
-    #: False when the run measures no rig protocol's own views (``protocols: [real, ...]``)
-    measure_rig: bool = True
+    #: the held-out views of each protocol of the run that measures the scene, in the config's order
+    held: dict[str, HeldOut] = field(default_factory=dict)
 
-    def views(self, primary: str = "rig") -> list[tuple[str, int, Camera]]:
-        """(protocol, index within it, camera) of every held-out view, the primary protocol first.
-        ``primary``: the name of the rig protocol (the config's first protocol when it is a rig one)."""
-        rig = [(primary, v, c) for v, c in enumerate(self.test)] if self.measure_rig else []
-        real = [(self.real.protocol, v, c) for v, c in enumerate(self.real.test)] if self.real else []
-        shifted = [(name, v, c) for name, cams in self.shifted.items() for v, c in enumerate(cams)]
-        return (rig + shifted + real) if self.measure_rig else (real + shifted)
+    def views(self) -> list[tuple[str, int, Camera]]:
+        """(protocol, index within it, camera) of every held-out view, protocol by protocol."""
+        return [(proto, v, c) for proto, h in self.held.items() for v, c in enumerate(h.test)]
 
     def primary_views(self) -> list[Camera]:
-        """The held-out views of the run's first protocol (contact sheets, figures)."""
-        return self.test if self.measure_rig or self.real is None else self.real.test
+        """The held-out views of the run's first protocol that measures the scene (contact sheets, figures)."""
+        return next(iter(self.held.values())).test if self.held else self.test
 
     def train_set(self, protocol: str) -> str:
-        """The training set whose masks a protocol's views measure: ``capture`` or ``rig``."""
-        return "capture" if self.real is not None and protocol == self.real.protocol else "rig"
+        """The training set whose masks a protocol's views measure: ``rig`` (the scene's) or the
+        protocol's own (``capture``)."""
+        h = self.held.get(protocol)
+        return h.training_set if h is not None and h.train is not None else "rig"
 
     def train_sets(self) -> dict[str, list[Camera]]:
-        """The training sets of the protocols measured on this item, rig first."""
-        out = {"rig": self.train} if self.measure_rig or self.shifted else {}
-        return {**out, "capture": self.real.train} if self.real is not None else out
+        """The training sets of the protocols measured on this item, the scene's own first."""
+        out = {"rig": self.train} if any(h.train is None for h in self.held.values()) else {}
+        for h in self.held.values():
+            if h.train is not None:
+                out.setdefault(h.training_set, h.train)
+        return out
 
-    def photo(self, view: str) -> tuple[str, str] | None:
+    def photo(self, protocol: str, view: str) -> tuple[str, str] | None:
         """(photo path, sha256) of a held-out view that has one."""
-        return self.real.photos.get(view) if self.real is not None else None
+        h = self.held.get(protocol)
+        return h.photos.get(view) if h is not None else None
 
     def ply_bytes(self, count: int) -> int | None:
         """Bytes of the .ply the harness writes for ``count`` of this frame's splats (None: unknown)."""
@@ -291,50 +289,46 @@ def load_items(config: RunConfig, cache: StageCache, toolkit: Toolkit, versions:
     absent required ones (gone since :func:`check_sources` passed) errors.
 
     Scenes are loaded only when a stage needs them (a miss of ``load`` or ``views``), so a rerun
-    with everything cached never reads a scene file. Captures are read and verified first, for
-    every scene, so a bad capture stops the run before any work (an :class:`InputError`).
-    ``on_note(spec, text)`` hears about a scene the ``real`` protocol does not measure.
+    with everything cached never reads a scene file. Every protocol's checks run first, for every
+    scene (:func:`harness.run.protocol_views.check_protocols`), so a bad capture stops the run
+    before any work (an :class:`InputError`). A scene no protocol of the run measures is skipped with
+    why. ``on_note(spec, text)`` hears what a protocol brings (a capture's views) or why it does not
+    measure a scene.
     """
     from harness.core.errors import InputError
+    from harness.run.protocol_views import check_protocols
 
-    real = next((p for p in config.protocols if isinstance(p, CaptureProtocol)), None)
-    captures = {spec.name: capture_views(spec, real, config, cache, toolkit, base) for spec in config.scenes}
+    check_protocols(config, base, toolkit)
     items, skips = [], []
     for spec in config.scenes:
-        views, reason = captures[spec.name]
         frames, missing = resolve_paths(spec, toolkit, base)
         missing = missing or cameras_missing(spec, base)
-        if not missing and real is not None and views is None and not _measures_rig(config):
-            missing = f"the {real.name} protocol measures it only, and {reason}"
+        try:
+            got = [] if missing else _scene_items(spec, frames, config, cache, toolkit, versions, base, on_note)
+        except _Unmeasured as why:
+            missing = str(why)
+        except InputError as err:  # a bad file spoils this scene only; the run goes on and exits 1
+            skips.append(Skip(spec.name, "", "*", "*", f"cannot use it: {err}", status="error"))
+            if on_skip:
+                on_skip(spec, f"cannot use it: {err}")
+            continue
         if missing:
             skips.append(Skip(spec.name, "", "*", "*", missing, status="skipped" if spec.optional else "error"))
             if on_skip:
                 on_skip(spec, missing)
             continue
-        if on_note and reason:
-            on_note(spec, f"not measured under {real.name}: {reason}")
-        elif on_note and views is not None:
-            cam = views.test[0]
-            on_note(spec, f"{real.name}: {len(views.test)} held-out views and {len(views.train)} training cameras "
-                          f"of {views.source} at {cam.width}x{cam.height}" + "".join(f"; {n}" for n in views.notes))
-        try:
-            items += _scene_items(spec, frames, config, cache, toolkit, versions, base, views)
-        except InputError as err:  # a bad file spoils this scene only; the run goes on and exits 1
-            skips.append(Skip(spec.name, "", "*", "*", f"cannot use it: {err}", status="error"))
-            if on_skip:
-                on_skip(spec, f"cannot use it: {err}")
+        items += got
     return items, skips
 
 
-def _measures_rig(config: RunConfig) -> bool:
-    """Does the run measure any rig protocol (its first protocol is not ``real``, or it lists others)?"""
-    return any(not isinstance(p, CaptureProtocol) for p in config.protocols)
+class _Unmeasured(Exception):
+    """No protocol of the run measures a scene (the message says why)."""
 
 
-def _scene_items(spec, frames, config, cache, toolkit, versions, base, real=None) -> list[SceneItem]:
+def _scene_items(spec, frames, config, cache, toolkit, versions, base, on_note=None) -> list[SceneItem]:
     from harness.run.verify import load_check
 
-    items, views, shifted = [], None, None
+    items, views, held = [], None, None
     for frame, path in frames:
         digest = digest_json({"file": cache.files.scene(path), "lod": spec.lod})
         scene = _LazyScene(toolkit, str(path), spec.lod)
@@ -353,44 +347,44 @@ def _scene_items(spec, frames, config, cache, toolkit, versions, base, real=None
             raise InputError(path, "holds no splats: there is nothing to prune or render")
         if views is None:  # the first frame's views serve the whole sequence
             views = scene_views(spec, scene, path, config.protocol, cache, toolkit, versions, digest, base)
+            held = protocol_views(spec, scene, views, config, cache, toolkit, versions, digest, base, on_note)
         rig, train, test = views
-        if shifted is None:
-            shifted = shifted_views(spec, scene, config, cache, toolkit, versions, digest, rig)
         items.append(SceneItem(spec, frame, str(path), digest, info["n_splats"], info["sh_degree"], rig,
-                               train, test, info["ply_base"], info["ply_row"], shifted,
-                               real, measure_rig=not isinstance(config.protocols[0], CaptureProtocol)))
+                               train, test, info["ply_base"], info["ply_row"], held))
     return items
 
 
-def rig_protocols(config: RunConfig) -> list:
-    """The rig protocols other than the primary one: their views are built from the scene's rig."""
-    rest = [p for p in config.protocols if not isinstance(p, CaptureProtocol)]
-    return rest[1:] if not isinstance(config.protocols[0], CaptureProtocol) else rest
+def protocol_views(spec: SceneSpec, scene, views, config: RunConfig, cache: StageCache, toolkit: Toolkit,
+                   versions: Versions, scene_digest: str, base: Path, on_note=None) -> dict[str, HeldOut]:
+    """The held-out views of each protocol of the run on a scene (:mod:`harness.run.protocol_views`);
+    raises :class:`_Unmeasured` when none measures it."""
+    from harness.run import protocol_views as pv
 
-
-def shifted_views(spec: SceneSpec, scene, config: RunConfig, cache: StageCache, toolkit: Toolkit,
-                  versions: Versions, scene_digest: str, rig: str) -> dict[str, list[Camera]]:
-    """Held-out views of every rig protocol but the primary one (cached like the rig's views): the same
-    rig kind with the protocol's camera distribution (:class:`harness.views.rigs.ViewProtocol`).
-    Scenes whose views come from camera files or MPEG content have no shifted protocol."""
-    out: dict[str, list[Camera]] = {}
-    if spec.cameras is not None or getattr(spec, "sequence", None) or rig in ("file", "sequence"):
-        return out
-    p = config.protocol
-    dataset = spec.source if spec.source and toolkit.resolve_dataset(spec.source) else None
-    for proto in rig_protocols(config):
-        source = {"rig": spec.rig, "scene": scene_digest, "dataset": dataset, "kind": spec.kind,
-                  "n_test": spec.n_test, "aspect": p.aspect, "seed": p.seed, "protocol": proto.__dict__}
-        key = cache.key("views", source=source, longest_side=p.longest_side, code=versions.rigs)
-        hit = cache.get_json("views", key)
-        if hit is not None:
-            out[proto.name] = [Camera.from_dict(c) for c in hit["test"]]
-            continue
-        cams = toolkit.protocol_views(spec.rig, scene(), proto, kind=spec.kind, dataset=dataset, n_test=spec.n_test,
-                                      longest_side=p.longest_side, aspect=p.aspect, seed=p.seed)
-        cache.put_json("views", key, {"rig": proto.name, "train": [], "test": [c.to_dict() for c in cams]})
-        out[proto.name] = cams
-    return out
+    rig, train, test = views
+    req = pv.request(spec, config, toolkit, base, scene=scene, held_out=lambda: list(test),
+                     digest=cache.files.digest)
+    req.synthetic = req.synthetic and rig not in ("file", "sequence")
+    held, why = {}, {}
+    for proto in config.protocols:
+        got, reason = pv.held_out(proto, req, cache, versions.protocol(proto.spec.name), scene_digest)
+        if got is not None:
+            held[proto.name] = got
+            if on_note and got.source:
+                cam = got.test[0]
+                on_note(spec, f"{proto.name}: {len(got.test)} held-out views and {len(got.train or [])} training "
+                              f"cameras of {got.source} at {cam.width}x{cam.height}"
+                              + "".join(f"; {n}" for n in got.notes))
+        elif reason:
+            why[proto.name] = reason
+    if not held:
+        names = [p.name for p in config.protocols]
+        reasons = "; ".join(f"{k}: {v}" for k, v in why.items())
+        raise _Unmeasured(f"the {names[0]} protocol measures it only, and {why.get(names[0], 'it has no views')}"
+                          if len(names) == 1 else f"none of the protocols {', '.join(names)} measures it ({reasons})")
+    for name, reason in why.items():
+        if on_note:
+            on_note(spec, f"not measured under {name}: {reason}")
+    return held
 
 
 def variants_for(item: SceneItem, methods: list[MethodVariant], protocol: str | None = None) -> list[MethodVariant]:
@@ -399,8 +393,8 @@ def variants_for(item: SceneItem, methods: list[MethodVariant], protocol: str | 
             and (protocol is None or m.measures(protocol))]
 
 
-def training_sets_for(item: SceneItem, mv: MethodVariant, primary: str) -> dict[str, list]:
+def training_sets_for(item: SceneItem, mv: MethodVariant) -> dict[str, list]:
     """The item's training sets (:meth:`SceneItem.train_sets`) whose protocols measure ``mv``: a
     variant measured only under ``real`` is not scored on the rig's training views, and vice versa."""
-    wanted = {item.train_set(p) for p in dict.fromkeys(v[0] for v in item.views(primary)) if mv.measures(p)}
+    wanted = {item.train_set(p) for p in item.held if mv.measures(p)}
     return {ts: train for ts, train in item.train_sets().items() if ts in wanted}

@@ -4,7 +4,8 @@ variant, ratio, held-out view), and the images the figures show.
 A view measures the masks of its protocol's training set; a view with a photo carries the ``gt_``
 metrics of the pruned render and (``unpruned_gt_*``) of the unpruned one. A failed (scores, ratio)
 is one ``error`` row; a view whose metrics entry is missing an ``error`` row of its own. Images:
-the first view of the primary protocol, and of the ``real`` one (with its photo).
+the first view of the primary protocol, and of a protocol whose views have photos (``real``),
+with its photo.
 """
 
 from __future__ import annotations
@@ -63,8 +64,8 @@ def _skip_rows(config, skips, base: dict) -> list[dict]:
 def _views(runner, item):
     """The item's views ``(protocol, index, camera, reference key, photo)``, their reference render
     records, and per view with a photo the unpruned render's ``unpruned_gt_*`` values."""
-    views = [(proto, v, cam, runner.ref_key(item, cam), item.photo(cam.name))
-             for proto, v, cam in item.views(runner.primary)]
+    views = [(proto, v, cam, runner.ref_key(item, cam), item.photo(proto, cam.name))
+             for proto, v, cam in item.views()]
     ref_recs = {rk: runner.cache.load_json("render_ref", rk, check=render_ref_record_check(c.width, c.height)) or {}
                 for _, _, c, rk, _ in views}
     gt_ok = gt_check(gt_names(runner.config.protocol.metrics))

@@ -97,7 +97,7 @@ class Runner:
         self.progress = progress  # a harness.run.progress.StageProgress or None
         self.log = log
         self.base = Path(base_dir) if base_dir else Path.cwd()
-        self.primary = config.protocols[0].name  # the held-out views of the rig the methods train on
+        self.primary = config.protocols[0].name  # the run's first protocol: its views are the figures'
         #: where the work units run (the caller closes an executor it passed; ours is closed by run())
         self.executor = executor or LocalExecutor(self.workers, self.toolkit)
         self._own_executor = executor is None
@@ -178,7 +178,7 @@ class Runner:
         for i, item in enumerate(items):
             for mv in variants_for(item, self.config.methods):
                 spec = get_pruner(mv.method)
-                for ts, train in training_sets_for(item, mv, self.primary).items():
+                for ts, train in training_sets_for(item, mv).items():
                     if "cameras" in spec.needs and not train:
                         skips.append(Skip(item.spec.name, item.frame, mv.method, mv.variant,
                                           f"{mv.method} needs {', '.join(sorted(spec.needs))}: the scene has no "
@@ -299,7 +299,7 @@ class Runner:
         """Per protocol: mask digest -> the methods and ratios measured under it that keep those
         splats (pruned on the protocol's training set)."""
         out: dict[str, dict[str, list[str]]] = {}
-        for proto in dict.fromkeys(v[0] for v in item.views(self.primary)):
+        for proto in item.held:
             kept_by, ts = out.setdefault(proto, {}), item.train_set(proto)
             for mv in variants_for(item, self.config.methods, proto):
                 for r in mv.ratios:
@@ -320,11 +320,11 @@ class Runner:
         users: dict[str, str] = {}  # metrics key -> the methods and ratios that keep those splats
         for i, item in enumerate(items):
             masks = self._masks(i, item, prunes)
-            for proto, v, cam in item.views(self.primary):
+            for proto, v, cam in item.views():
                 ref_key = self.ref_key(item, cam)
                 views[ref_key] = f"{_where(item)} {proto} view {cam.name or f'view{v:02d}'}"
-                photo = item.photo(cam.name)
-                # the first view of the primary protocol and of the real one keep their renders as images
+                photo = item.photo(proto, cam.name)
+                # the first view of the primary protocol and of one with photos keep their renders as images
                 first = v == 0 and (proto == self.primary or photo is not None)
                 jobs = self._view_jobs(ref_key, masks.get(proto, {}), photo, first, users)
                 gt_key = self._gt_to_measure(ref_key, photo, v)

@@ -13,7 +13,7 @@ Each entry also names the modules whose source is its "version" in cache keys
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 
@@ -49,25 +49,6 @@ def make_rig(rig: str, scene, *, kind: str, dataset: str | None, n_train: int, n
     views = rigs.scene_rig(dataset, scene, rig, n_train=n_train, n_test=n_test, longest_side=longest_side,
                            aspect=aspect, seed=seed)
     return views.rig or rig, list(views.train), list(views.test)
-
-
-def protocol_views(rig: str, scene, protocol, *, kind: str, dataset: str | None, n_test: int, longest_side: int,
-                   aspect: float | None, seed: int):
-    """The held-out views of a shifted protocol: the scene's rig with the protocol's camera
-    distribution (higher rings, another field of view, other azimuths; no training views), or the
-    random views of :mod:`harness.views.independent` (``distribution="independent"``)."""
-    from harness.views import independent, rigs
-
-    if rig == "default" and dataset not in rigs.SCENE_RIGS and kind == "forward-facing":
-        rig = "forward"
-    if protocol.distribution == "independent":
-        cams = independent.independent_views(dataset, scene, rig, n_test=n_test, longest_side=longest_side,
-                                             aspect=aspect, seed=seed + protocol.seed_offset)
-        return [replace(c, name=f"{protocol.name}/{c.name}") for c in cams]
-    views = rigs.scene_rig(dataset, scene, rig, n_train=0, n_test=n_test, longest_side=longest_side,
-                           aspect=aspect, seed=seed + protocol.seed_offset,
-                           fov_deg=rigs.FOV_DEG * protocol.fov_scale, rings_above=protocol.rings_above)
-    return [replace(c, name=f"{protocol.name}/{c.name}") for c in views.test]
 
 
 def load_cameras(path: str):
@@ -112,7 +93,6 @@ class Toolkit:
     load_scene: Callable = load_scene
     resolve_dataset: Callable = resolve_dataset
     make_rig: Callable = make_rig
-    protocol_views: Callable = protocol_views
     load_cameras: Callable = load_cameras
     make_renderer: Callable = make_renderer
     make_metrics: Callable = make_metrics

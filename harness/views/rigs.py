@@ -210,7 +210,8 @@ def make_rig(name: str, scene: GaussianScene, *, n_train: int = N_TRAIN, n_test:
     ``elevations`` (degrees) are the rings of ``orbit``/``room`` and, for ``forward``, the angles across
     the arc (default 0). ``up`` defaults to −y; ``front`` (forward only) to :func:`front_direction`.
     ``rings_above`` (degrees) replaces the rings by a band above the highest one (``forward``: arc
-    angles above its highest; views stay within ±85°): the shifted held-out views of :data:`PROTOCOLS`.
+    angles above its highest; views stay within ±85°): the ``shifted`` protocol's held-out views
+    (:mod:`harness.views.heldout`).
     """
     if name not in RIG_NAMES:
         raise ValueError(f"unknown rig {name!r}; known: {', '.join(RIG_NAMES)}")
@@ -244,34 +245,6 @@ def make_rig(name: str, scene: GaussianScene, *, n_train: int = N_TRAIN, n_test:
     cams = [look_from(target, u, float(d), name=f"{name}_{i:0{digits}d}", **common)
             for i, (u, d) in enumerate(zip(dirs, dist))]
     return _split(cams, n_test, name)
-
-
-@dataclass(frozen=True)
-class ViewProtocol:
-    """Where the held-out views come from. ``rig``: the rig the camera-aware methods train on (its
-    held-out views interleave with the training views). A ``distribution="rig"`` protocol other than
-    that builds its test views from the same rig kind with a different camera distribution: rings
-    ``rings_above`` degrees above the training rig's highest ring (outside its band), a field of view
-    ``fov_scale`` times as wide (the distance fit moves the cameras back accordingly) and other
-    azimuths (seed + ``seed_offset``) — so "camera-aware" is not the same as "trained on the test
-    distribution". ``distribution="independent"``: random views of :mod:`harness.views.independent`,
-    defined without the training rig's path, rings or field of view (and without any virtual rig)."""
-
-    name: str
-    rings_above: tuple[float, ...] = ()
-    fov_scale: float = 1.0
-    seed_offset: int = 0
-    distribution: str = "rig"
-
-    @property
-    def shifted(self) -> bool:
-        return (self.rings_above, self.fov_scale, self.seed_offset, self.distribution) != ((), 1.0, 0, "rig")
-
-
-#: named protocols a config can list (``protocols: [rig, shifted, independent]``)
-PROTOCOLS = {"rig": ViewProtocol("rig"),
-             "shifted": ViewProtocol("shifted", rings_above=(15.0, 30.0), fov_scale=0.6, seed_offset=1000),
-             "independent": ViewProtocol("independent", seed_offset=2000, distribution="independent")}
 
 
 def resolve_rig(dataset: str | None, rig: str = "default") -> tuple[str, dict]:

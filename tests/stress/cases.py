@@ -69,6 +69,8 @@ class Setup:
     python: str | None = None                            # run this Python code instead of `harness ARGV`
     stderr_has: str | None = None                        # stderr must say this (a warning, the wording)
     stderr_lacks: str | None = None                      # ... and must not say this
+    path: list[Path] = field(default_factory=list)       # folders on PYTHONPATH after the tree (installed plugins)
+    output_check: Callable[[str, str], "str | None"] | None = None  # a check of (stdout, stderr): a problem or None
 
 
 @dataclass
@@ -835,8 +837,8 @@ def run_case(c: Case, root: Path = ROOT, work: Path | None = None) -> dict:
         for sub in ("weights", "data"):
             if (real / sub).is_dir():
                 (hcache / sub).symlink_to(real / sub)
-        env = {**os.environ, "PYTHONPATH": str(root), "HARNESS_CACHE": str(hcache), "PYTHONWARNINGS": "ignore",
-               **s.env}
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join(map(str, [root, *s.path])), "HARNESS_CACHE": str(hcache),
+               "PYTHONWARNINGS": "ignore", **s.env}
         t0 = time.perf_counter()
         command = [PY, "-c", s.python] if s.python is not None else [PY, "-m", "harness", *s.argv]
         proc = subprocess.Popen(command, cwd=d, env=env, stdout=subprocess.PIPE,
@@ -876,7 +878,7 @@ def classify(c: Case, s: Setup, rc, out: str, err: str, before: dict, d: Path) -
     wrote = [p for p in s.absent if p.exists()]
     if _tmp_files(d):
         return "tmp left"
-    problem = s.check() if s.check is not None else None
+    problem = (s.check() if s.check is not None else None) or (s.output_check(out, err) if s.output_check else None)
     if problem:
         return problem
     if s.stderr_has is not None and s.stderr_has not in err:
@@ -960,8 +962,8 @@ def main(argv=None) -> int:
     return 0 if good == len(results) - skipped else 1
 
 
-# the families of issue 24, and family M (they register into CASES above)
-from tests.stress import cases_issue24, cases_memory  # noqa: E402,F401
+# the families of issue 24, family M and the plugins' (they register into CASES above)
+from tests.stress import cases_issue24, cases_memory, cases_plugins  # noqa: E402,F401
 
 if __name__ == "__main__":
     sys.exit(main())

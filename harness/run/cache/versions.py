@@ -133,12 +133,23 @@ class Versions:
     renderer: str
     metrics: str
     pruners: dict[str, str] = field(default_factory=dict)
+    protocols: dict[str, str] = field(default_factory=dict)
 
     @classmethod
     def of(cls, toolkit) -> Versions:
         return cls(reader=module_versions(toolkit.reader_modules), rigs=module_versions(toolkit.rig_modules),
                    renderer=module_versions(toolkit.renderer_modules),
                    metrics=module_versions(tuple(toolkit.metric_modules) + plugin_metric_modules()))
+
+    def protocol(self, name: str) -> str:
+        """Digest of the code a view protocol's views run: its module and every project module it
+        imports (as :meth:`pruner`), with the rigs' (its views are built around the scene's rig)."""
+        if name not in self.protocols:
+            from harness.views.protocols import PROTOCOL_SPECS
+
+            mods = sorted(project_closure(PROTOCOL_SPECS.get(name).views.__module__))
+            self.protocols[name] = digest_json([self.rigs, module_versions(tuple(mods) + ("harness.views.protocols",))])
+        return self.protocols[name]
 
     def pruner(self, name: str) -> str:
         """Digest of the code a pruner runs: its module and every project module it imports,

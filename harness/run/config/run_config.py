@@ -97,7 +97,7 @@ from harness.run.config.sections import (  # noqa: F401  (the sections are impor
 )
 from harness.run.config.sections import pruner as _pruner
 from harness.run.config.views import protocols as _protocols
-from harness.views import rigs
+from harness.views.protocols import PRIMARY, protocol
 
 SECTIONS = ("protocol", "scenes", "methods", "protocols", "executor")
 
@@ -115,8 +115,8 @@ class RunConfig:
     source_path: str = ""
     raw: dict = field(default_factory=dict)
     anchor: str = "lightgs"  # the BD table's anchor method (harness.report.bd)
-    #: held-out view protocols (harness.views.rigs.ViewProtocol); the first is the primary one
-    protocols: tuple = (rigs.PROTOCOLS["rig"],)
+    #: held-out view protocols (harness.views.protocols.Protocol); the first is the primary one
+    protocols: tuple = field(default_factory=lambda: (protocol(PRIMARY),))
     executor: ExecutorSpec = field(default_factory=ExecutorSpec)
 
 

@@ -1,17 +1,16 @@
-"""The view sections of a run config: ``protocols:`` (harness.views.rigs.ViewProtocol, or the
-captured views, harness.io.capture.CaptureProtocol) and a scene's ``capture:``. Every problem is an
-:class:`InputError` naming the key path."""
+"""The view sections of a run config: ``protocols:`` (the registered view protocols,
+:mod:`harness.views.protocols`) and a scene's ``capture:``. Every problem is an :class:`InputError`
+naming the key path."""
 
 from __future__ import annotations
 
 from harness.core.errors import InputError
-from harness.io.capture import CaptureProtocol, CaptureSpec
+from harness.io.capture import CaptureSpec
 from harness.run.config.checks import expand_env
 from harness.run.config.checks import mapping as _mapping
 from harness.run.config.checks import num as _num
 from harness.run.config.checks import only as _only
 from harness.run.config.checks import string as _str
-from harness.views import rigs
 
 
 def capture(d, where, src):
@@ -40,46 +39,45 @@ def capture(d, where, src):
 
 
 def protocols(v, src) -> tuple:
-    """``protocols: [rig, shifted, {name: steep, rings_above: [20, 40], fov_scale: 0.5, seed_offset: 7},
-    real]`` — ``real`` (or ``{name: real, n_test: 8}``: the first 8 by name) is the captured held-out
-    views of the scenes that carry a capture (:class:`harness.io.capture.CaptureProtocol`)."""
+    """``protocols: [rig, shifted, {name: real, n_test: 8}, {name: steep, protocol: shifted, rings_above: [40]}]``:
+    each a registered view protocol (:mod:`harness.views.protocols`) named by a word, or a mapping
+    with its parameters; ``protocol:`` makes an instance of a registered protocol under a name of its
+    own. A mapping naming no registered protocol and giving no ``protocol:`` is a shifted one that
+    changes only what it names (:data:`harness.views.heldout.SHIFT_BLANK`). The first must be one that
+    may lead a run (``rig``, ``real``)."""
+    from harness.core.params import ParamError
+    from harness.views.heldout import SHIFT_BLANK
+    from harness.views.protocols import PROTOCOL_SPECS, protocol
+
     if not isinstance(v, list) or not v:
         raise InputError(src, "protocols: expected a non-empty list of view protocols (e.g. [rig, shifted])")
     out = []
-    known = [*rigs.PROTOCOLS, "real"]
     for i, e in enumerate(v):
         where = f"protocols[{i}]"
-        if e == "real" or (isinstance(e, dict) and e.get("name") == "real"):
-            e = _mapping({} if e == "real" else e, where, src)
-            _only(e, {"name", "n_test"}, where, src)
-            n = e.get("n_test")
-            out.append(CaptureProtocol("real", None if n is None else _num(n, f"{where}.n_test", src, lo=1,
-                                                                                integer=True)))
-            continue
-        if isinstance(e, str):
+        e = {"name": e} if isinstance(e, str) else dict(_mapping(e, where, src))
+        name = _str(e.pop("name", None), f"{where}.name", src)
+        kind = e.pop("protocol", None)
+        if kind is None and e and name not in PROTOCOL_SPECS:
+            kind, blank = "shifted", SHIFT_BLANK
+        else:
+            blank = {}
+        kind = name if kind is None else _str(kind, f"{where}.protocol", src)
+        if kind not in PROTOCOL_SPECS:
             from harness.core.suggest import unknown
 
-            out.append(rigs.PROTOCOLS.get(e) or _fail(src, f"{where}: {unknown('view protocol', e, known)} "
-                                                           "(or give a mapping)"))
-            continue
-        e = _mapping(e, where, src)
-        _only(e, {"name", "rings_above", "fov_scale", "seed_offset"}, where, src)
-        above = e.get("rings_above", [])
-        if not isinstance(above, list):
-            raise InputError(src, f"{where}.rings_above: expected a list of degrees")
-        out.append(rigs.ViewProtocol(
-            _str(e.get("name"), f"{where}.name", src),
-            tuple(float(_num(a, f"{where}.rings_above[{j}]", src, lo=-80, hi=80)) for j, a in enumerate(above)),
-            float(_num(e.get("fov_scale", 1.0), f"{where}.fov_scale", src, lo=0.1, hi=2.5)),
-            _num(e.get("seed_offset", 0), f"{where}.seed_offset", src, lo=0, integer=True)))
+            raise InputError(src, f"{where}{'.protocol' if kind != name else ''}: "
+                                  f"{unknown('view protocol', kind, PROTOCOL_SPECS.names())} (or give a mapping)")
+        if "/" in name:
+            raise InputError(src, f"{where}.name: {name!r} has a '/' (it names views and table files)")
+        try:
+            out.append(protocol(name, kind, e, blank=blank))
+        except ParamError as err:
+            raise InputError(src, f"{where}.{err}" if err.key else f"{where}: {err}") from None
     names = [p.name for p in out]
     if len(set(names)) != len(names):
         raise InputError(src, f"protocols: duplicate names in {names}")
-    if out[0].shifted:
-        raise InputError(src, "protocols[0]: the first protocol must be the training rig's own views (`rig`) "
-                              "or the captured views (`real`)")
+    if not out[0].primary:
+        leads = ", ".join(f"`{s.name}`" for s in PROTOCOL_SPECS if s.primary)
+        raise InputError(src, f"protocols[0]: the first protocol must be the training rig's own views or one with "
+                              f"training views of its own ({leads})")
     return tuple(out)
-
-
-def _fail(src, problem):
-    raise InputError(src, problem)
