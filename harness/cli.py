@@ -49,15 +49,51 @@ def _command_module(name: str):
 class Parser(argparse.ArgumentParser):
     """argparse's parser with "did you mean" for unknown options and invalid choices (commands,
     ``--renderer`` ...). ``hints`` maps option strings to a sentence for options a command knows
-    of but does not take here (``prune --method lightgs --voxel``)."""
+    of but does not take here (``prune --method lightgs --voxel``).
+
+    An unknown option is named before anything else is said: argparse checks required arguments
+    and positional choices first, so ``prune a.ply b.ply --ration 0.5`` would otherwise say only
+    "one of the arguments --ratio --keep is required". A sub-parser (``bench calibrate``) reports its own unknown
+    options with its own usage, instead of handing them to its parent (``harness bench``), which
+    does not know the sub-command's options."""
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self.hints: dict[str, str] = {}
+        self._argv: list[str] = []
+
+    def add_subparsers(self, **kwargs):
+        kwargs.setdefault("parser_class", _SubParser)
+        return super().add_subparsers(**kwargs)
+
+    def parse_known_args(self, args=None, namespace=None):
+        self._argv = list(sys.argv[1:] if args is None else args)
+        return super().parse_known_args(args, namespace)
+
+    def unknown_options(self, argv) -> list[str]:
+        """The words of ``argv`` (up to ``--``) that look like options and are none of this parser's:
+        not an option string, ``--opt=value``, a unique abbreviation or a short option with its
+        value attached (``-n16``); negative numbers are values."""
+        options = [o for a in self._actions for o in a.option_strings]
+        out = []
+        for word in argv[: argv.index("--")] if "--" in argv else argv:
+            flag = word.split("=", 1)[0]
+            if not flag.startswith("-") or len(flag) < 2 or self._negative_number_matcher.match(word):
+                continue
+            if flag in options or (not flag.startswith("--") and flag[:2] in options):
+                continue
+            if flag.startswith("--") and self.allow_abbrev and [o for o in options if o.startswith(flag)]:
+                continue
+            out.append(word)
+        return out
 
     def error(self, message: str):
         from harness.core.suggest import did_you_mean
 
+        if not message.startswith("unrecognized arguments: "):
+            stray = self.unknown_options(self._argv)
+            if stray:  # the typo first: the missing or misread argument is often the misspelt option's
+                message = "unrecognized arguments: " + " ".join(stray)
         extra = ""
         if message.startswith("unrecognized arguments: "):
             options = [o for a in self._actions for o in a.option_strings]
@@ -71,6 +107,16 @@ class Parser(argparse.ArgumentParser):
             choices = [c.strip().strip("'") for c in message.split("(choose from ", 1)[1].rstrip(")").split(",")]
             extra = did_you_mean(value, choices)
         super().error(message + extra)
+
+
+class _SubParser(Parser):
+    """A sub-command's parser (``harness bench calibrate``): anything it does not take is its error."""
+
+    def parse_known_args(self, args=None, namespace=None):
+        namespace, extras = super().parse_known_args(args, namespace)
+        if extras:
+            self.error("unrecognized arguments: " + " ".join(extras))
+        return namespace, extras
 
 
 def command_parser(mod, argv=()) -> Parser:

@@ -89,3 +89,34 @@ def test_names_get_did_you_mean(tmp_path, capsys):
     assert main(["prune", "luigi", str(tmp_path / "o.ply"), "--ratio", "0.3", "--param", "voxl=1"]) == 2
     assert "did you mean 'voxel'?" in capsys.readouterr().err
     assert not (tmp_path / "o.ply").exists()
+
+
+def _long_options(argv) -> list[str]:
+    """The long options of the parser ``harness ARGV`` is parsed by (--help only when it has no other)."""
+    from harness.cli import _command_module, command_parser
+
+    parser = command_parser(_command_module(argv[0]), argv[1:])
+    if len(argv) > 1:  # a benchmark: its own sub-parser
+        parser = _subcommands(parser)[argv[1]]
+    return [o for a in parser._actions for o in a.option_strings if o.startswith("--") and o != "--help"] or ["--help"]
+
+
+@pytest.mark.parametrize("argv", [[c] for c in COMMANDS if c != "bench"] + [["bench", b] for b in BENCHMARKS])
+def test_a_mistyped_option_is_named_with_a_suggestion_in_every_command(argv, capsys):
+    """Named before anything else is said: without the positionals and required options a command
+    needs, argparse would only say what is missing ("one of the arguments --ratio --keep is
+    required"), and a sub-command's option would be judged by its parent's parser (`harness bench`)."""
+    options = _long_options(argv)
+    typo = options[0] + "x"
+    err = _usage_error(capsys, *argv, typo, "1")
+    assert err.startswith(f"usage: harness {' '.join(argv)} "), err
+    assert f"unrecognized arguments: {typo}" in err and f"did you mean '{options[0]}'" in err, err
+
+
+def test_prune_names_the_misspelt_ratio_not_the_missing_one(capsys):
+    err = _usage_error(capsys, "prune", "luigi", "o.ply", "--ration", "0.5")
+    assert "unrecognized arguments: --ration" in err and "did you mean '--ratio'" in err
+    assert "is required" not in err
+    err = _usage_error(capsys, "prune", "luigi", "o.ply")  # nothing misspelt: what is missing
+    assert "one of the arguments --ratio --keep is required" in err
+    assert _usage_error(capsys, "prune", "luigi", "o.ply", "--keep=0.5", "--seed", "-1", "--x").count("--x") >= 1
