@@ -272,3 +272,36 @@ def test_every_written_table_has_a_caption_with_n_and_the_interval(tmp_path):
     t = with_caption(Table(pd.DataFrame(), [], tidy))
     assert t.caption.startswith("n = 2–4 per cell; intervals: ") and "Student-t" in t.caption
     assert with_caption(Table(pd.DataFrame(), [], pd.DataFrame({"x": [1]}))).caption == "no interval"
+
+
+@pytest.mark.parametrize(("tables", "plots"), [([], []), ([], ["curves"]), (["comparison"], [])])
+def test_an_empty_list_of_tables_or_plots_means_none(tmp_path, capsys, tables, plots):
+    """`plots: []` drew every plot (and warned about the ones it could not draw), `tables: []` wrote
+    every table: an empty list read as "the default"."""
+    import json
+
+    write_results(_rows(), tmp_path)
+    (tmp_path / "run.json").write_text(json.dumps({"name": "t", "tables": tables, "plots": plots}))
+    assert main(["tables", str(tmp_path)]) == 0
+    err = capsys.readouterr().err
+    assert "not drawn" not in err and "not written" not in err
+    made = sorted(p.name for p in (tmp_path / "tables").glob("*.md")) if (tmp_path / "tables").exists() else []
+    drawn = sorted(p.name for p in (tmp_path / "plots").glob("*.png")) if (tmp_path / "plots").exists() else []
+    assert made == [f"{t}.md" for t in tables]
+    assert bool(drawn) == bool(plots) and all(p.startswith("curves") for p in drawn)
+    assert (tmp_path / "report.html").exists()
+
+
+def test_null_or_absent_tables_and_plots_mean_every_one(tmp_path):
+    from harness.report.outputs import chosen
+    from harness.report.plots import PLOTS
+    from harness.report.tables import TABLES
+    from harness.run.config import parse_config
+
+    doc = {"scenes": ["luigi"], "methods": ["opacity"], "ratios": [0.1]}
+    assert parse_config(doc, "c.yaml").tables == tuple(TABLES)
+    assert parse_config({**doc, "tables": None, "plots": None}, "c.yaml").plots == tuple(PLOTS)
+    empty = parse_config({**doc, "tables": [], "plots": []}, "c.yaml")
+    assert (empty.tables, empty.plots) == ((), ())
+    assert chosen({})[:2] == (list(TABLES), list(PLOTS)) == chosen({"tables": None, "plots": None})[:2]
+    assert chosen({"tables": [], "plots": []})[:2] == ([], [])

@@ -33,10 +33,12 @@ class Published:
 
 
 def chosen(meta: dict) -> tuple[list[str], list[str], str | None]:
-    """(tables, plots, BD anchor) a run record asks for; defaults: every table and plot."""
+    """(tables, plots, BD anchor) a run record asks for: an empty list is none, an absent or null
+    one every table (plot)."""
     config = meta.get("config") if isinstance(meta.get("config"), dict) else {}
     anchor = meta.get("anchor") or config.get("anchor")
-    return (list(meta.get("tables") or TABLES), list(meta.get("plots") or PLOTS),
+    tables, plots = meta.get("tables"), meta.get("plots")
+    return (list(TABLES if tables is None else tables), list(PLOTS if plots is None else plots),
             anchor if isinstance(anchor, str) else None)
 
 

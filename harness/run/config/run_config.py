@@ -178,17 +178,39 @@ def _entry_ratios(e: dict, default_ratios, where: str, src) -> tuple[float, ...]
     return out
 
 
-def _entry_names(names, known, key: str, what: str, where: str, src) -> tuple[str, ...] | None:
+def _entry_names(names, known, key: str, what: str, where: str, src, culprit=None) -> tuple[str, ...] | None:
     """An entry's restriction (``scenes``, ``protocols``) to some of the config's ``known`` names;
-    None: all of them."""
+    None: all of them. ``culprit(name)``, when given, may name the real mistake behind an unknown
+    name (:func:`_misspelt_scene`)."""
     if names is None:
         return None
     if not names:
         raise InputError(src, f"{where}.{key}: expected a non-empty list of {what} names")
     for j, n in enumerate(names):
         if n not in known:
-            raise InputError(src, f"{where}.{key}[{j}]: {unknown(f'{what} of this config', n, sorted(known))}")
+            blame = culprit(n) if culprit is not None else None
+            raise InputError(src, blame or f"{where}.{key}[{j}]: {unknown(f'{what} of this config', n, sorted(known))}")
     return tuple(names)
+
+
+def _misspelt_scene(name: str, scenes: list[SceneSpec]) -> str | None:
+    """The config's own scene entry to blame when a method's ``scenes:`` names a scene the config
+    lacks: ``name`` is a dataset name (``luigi``) and a scene of the config is a misspelling of it
+    (``luigii``: a bare word that is no dataset name and no file). Without this, the method's correct
+    name was blamed and the typo suggested ("unknown scene of this config 'luigi' (did you mean
+    'luigii'?)"); the entry that is unknown is the one reported, with the known name suggested."""
+    from harness.core.suggest import close_matches
+    from harness.io.datasets import SCENES
+
+    if name not in SCENES:
+        return None
+    for i, spec in enumerate(scenes):
+        source = spec.source
+        if (source is None or source in SCENES or "/" in source or "\\" in source or Path(source).suffix
+                or Path(source).exists() or not close_matches(source, [name])):
+            continue
+        return f"scenes[{i}] {spec.name!r}: {unknown('scene name', source, list(SCENES))}"
+    return None
 
 
 def _check_sweep(sweep: dict, params: dict, where: str, src) -> None:
@@ -216,7 +238,7 @@ def _variants(spec, e: dict, where: str, src):
         yield ":".join(x for x in (e["variant"], label) if x) or "default", resolved
 
 
-def _method(d, i, default_ratios, scene_names, src, protocol_names=()) -> list[MethodVariant]:
+def _method(d, i, default_ratios, config_scenes: list[SceneSpec], src, protocol_names=()) -> list[MethodVariant]:
     """Expand one methods[] entry into its variants, each with its parameters resolved and checked
     (through the pruner's :class:`Params`) here, once."""
     where = f"methods[{i}]"
@@ -226,7 +248,8 @@ def _method(d, i, default_ratios, scene_names, src, protocol_names=()) -> list[M
         _str(None, f"{where}.name", src)  # required: "expected a non-empty string"
     _check_sweep(e["sweep"] or {}, e["params"] or {}, where, src)
     rs = _entry_ratios(e, default_ratios, where, src)
-    scenes = _entry_names(e["scenes"], scene_names, "scenes", "scene", where, src)
+    scenes = _entry_names(e["scenes"], {s.name for s in config_scenes}, "scenes", "scene", where, src,
+                          culprit=lambda n: _misspelt_scene(n, config_scenes))
     protocols = _entry_names(e["protocols"], protocol_names, "protocols", "protocol", where, src)
     spec = _pruner(e["name"], f"{where}.name", src)
     return [MethodVariant(method=e["name"], variant=v, params=p, ratios=rs, scenes=scenes, protocols=protocols)
@@ -246,14 +269,14 @@ def _scenes(d, protocol: Protocol, src) -> list[SceneSpec]:
     return scenes
 
 
-def _methods(d, default_ratios, scene_names, src, protocol_names=()) -> list[MethodVariant]:
+def _methods(d, default_ratios, scenes: list[SceneSpec], src, protocol_names=()) -> list[MethodVariant]:
     raw = d.get("methods")
     if not isinstance(raw, list) or not raw:
         raise InputError(src, "methods: expected a non-empty list of methods")
     methods: list[MethodVariant] = []
     keys: dict[str, int] = {}
     for i, m in enumerate(raw):
-        for v in _method(m, i, default_ratios, scene_names, src, protocol_names):
+        for v in _method(m, i, default_ratios, scenes, src, protocol_names):
             if v.key in keys:
                 raise InputError(src, f"methods[{i}]: variant {v.key} already defined by methods[{keys[v.key]}]; "
                                       "give one of them a distinct `variant`")
@@ -274,7 +297,7 @@ def parse_config(data: Any, source: str = "<config>") -> RunConfig:
     scenes = _scenes(d, protocol, src)
     default_ratios = merge_ratios(top["ratios"], top["keep"])
     protocols = _protocols(d.get("protocols", ["rig"]), src)
-    methods = _methods(d, default_ratios, {s.name for s in scenes}, src, [p.name for p in protocols])
+    methods = _methods(d, default_ratios, scenes, src, [p.name for p in protocols])
     name = top["name"] if top["name"] is not None else _str(Path(source).stem, "name", src)
     return RunConfig(
         name=name, output=top["output"] or f"runs/{name}", workers=top["workers"], protocol=protocol,

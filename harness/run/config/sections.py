@@ -77,8 +77,9 @@ def _fraction_list(v, key, src) -> tuple[float, ...]:
 
 
 def _registered(kind: str, names):
+    """A list of registered ``kind`` names: ``[]`` is none of them, ``null`` every one (the default)."""
     def read(v, key, src) -> tuple[str, ...]:
-        return _names(v, names, key, src, kind)
+        return tuple(names) if v is None else _names(v, names, key, src, kind)
     return read
 
 
