@@ -305,3 +305,20 @@ def test_null_or_absent_tables_and_plots_mean_every_one(tmp_path):
     assert (empty.tables, empty.plots) == ((), ())
     assert chosen({})[:2] == (list(TABLES), list(PLOTS)) == chosen({"tables": None, "plots": None})[:2]
     assert chosen({"tables": [], "plots": []})[:2] == ([], [])
+
+
+def test_headings_name_the_levels_the_run_measured(tmp_path):
+    """A run of 10 % and 30 % only: the comparison heading said "low (10 %), mid (20 %) and high (30 %)"."""
+    df = _rows()
+    df = df[~((df["ratio"] - 0.2).abs() < 1e-9) & ~((df["ratio"] - 0.5).abs() < 1e-9)]
+    tables = build_tables(df, ["comparison", "keep"])
+    assert tables["comparison"].heading == "Comparison at low (10 %) and high (30 %) pruning (paper Table 1)"
+    assert tables["keep"].heading == "Keep fractions 0.7 / 0.3 with and without descriptors (paper Table 3)"
+    assert build_tables(_rows(), ["comparison"])["comparison"].heading == \
+        "Comparison at low (10 %), mid (20 %) and high (30 %) pruning (paper Table 1)"
+    write_results(df, tmp_path)
+    assert main(["tables", str(tmp_path), "--tables", "comparison", "--plots"]) == 0
+    md = (tmp_path / "tables" / "comparison.md").read_text()
+    page = (tmp_path / "report.html").read_text()
+    assert "low (10 %) and high (30 %)" in md and "mid (20 %)" not in md
+    assert "low (10 %) and high (30 %)" in page and "mid (20 %)" not in page

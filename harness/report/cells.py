@@ -274,7 +274,17 @@ def table_comparison(df: pd.DataFrame, reference: str | None = None):
                     disp.loc[(r["label"], h2), col] = fmt(r[key], 0) if pd.notna(r[key]) else "–"
     warn = [] if reference in set(ok["method"]) else \
         [f"comparison: reference method {reference} not measured; cells show means without Δ"]
-    return Table(disp, notes_for(tidy, catalog.method_label(reference)), tidy, secs, warn, caption(tidy))
+    return Table(disp, notes_for(tidy, catalog.method_label(reference)), tidy, secs, warn, caption(tidy),
+                 heading=comparison_heading([r for *_, r in cols]))
+
+
+def comparison_heading(measured) -> str:
+    """The comparison's title naming the levels it shows: "Comparison at low (10 %) and high (30 %)
+    pruning (paper Table 1)" for a run of 10 % and 30 % — never a level that was not measured."""
+    keys = {ratios.key(r) for r in measured}
+    shown = [f"{lvl.lower()} ({round(100 * r)} %)" for lvl, r in LEVELS if ratios.key(r) in keys]
+    words = shown[0] if len(shown) == 1 else ", ".join(shown[:-1]) + " and " + shown[-1]
+    return f"Comparison at {words} pruning (paper Table 1)"
 
 
 def table_ablation(df: pd.DataFrame, ratio: float = ABLATION_RATIO):

@@ -138,7 +138,7 @@ def made_elsewhere(built: dict[str, Built]) -> set[str]:
 
 def tables_html(built: dict[str, Built]) -> str:
     """Every table, folded, grouped by held-out view protocol (each summary names it too)."""
-    from harness.report.tables import base_title
+    from harness.report.tables import heading
     from harness.views.protocols import notes
 
     out = []
@@ -154,7 +154,7 @@ def tables_html(built: dict[str, Built]) -> str:
             tag = "" if not isinstance(b.table, Missing) else (
                 " <small>(not measured under this protocol)</small>" if elsewhere
                 else " <small>(not made from these results)</small>")
-            name = base_title(b.name) + (f" — {proto} views" if proto else "")
+            name = heading(b.name, b.table) + (f" — {proto} views" if proto else "")
             body = table_html(b, cls="wrap" if b.name == "claims" else "", elsewhere=elsewhere)
             out.append(f"<details id='t-{esc(b.key)}'><summary>{esc(name)}{tag}</summary>{body}</details>")
     return "\n".join(out)

@@ -86,7 +86,10 @@ def table_keep(df: pd.DataFrame):
     notes = [f"Δ = {catalog.method_label(without)} − {catalog.method_label(full)} at the same scene, keep and views "
              "(the paper's ΔPSNR sign: negative when descriptors help); all scenes = every pair of every scene",
              stats.interval_note(tidy.loc[tidy["scene"] != cells.POOLED, "n_pairs"].dropna())]
-    return Table(disp, notes, tidy.drop(columns=["prune"]).reset_index(drop=True), secs)
+    keeps = " / ".join(f"{1 - r:g}" for r in have)
+    return Table(disp, notes, tidy.drop(columns=["prune"]).reset_index(drop=True), secs,
+                 heading=f"Keep fraction{'s' if len(have) > 1 else ''} {keeps} with and without descriptors "
+                         "(paper Table 3)")
 
 
 def _knob(variant: str) -> str | None:

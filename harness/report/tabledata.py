@@ -29,6 +29,8 @@ class Table:
     sections: list[tuple[str, pd.DataFrame]] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     caption: str = ""
+    #: this table's own title, from what its rows hold (the registered title when empty)
+    heading: str = ""
 
 
 @dataclass(frozen=True)

@@ -163,12 +163,18 @@ def base_title(name: str) -> str:
     return TABLE_SPECS.get(name).title if name in TABLE_SPECS else name
 
 
-def title(name: str, protocol: str) -> str:
-    """A table's title, with the held-out view protocol its rows come from (every protocol, the
-    primary one too; none only for results that carry no protocol)."""
+def heading(name: str, table=None) -> str:
+    """A table's title without its protocol: the built table's own heading (from what its rows hold,
+    e.g. the comparison's measured levels), else the registered title."""
+    return getattr(table, "heading", "") or base_title(name)
+
+
+def title(name: str, protocol: str, table=None) -> str:
+    """A table's title (:func:`heading`), with the held-out view protocol its rows come from (every
+    protocol, the primary one too; none only for results that carry no protocol)."""
     from harness.views.protocols import notes
 
-    base = base_title(name)
+    base = heading(name, table)
     return base + (f" — held-out views: {protocol} ({notes(protocol)})" if protocol else "")
 
 
@@ -211,7 +217,7 @@ def write_tables(df: pd.DataFrame, out_dir: str | Path, names, **opts) -> Writte
         for name, t in build_tables(sub, here, **opts).items():
             t = with_caption(t)
             key = name + suffix
-            out.built[key] = Built(key, name, proto, title(name, proto), t)
+            out.built[key] = Built(key, name, proto, title(name, proto, t), t)
             if isinstance(t, Missing):
                 stale = [f for ext in ("md", "csv", "tex") if (f := out_dir / f"{key}.{ext}").exists()]
                 for f in stale:
