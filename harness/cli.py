@@ -22,6 +22,7 @@ runs, the files it reads are recorded (:func:`harness.io.safe.recording_inputs`)
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import importlib.util
 import inspect
@@ -188,21 +189,34 @@ def _unexpected_line(command: str, err: BaseException) -> str:
             + cause + ": rerun with --debug for the traceback")
 
 
-class _WarningLines(logging.Handler):
-    """What the library logs at WARNING and above, as ``harness: warning: ...`` lines on stderr."""
+class _LogLines(logging.Handler):
+    """What the library logs, as lines on stderr: WARNING and above as ``harness: warning: ...``, and
+    a study's own account (logger ``harness.run``, INFO: its opening line, skipped scenes, stage
+    progress) as it is — the records :func:`harness.evaluate` logs instead of printing."""
 
     def emit(self, record: logging.LogRecord) -> None:
         try:
-            print(f"harness: warning: {record.getMessage()}", file=sys.stderr, flush=True)
+            text = record.getMessage()
+            line = f"harness: warning: {text}" if record.levelno >= logging.WARNING else text
+            print(line, file=sys.stderr, flush=True)
         except (OSError, ValueError):  # stderr closed: nothing to tell
             pass
 
 
-def _show_warnings() -> None:
-    logger = logging.getLogger("harness")
-    if not any(isinstance(h, _WarningLines) for h in logger.handlers):
-        handler = _WarningLines(logging.WARNING)
-        logger.addHandler(handler)
+@contextlib.contextmanager
+def _log_lines():
+    """While a command runs: the library's warnings and the study's INFO records on stderr (the
+    handler and the level are the command's, removed after it, so an API call made later in the
+    same process prints nothing)."""
+    logger, study = logging.getLogger("harness"), logging.getLogger("harness.run")
+    handler, level = _LogLines(logging.INFO), study.level
+    logger.addHandler(handler)
+    study.setLevel(logging.INFO)
+    try:
+        yield
+    finally:
+        study.setLevel(level)
+        logger.removeHandler(handler)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -210,14 +224,14 @@ def main(argv: list[str] | None = None) -> int:
     from harness.io.safe import recording_inputs
 
     argv, debug = _debug_flag(list(sys.argv[1:] if argv is None else argv))
-    _show_warnings()
-    args = parse_args(argv)
-    if not getattr(args, "_run", None):
-        build_parser().print_help()
-        return 2
-    install_signal_handlers()
-    with recording_inputs():  # what the command reads, no output may replace
-        return _run(args, debug)
+    with _log_lines():
+        args = parse_args(argv)
+        if not getattr(args, "_run", None):
+            build_parser().print_help()
+            return 2
+        install_signal_handlers()
+        with recording_inputs():  # what the command reads, no output may replace
+            return _run(args, debug)
 
 
 def _run(args, debug: bool) -> int:

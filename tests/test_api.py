@@ -253,3 +253,35 @@ def test_evaluate_returns_the_rows_the_command_writes(tmp_path, capsys):
     measured = ["scene", "method", "ratio", "view", "psnr", "splats_out", "tau"]
     assert read_results(tmp_path / "cli")[measured].equals(rows[measured])
     assert harness.evaluate(doc, out=tmp_path / "dict", cache=cache)[measured].equals(rows[measured])
+
+
+@pytest.mark.gl
+def test_evaluate_logs_and_prints_nothing_the_command_shows_the_same_lines(tmp_path, capfd, caplog):
+    """`harness.evaluate` wrote `harness run tiny: 1 scenes, ...` to stderr: a library call logs (logger
+    `harness.run`), and `harness run` shows those records."""
+    import logging
+
+    require_gl()
+    scenes = fakes.write_two_scenes(tmp_path)
+    doc = {"name": "tiny", "protocol": {"longest_side": 16, "metrics": ["psnr"], "n_train": 2, "n_test": 1},
+           "ratios": [0.3], "scenes": [{"name": k, "source": v} for k, v in list(scenes.items())[:1]],
+           "methods": ["opacity"], "tables": [], "plots": []}
+    config = tmp_path / "tiny.yaml"
+    config.write_text(yaml.safe_dump(doc))
+    cache = str(tmp_path / "cache")
+    capfd.readouterr()
+    with caplog.at_level(logging.INFO, logger="harness.run"):
+        harness.evaluate(config, out=tmp_path / "api", cache=cache)
+    out, err = capfd.readouterr()
+    assert out == "" and err == "", (out, err)
+    logged = [r.getMessage() for r in caplog.records if r.name == "harness.run"]
+    assert logged[0].startswith("harness run tiny: 1 scenes, 1 method variants, 1 worker(s) -> ")
+    stages = [m for m in logged if m.endswith(" to compute")]
+    assert "score: 1 to compute" in stages
+    caplog.clear()
+    assert main(["run", str(config), "--out", str(tmp_path / "cli"), "--cache", str(tmp_path / "cache2")]) == 0
+    err = capfd.readouterr().err.splitlines()
+    assert err[0].startswith("harness run tiny: 1 scenes, 1 method variants, 1 worker(s) -> ")
+    assert [ln for ln in err if ln.endswith(" to compute")] == stages
+    harness.evaluate(config, out=tmp_path / "again", cache=cache)  # after the command: still silent
+    assert capfd.readouterr() == ("", "")

@@ -68,9 +68,12 @@ def executor_spec(spec, name: str | None, address: str | None):
 def run_study(config_or_path, *, out=None, executor: str | None = None, address: str | None = None,
               workers: int | None = None, threads: int | None = None, cache=None, force: bool = False,
               console=None, argv=None) -> Study:
-    """Run a study (module docstring). ``executor`` None: the config's; ``console``: a rich Console
-    for progress and messages (default: stderr); ``argv``: what the run record says ran it."""
-    from rich.console import Console
+    """Run a study (module docstring). ``executor`` None: the config's; ``argv``: what the run record
+    says ran it. Nothing is printed: what the run has to say (its opening line, skipped scenes, notes,
+    stage progress) is logged to the ``harness.run`` logger (INFO; a cache's problems WARNING), which
+    ``harness run`` shows on stderr; ``console``, a rich Console on a terminal, draws live progress
+    bars instead of the progress records."""
+    import logging
 
     from harness.core.devices import check_device
     from harness.core.paths import cache_dir
@@ -104,12 +107,18 @@ def run_study(config_or_path, *, out=None, executor: str | None = None, address:
         cache_root = make_output_folder(Path(cache.removeprefix("file://")) if cache else cache_dir() / "stages",
                                         "cache" if cache else "stage cache").absolute()
     sweep_stale_temps(out_dir, recursive=True)
-    console = console or Console(stderr=True, soft_wrap=True)
-    log = lambda m: console.print(f"[yellow]{m}[/]")  # noqa: E731
+    logger = logging.getLogger("harness.run")
+
+    def log(message: str) -> None:  # the runner's and executors' messages: "warning: ..." is a warning
+        if message.startswith("warning: "):
+            logger.warning("%s", message.removeprefix("warning: "))
+        else:
+            logger.info("%s", message)
+
     where = f"{workers} worker(s)" if spec.name == "local" else \
         f"Ray ({'a local cluster of ' + str(workers) + ' worker(s)' if spec.address is None else spec.address})"
-    console.print(f"[bold]harness run[/] {config.name}: {len(config.scenes)} scenes, "
-                  f"{len(config.methods)} method variants, {where} -> {out_dir}")
+    logger.info("harness run %s: %d scenes, %d method variants, %s -> %s", config.name, len(config.scenes),
+                len(config.methods), where, out_dir)
     with make_executor(spec, workers, device=config.protocol.device, cache_location=str(cache_root), threads=threads,
                        log=log) as pool, StageProgress(console) as progress:
         runner = Runner(config, out_dir=out_dir, cache_root=cache_root, workers=workers, force=force,

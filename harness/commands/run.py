@@ -61,10 +61,15 @@ def run(args) -> int:
     from harness.api.study import run_study
     from harness.core.errors import naming
 
+    console = None
+    if sys.stderr.isatty():  # live progress bars; elsewhere the study's progress records (harness.cli)
+        from rich.console import Console
+
+        console = Console(stderr=True, soft_wrap=True)
     with naming(FLAGS):
         study = run_study(args.config, out=args.out, executor=args.executor, address=args.address,
                           workers=args.workers, threads=args.threads, cache=args.cache, force=args.force,
-                          argv=sys.argv[1:])
+                          argv=sys.argv[1:], console=console)
     for line in study.summary:
         print(line)
     if study.measured:

@@ -1,12 +1,15 @@
-"""Rich progress bars, one per stage, for ``harness run``.
+"""Progress of a study's stages: live bars on a terminal, lines through :mod:`logging` elsewhere.
 
-On a terminal each stage gets a live bar (done/total, elapsed, eta). When stderr is not a terminal
-(a log file, CI) the bars are off and each stage prints one line when it starts and one when it
-ends, with its count and seconds, so a background run's log still shows where it is.
+Given a rich console that is a terminal (``harness run`` in a shell), each stage gets a live bar
+(done/total, elapsed, eta). Otherwise — a log file, CI, or a library call (``harness.evaluate``),
+which is given no console and must not print — each stage is logged (logger ``harness.run``, level
+INFO) when it starts, at every tenth of its work and when it ends, with its count and seconds, so
+a background run's log still shows where it is; ``harness run`` shows these records on stderr.
 """
 
 from __future__ import annotations
 
+import logging
 import time
 
 from rich.console import Console
@@ -19,6 +22,8 @@ from rich.progress import (
     TimeRemainingColumn,
 )
 
+log = logging.getLogger("harness.run")
+
 
 class _Bar:
     def __init__(self, sp: StageProgress, name: str, task_id, total: int):
@@ -30,24 +35,24 @@ class _Bar:
         self._sp._progress.advance(self._id, n)
         frac = self._done / max(self._total, 1)
         if self._sp.plain and frac >= self._next_log and self._done < self._total:
-            self._sp.console.print(f"  {self._name}: {self._done}/{self._total} "
-                                   f"({time.perf_counter() - self._t0:.0f} s)")
+            log.info("  %s: %d/%d (%.0f s)", self._name, self._done, self._total, time.perf_counter() - self._t0)
             self._next_log = frac + 0.1
 
     def finish(self) -> None:
         t = self._sp._progress.tasks[self._id]
         self._sp._progress.update(self._id, completed=t.total)
         if self._sp.plain:
-            self._sp.console.print(f"  {self._name}: done {self._done}/{self._total} in "
-                                   f"{time.perf_counter() - self._t0:.1f} s")
+            log.info("  %s: done %d/%d in %.1f s", self._name, self._done, self._total,
+                     time.perf_counter() - self._t0)
 
 
 class StageProgress:
-    """``with StageProgress(console) as sp: bar = sp.stage("score", total); bar.advance()``."""
+    """``with StageProgress(console) as sp: bar = sp.stage("score", total); bar.advance()``; without
+    a console (or with one that is no terminal) the stages are logged instead of drawn."""
 
     def __init__(self, console: Console | None = None):
-        self.console = console or Console(stderr=True)
-        self.plain = not self.console.is_terminal
+        self.plain = console is None or not console.is_terminal
+        self.console = console or Console(stderr=True, quiet=True)
         self._progress = Progress(
             TextColumn("[bold]{task.description:<16}"), BarColumn(), MofNCompleteColumn(),
             TimeElapsedColumn(), TextColumn("eta"), TimeRemainingColumn(),
@@ -63,5 +68,5 @@ class StageProgress:
 
     def stage(self, name: str, total: int) -> _Bar:
         if self.plain:
-            self.console.print(f"{name}: {total} to compute")
+            log.info("%s: %d to compute", name, total)
         return _Bar(self, name, self._progress.add_task(name, total=max(total, 0)), total)
