@@ -270,3 +270,24 @@ def test_history_must_be_a_regular_file(tmp_path, capsys, kind):
     assert main(["track", str(good), "--baseline", str(base), "--history", str(hist)]) == 2
     assert "regular file" in capsys.readouterr().err
     assert other.read_text() == "someone else's file\n"
+
+
+def test_track_is_quiet_when_nothing_is_wrong_and_lists_every_check_with_v(tmp_path, capsys):
+    """155 `ok` lines for a nightly run with nothing wrong: now a count, and every check with -v."""
+    good = _run_dir(tmp_path, "good", _rows(), _meta())
+    worse = _run_dir(tmp_path, "worse", _rows(psnr=(25.0, 26.0)), _meta())
+    base = tmp_path / "baseline.json"
+    assert main(["track", str(good), "--baseline", str(base), "--update-baseline"]) == 0
+    capsys.readouterr()
+    assert main(["track", str(good), "--baseline", str(base)]) == 0
+    quiet = capsys.readouterr().out.splitlines()
+    assert not [ln for ln in quiet if ln.startswith("ok ")]
+    summary = next(ln for ln in quiet if ln.startswith("track: "))
+    checks = int(summary.split()[1])
+    assert checks >= 6 and summary.endswith(f"0 regressions, {checks} ok (-v lists them)")
+    assert main(["track", str(good), "--baseline", str(base), "-v"]) == 0
+    loud = capsys.readouterr().out.splitlines()
+    assert len([ln for ln in loud if ln.startswith("ok ")]) == checks
+    assert main(["track", str(worse), "--baseline", str(base)]) == 1
+    out = capsys.readouterr().out.splitlines()
+    assert [ln for ln in out if ln.startswith("REGRESSION")] and not [ln for ln in out if ln.startswith("ok ")]

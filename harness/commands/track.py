@@ -13,6 +13,10 @@ regressions). Only then, and only when asked, files are written:
   and exits 0: how the first baseline is made and how a reviewed change of expected numbers is
   accepted. Without it a missing baseline is an error.
 
+Quiet when nothing is wrong: the checks that passed (``ok``, one per metric of every group and per
+timed stage: 155 lines for the nightly run) are counted in the last line, and printed one by one
+only with ``-v``; regressions, new groups and notes are always printed.
+
 Exit status: 0 when nothing regressed, 1 when something did (each regression printed on its own
 ``REGRESSION`` line), 2 for bad input (no results in RUN_DIR, an unreadable, missing or unlike
 baseline, a history that is not a regular file).
@@ -39,6 +43,8 @@ def add_arguments(parser) -> None:
                              "results/history); default: append nothing")
     parser.add_argument("--update-baseline", action="store_true",
                         help="write this run's summary as the baseline (keeps its tolerances); exit 0")
+    parser.add_argument("-v", "--verbose", action="store_true",
+                        help="print every check, the ones that passed (ok) too (default: only what is not ok)")
     parser.add_argument("--no-history", action="store_true", help=argparse.SUPPRESS)  # the default now
 
 
@@ -65,13 +71,16 @@ def run(args) -> int:
     print(f"run {summary['run']} (held-out views: {', '.join(summary['protocols']) or 'unnamed'}) at commit "
           f"{summary['commit'][:12]}: {len(summary['groups'])} groups, {len(summary['stages'])} timed stages")
     for f in findings:
-        tag = {"regression": "REGRESSION", "ok": "ok", "new": "new", "note": "note"}[f.kind]
-        print(f"{tag:<10} {f.message}")
+        if f.kind != "ok" or args.verbose:
+            tag = {"regression": "REGRESSION", "ok": "ok", "new": "new", "note": "note"}[f.kind]
+            print(f"{tag:<10} {f.message}")
     regressions = sum(f.kind == "regression" for f in findings)
     if baseline is not None:
         checked = sum(f.kind in ("ok", "regression") for f in findings)
+        passed = "" if args.verbose else f", {checked - regressions} ok (-v lists them)"
         print(f"track: {checked} checks against {baseline_path} "
-              f"(baseline commit {baseline['summary'].get('commit', 'unknown')[:12]}), {regressions} regressions")
+              f"(baseline commit {baseline['summary'].get('commit', 'unknown')[:12]}), {regressions} regressions"
+              + passed)
     if args.history:
         print(f"history: appended to {tracking.append_history(args.history, summary)}")
     else:
