@@ -2,11 +2,12 @@
 
 Pipeline per view (the projection math lives once, in :mod:`renderers.projection`):
 
-1. ``project_gaussians(scene, camera)`` → :class:`~renderers.projection.Projected` (visible splats:
-   2D means, conics, depths, radii, colours, opacities), torch on the CPU or GPU.
+1. ``project_arrays(scene, camera)`` → :class:`~renderers.projection.Projected` (visible splats:
+   2D means, conics, depths, radii, colours, opacities): numpy on the CPU, without importing torch;
+   on a CUDA device (a machine with an NVIDIA GPU, or ``device="cuda"``) ``project_gaussians`` in torch.
 2. Splats with ``o < 1/255`` are dropped (their α = min(0.99, o·g) with g ≤ 1 can never pass the
    1/255 test, so this is exact). The rest are sorted front to back by view depth (stable
-   ``torch.argsort``, ties by projection order) into a :class:`PackedView` (:meth:`GLRenderer.pack`),
+   argsort, ties by projection order) into a :class:`PackedView` (:meth:`GLRenderer.pack`),
    uploaded as one interleaved instance buffer. A view packed once serves every pruned set of its
    scene: ``view.kept(keep)`` is bit for bit what ``scene.subset(keep)`` packs to (a splat's record
    depends on that splat alone, see :mod:`renderers.projection`; the sort is stable), at the cost of
@@ -52,8 +53,8 @@ practice about 1e-4).
 
 **Agreement with the reference** (same footprint, ``early_stop=False``): float32 rounding (~1e-6)
 except where a splat's α lies within a few ulps of 1/255: GLSL's ``exp`` and torch's differ in the
-last bits, so the cut may flip and that pixel differs by about ``c/255`` (seen: 0–2 pixels per
-1024-px view of the real scenes, PSNR ≥ 110 dB).
+last bits (numpy's too), so the cut may flip and that pixel differs by about ``c/255`` (seen: 0–2
+pixels per 1024-px view of the real scenes, PSNR ≥ 110 dB).
 
 **Pixel centres:** pixel (i, j) of the image is centred at ``(i, j)`` in the ``means2d`` frame
 (graphdeco: ``pixf = (x, y)``; ``means2d = fx·x/z + cx − 0.5``). GL puts the fragment centre of
@@ -73,10 +74,12 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Self
 
 import numpy as np
-import torch
+
+from renderers.arrays import ops_for
 
 log = logging.getLogger(__name__)
 
@@ -221,22 +224,25 @@ def pack_instances(projected) -> PackedView:
     """Depth-sorted (front to back) float32 instance records ``(M, 12)`` for the shaders.
 
     Columns: ``mean_x, mean_y, o, K, a, b, c, ac − b², r, g, b, radius`` with ``K = 2 ln(255 o)``.
-    Splats with ``o < 1/255`` are left out (exact: they never pass the α test). Computed on the
-    projection's device (one stable sort, one row gather), then copied to the host once.
+    Splats with ``o < 1/255`` are left out (exact: they never pass the α test). Computed in the
+    projection's library and on its device (one stable sort, one row gather), then copied to the
+    host once.
     """
-    f32 = lambda t: t.detach().to(torch.float32)
+    ops = ops_for(projected.opacities)
+    xp = ops.lib
+    f32 = lambda t: ops.cast(ops.detach(t), ops.float32)
     op = f32(projected.opacities).reshape(-1, 1)
     conics = f32(projected.conics)
-    c64 = conics.to(torch.float64)
-    det = (c64[:, 0] * c64[:, 2] - c64[:, 1] * c64[:, 1]).clamp(min=1e-30).to(torch.float32)
-    packed = torch.cat(
-        [f32(projected.means2d), op, 2.0 * torch.log(255.0 * op), conics, det[:, None],
+    c64 = ops.cast(conics, ops.float64)
+    det = ops.cast(xp.clip(c64[:, 0] * c64[:, 2] - c64[:, 1] * c64[:, 1], 1e-30, None), ops.float32)
+    packed = xp.concatenate(
+        [f32(projected.means2d), op, 2.0 * xp.log(255.0 * op), conics, det[:, None],
          f32(projected.colors), f32(projected.radii).reshape(-1, 1)],
         1,
     )
-    keep = torch.nonzero(op[:, 0] >= 1.0 / 255.0).reshape(-1)
-    order = keep[torch.sort(f32(projected.depths).reshape(-1)[keep], stable=True).indices]
-    return PackedView(torch.index_select(packed, 0, order).cpu().numpy(), projected.ids[order].cpu().numpy(),
+    keep = ops.flatnonzero(op[:, 0] >= 1.0 / 255.0)
+    order = keep[ops.argsort_stable(f32(projected.depths).reshape(-1)[keep])]
+    return PackedView(ops.to_numpy(packed[order]), ops.to_numpy(projected.ids[order]),
                       int(projected.width), int(projected.height))
 
 
@@ -253,8 +259,11 @@ class GLRenderer:
     One context per renderer, created on first use and kept until :meth:`close`; every GL call runs
     with that context made current, so several renderers can share a process. ``max_tile`` caps the
     framebuffer side (default: the GL limits and :data:`DEFAULT_MAX_TILE`); tests use it to force
-    tiling. ``device`` is the torch device of the projection (default: CUDA when available).
-    ``footprint``: ``"box"`` or ``"tile"``, see the module docstring.
+    tiling. ``device``: where splats are projected — None: numpy on the CPU, or torch on CUDA when
+    the machine has an NVIDIA GPU (:meth:`projection_device`); ``"cpu"`` numpy; any other torch
+    device torch there. ``footprint``: ``"box"`` or ``"tile"``, see the module docstring.
+    ``preload_triton`` (default True, see :func:`_load_triton_first`): a one-shot process that never
+    calls ``torch.compile`` (``harness render``) sets it False before the first draw.
     """
 
     #: what it can do beyond ``render`` (:func:`renderers.capabilities`)
@@ -267,6 +276,7 @@ class GLRenderer:
             raise ValueError(f"footprint must be one of {FOOTPRINTS}, got {footprint!r}")
         self.footprint = footprint
         self.device = device
+        self.preload_triton = True
         self._max_tile_arg = max_tile
         self.ctx = None
         self._fbo = None
@@ -281,7 +291,8 @@ class GLRenderer:
             return
         import moderngl
 
-        _load_triton_first()
+        if self.preload_triton:
+            _load_triton_first()
         try:
             ctx = moderngl.create_standalone_context(backend="egl", require=330)
         except Exception as exc:  # glcontext raises plain Exception subclasses
@@ -338,10 +349,27 @@ class GLRenderer:
         """Project, cull and depth-sort ``scene`` for ``camera`` once; :meth:`draw` it, or any
         ``.kept(mask)`` of it, as often as needed (a pruned set renders as its splats filtered from
         the full scene's view, bit for bit the render of the pruned scene)."""
-        from renderers.projection import project_gaussians
+        from renderers.projection import project_arrays, project_gaussians
+
+        device = self.projection_device()
+        if device is None:
+            return pack_instances(project_arrays(scene, camera))
+        import torch
 
         with torch.no_grad():
-            return pack_instances(project_gaussians(scene, camera, device=self.device))
+            return pack_instances(project_gaussians(scene, camera, device=device))
+
+    def projection_device(self) -> str | None:
+        """The torch device the splats are projected on, or None for numpy on the CPU: ``device``
+        when given (``"cpu"`` means numpy); else CUDA when the machine has an NVIDIA GPU
+        (``/dev/nvidiactl``; torch is imported only then, to ask whether it can use it)."""
+        if self.device is not None:
+            return None if str(self.device) == "cpu" else str(self.device)
+        if Path("/dev/nvidiactl").exists():
+            import torch
+
+            return "cuda" if torch.cuda.is_available() else None
+        return None
 
     def render_projected(self, projected, background=(0.0, 0.0, 0.0), with_alpha: bool = False):
         """Composite already projected splats (a ``Projected`` of ``width × height``) into an image

@@ -35,6 +35,10 @@ rectangle (``getRect``, 16-px tiles) is non-empty — the union, so that either 
 
 Gradients flow (plain torch autograd) from ``means2d``, ``conics``, ``colors`` and ``opacities`` back to the
 tensors of a :class:`SplatTensors` that require grad; the visibility decisions are not differentiated.
+
+**Two array libraries, one projection** (:mod:`renderers.arrays`): :func:`project_gaussians` runs on
+torch (a device, autograd: the reference renderer and the camera-aware pruners), :func:`project_arrays`
+on numpy (the GL renderer on the CPU, without importing torch); the code below is the same for both.
 """
 
 from __future__ import annotations
@@ -42,10 +46,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import torch
 
 from harness.core.cameras import Camera
 from harness.core.scene import GaussianScene
+from renderers.arrays import ops_for
 from renderers.sh import sh_to_color
 
 NEAR_Z = 0.2
@@ -53,8 +57,10 @@ DILATION = 0.3
 TILE = 16
 
 
-def default_device(device=None) -> torch.device:
-    """``device`` if given, else CUDA when available, else the CPU."""
+def default_device(device=None):
+    """``device`` if given, else CUDA when available, else the CPU (a torch device)."""
+    import torch
+
     if device is not None:
         return torch.device(device)
     return torch.device("cuda" if torch.cuda.is_available() else "cpu")
@@ -62,21 +68,32 @@ def default_device(device=None) -> torch.device:
 
 @dataclass
 class SplatTensors:
-    """A scene's stored parameters as torch tensors on one device (any float dtype; may require grad).
+    """A scene's stored parameters as arrays of one library: torch tensors on one device (any float
+    dtype; may require grad), or float32 numpy arrays (:meth:`arrays`).
 
     ``sh`` is (N, K+1, 3): dc first, then the higher coefficients coefficient-major.
     """
 
-    means: torch.Tensor
-    scales_log: torch.Tensor
-    quats: torch.Tensor
-    opacity_logit: torch.Tensor
-    sh: torch.Tensor
+    means: object
+    scales_log: object
+    quats: object
+    opacity_logit: object
+    sh: object
 
     @classmethod
-    def from_scene(cls, scene: GaussianScene, device=None, dtype=torch.float32) -> SplatTensors:
-        dev = default_device(device)
+    def from_scene(cls, scene: GaussianScene, device=None, dtype=None) -> SplatTensors:
+        """torch tensors of ``dtype`` (default float32) on ``device`` (:func:`default_device`)."""
+        import torch
+
+        dev, dtype = default_device(device), dtype or torch.float32
         t = lambda a: torch.as_tensor(np.ascontiguousarray(a), dtype=dtype, device=dev)
+        sh = np.concatenate([scene.sh_dc[:, None, :], scene.sh_rest], axis=1)
+        return cls(t(scene.means), t(scene.scales_log), t(scene.quats), t(scene.opacity_logit), t(sh))
+
+    @classmethod
+    def arrays(cls, scene: GaussianScene) -> SplatTensors:
+        """float32 numpy arrays (the CPU projection of the GL renderer)."""
+        t = lambda a: np.ascontiguousarray(a, dtype=np.float32)
         sh = np.concatenate([scene.sh_dc[:, None, :], scene.sh_rest], axis=1)
         return cls(t(scene.means), t(scene.scales_log), t(scene.quats), t(scene.opacity_logit), t(sh))
 
@@ -88,31 +105,32 @@ class SplatTensors:
         return {1: 0, 4: 1, 9: 2, 16: 3}[int(self.sh.shape[1])]
 
     @property
-    def device(self) -> torch.device:
+    def device(self):
         return self.means.device
 
     @property
-    def dtype(self) -> torch.dtype:
+    def dtype(self):
         return self.means.dtype
 
 
 @dataclass
 class Projected:
-    """Visible splats only (M of the scene's N), all tensors on one device.
+    """Visible splats only (M of the scene's N), arrays of one library (on one device).
 
-    ids (M,) long index into the scene · means2d (M, 2) pixel coordinates (x right, y down; pixel centres
-    at integers, see the module docstring) · conics (M, 3) (a, b, c) of [[a, b], [b, c]] = cov2d⁻¹ ·
-    depths (M,) view-space z · radii (M,) float, ceil(3√λ_max) · colors (M, 3) SH colour + 0.5 clamped
-    at 0 · opacities (M,) activated. ``width``/``height`` are the image size it was projected for.
+    ids (M,) int64 index into the scene · means2d (M, 2) pixel coordinates (x right, y down; pixel
+    centres at integers, see the module docstring) · conics (M, 3) (a, b, c) of [[a, b], [b, c]] =
+    cov2d⁻¹ · depths (M,) view-space z · radii (M,) float, ceil(3√λ_max) · colors (M, 3) SH colour +
+    0.5 clamped at 0 · opacities (M,) activated. ``width``/``height`` are the image size it was
+    projected for.
     """
 
-    ids: torch.Tensor
-    means2d: torch.Tensor
-    conics: torch.Tensor
-    depths: torch.Tensor
-    radii: torch.Tensor
-    colors: torch.Tensor
-    opacities: torch.Tensor
+    ids: object
+    means2d: object
+    conics: object
+    depths: object
+    radii: object
+    colors: object
+    opacities: object
     width: int
     height: int
 
@@ -120,23 +138,23 @@ class Projected:
         return int(self.ids.shape[0])
 
 
-def sigmoid(x: torch.Tensor) -> torch.Tensor:
+def sigmoid(x):
     """σ(x) = 1 / (1 + e^(−x)) from elementwise operations: each element's value depends on it alone.
 
     torch.sigmoid's CPU kernel computes the last ``n mod 2·lanes`` elements of each parallel chunk
     with a scalar formula that differs in the last bit from its vectorised one for about 1 input in
     15 (measured, AVX-512), so a splat's opacity would depend on how many splats precede it.
     """
-    return 1.0 / (1.0 + torch.exp(-x))
+    return 1.0 / (1.0 + ops_for(x).lib.exp(-x))
 
 
-def rowwise_matmul(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+def rowwise_matmul(a, b):
     """``a @ b`` for small matrices (broadcast stacks ``(..., r, k) @ (..., k, c)``), entry by entry:
     ``(a₀b₀ + a₁b₁) + a₂b₂ …`` from elementwise products and sums in that order.
 
     One splat's result then depends on its own matrices alone. torch's matmul picks its kernel by
     the stack's size (BLAS with fused multiply-adds for some, a plain loop for others), so the same
-    splat rounded differently alone than among thousands.
+    splat rounded differently alone than among thousands (numpy's matmul likewise).
     """
     out = a[..., :, 0:1] * b[..., 0:1, :]
     for k in range(1, a.shape[-1]):
@@ -144,42 +162,45 @@ def rowwise_matmul(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     return out
 
 
-def row_norms(v: torch.Tensor) -> torch.Tensor:
+def row_norms(v):
     """Euclidean norms of the rows of ``v`` (..., d), keepdim: ``√((v₀² + v₁²) + …)`` in that order."""
     sq = v[..., 0:1] * v[..., 0:1]
     for k in range(1, v.shape[-1]):
         sq = sq + v[..., k:k + 1] * v[..., k:k + 1]
-    return torch.sqrt(sq)
+    return ops_for(v).lib.sqrt(sq)
 
 
-def quats_to_rotmats(quats: torch.Tensor) -> torch.Tensor:
+def quats_to_rotmats(quats):
     """(N, 3, 3) rotation matrices from (w, x, y, z) quaternions normalised on use; zero norm → identity."""
+    xp = ops_for(quats).lib
     norm = row_norms(quats)
-    ident = torch.zeros_like(quats)
+    ident = xp.zeros_like(quats)
     ident[:, 0] = 1.0
-    q = torch.where(norm > 0, quats / torch.where(norm > 0, norm, torch.ones_like(norm)), ident)
-    w, x, y, z = q.unbind(-1)
+    q = xp.where(norm > 0, quats / xp.where(norm > 0, norm, xp.ones_like(norm)), ident)
+    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
     rows = [
-        torch.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        torch.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        torch.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        xp.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        xp.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        xp.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
     ]
-    return torch.stack(rows, -2)
+    return xp.stack(rows, -2)
 
 
-def tile_rects(means2d: torch.Tensor, radii: torch.Tensor, width: int, height: int):
+def tile_rects(means2d, radii, width: int, height: int):
     """graphdeco ``getRect``: tile ranges [x0, x1) × [y0, y1) touched by the ±radius box (16-px tiles).
 
     x0 = clamp(⌊(x − r)/16⌋, 0, gx), x1 = clamp(⌊(x + r + 15)/16⌋, 0, gx) (C's int truncation equals the
-    floor wherever the clamp does not apply). Returns four long tensors.
+    floor wherever the clamp does not apply). Returns four int64 arrays.
     """
+    ops = ops_for(means2d)
+    xp = ops.lib
     gx, gy = (width + TILE - 1) // TILE, (height + TILE - 1) // TILE
-    x, y = means2d[:, 0].detach(), means2d[:, 1].detach()
-    r = radii.detach()
+    x, y = ops.detach(means2d[:, 0]), ops.detach(means2d[:, 1])
+    r = ops.detach(radii)
 
     def rng(lo, hi, g):
-        a = torch.floor(lo / TILE).clamp(0, g).long()
-        b = torch.floor((hi + TILE - 1) / TILE).clamp(0, g).long()
+        a = ops.as_index(xp.clip(xp.floor(lo / TILE), 0, g))
+        b = ops.as_index(xp.clip(xp.floor((hi + TILE - 1) / TILE), 0, g))
         return a, b
 
     x0, x1 = rng(x - r, x + r, gx)
@@ -187,92 +208,106 @@ def tile_rects(means2d: torch.Tensor, radii: torch.Tensor, width: int, height: i
     return x0, x1, y0, y1
 
 
-def _camera_tensors(camera: Camera, device, dtype):
-    w2c = torch.as_tensor(camera.world_to_cam, dtype=dtype, device=device)
-    centre = torch.as_tensor(camera.center, dtype=dtype, device=device)
-    return w2c[:3, :3], w2c[:3, 3], centre
-
-
 def project_gaussians(scene_or_tensors, camera: Camera, *, device=None, opacities=None) -> Projected:
-    """Project a :class:`GaussianScene` (uploaded as float32) or :class:`SplatTensors` (used as is, its
-    device and dtype win) for ``camera``; ``opacities`` (N,) overrides sigmoid(opacity_logit) and may
-    require grad. Returns the visible splats in scene order (not depth-sorted)."""
+    """Project a :class:`GaussianScene` (uploaded as float32 torch tensors on ``device``) or
+    :class:`SplatTensors` (used as they are, their library, device and dtype win) for ``camera``;
+    ``opacities`` (N,) overrides sigmoid(opacity_logit) and may require grad. Returns the visible
+    splats in scene order (not depth-sorted)."""
     if isinstance(scene_or_tensors, SplatTensors):
         st = scene_or_tensors
     else:
         st = SplatTensors.from_scene(scene_or_tensors, device=device)
-    dev, dtype = st.device, st.dtype
+    return _project(st, camera, opacities)
+
+
+def project_arrays(scene: GaussianScene, camera: Camera) -> Projected:
+    """:func:`project_gaussians` on float32 numpy arrays (no torch): the GL renderer's CPU path."""
+    return _project(SplatTensors.arrays(scene), camera, None)
+
+
+def _camera_arrays(camera: Camera, ops, like):
+    """(rotation, translation, centre) of ``camera`` in the library, dtype and device of ``like``."""
+    w2c = ops.asarray(camera.world_to_cam, like.dtype, like)
+    centre = ops.asarray(camera.center, like.dtype, like)
+    return w2c[:3, :3], w2c[:3, 3], centre
+
+
+def _project(st: SplatTensors, camera: Camera, opacities) -> Projected:
+    """The projection (module docstring) in the library of ``st``'s arrays."""
+    ops = ops_for(st.means)
+    xp = ops.lib
     w, h = int(camera.width), int(camera.height)
     fx, fy, cx, cy = float(camera.fx), float(camera.fy), float(camera.cx), float(camera.cy)
-    rot, trans, centre = _camera_tensors(camera, dev, dtype)
+    rot, trans, centre = _camera_arrays(camera, ops, st.means)
 
     # near cull first (cheap), on detached values; z is the same sum as p's below
-    with torch.no_grad():
-        means_d = st.means.detach()
+    with ops.no_grad():
+        means_d = ops.detach(st.means)
         z_all = (means_d[:, 0] * rot[2, 0] + means_d[:, 1] * rot[2, 1]) + means_d[:, 2] * rot[2, 2] + trans[2]
-        ids = torch.nonzero(z_all > NEAR_Z).squeeze(1)
+        ids = ops.flatnonzero(z_all > NEAR_Z)
     means = st.means[ids]
     p = rowwise_matmul(means[:, None, :], rot.T)[:, 0] + trans
-    x, y, z = p.unbind(-1)
+    x, y, z = p[:, 0], p[:, 1], p[:, 2]
 
     # Σ = R S Sᵀ Rᵀ = m mᵀ with m = R S (per splat)
-    m = quats_to_rotmats(st.quats[ids]) * torch.exp(st.scales_log[ids])[:, None, :]
+    m = quats_to_rotmats(st.quats[ids]) * xp.exp(st.scales_log[ids])[:, None, :]
 
     tan_x, tan_y = 0.5 * w / fx, 0.5 * h / fy
     lim_xp, lim_xn = (w - cx) / fx + 0.3 * tan_x, cx / fx + 0.3 * tan_x
     lim_yp, lim_yn = (h - cy) / fy + 0.3 * tan_y, cy / fy + 0.3 * tan_y
-    tx = torch.clamp(x / z, -lim_xn, lim_xp) * z
-    ty = torch.clamp(y / z, -lim_yn, lim_yp) * z
-    zero = torch.zeros_like(z)
-    jac = torch.stack(
+    tx = xp.clip(x / z, -lim_xn, lim_xp) * z
+    ty = xp.clip(y / z, -lim_yn, lim_yp) * z
+    zero = xp.zeros_like(z)
+    jac = xp.stack(
         [
-            torch.stack([fx / z, zero, -fx * tx / (z * z)], -1),
-            torch.stack([zero, fy / z, -fy * ty / (z * z)], -1),
+            xp.stack([fx / z, zero, -fx * tx / (z * z)], -1),
+            xp.stack([zero, fy / z, -fy * ty / (z * z)], -1),
         ],
         -2,
     )  # (M, 2, 3)
     # cov2d = J W Σ Wᵀ Jᵀ = T Tᵀ with T = J W m (2 × 3 per splat)
     t = rowwise_matmul(rowwise_matmul(jac, rot), m)
-    cov2d = rowwise_matmul(t, t.transpose(1, 2))
+    cov2d = rowwise_matmul(t, t.swapaxes(1, 2))
     a = cov2d[:, 0, 0] + DILATION
     b = cov2d[:, 0, 1]
     c = cov2d[:, 1, 1] + DILATION
     det = a * c - b * b
-    means2d = torch.stack([fx * x / z + cx - 0.5, fy * y / z + cy - 0.5], -1)
+    means2d = xp.stack([fx * x / z + cx - 0.5, fy * y / z + cy - 0.5], -1)
 
-    with torch.no_grad():
+    with ops.no_grad():
         mid = 0.5 * (a + c)
-        lam = mid + torch.sqrt(torch.clamp_min(mid * mid - det, 0.1))
-        radii = torch.ceil(3.0 * torch.sqrt(lam))
-        ok = (det > 0) & torch.isfinite(det) & torch.isfinite(radii) & torch.isfinite(means2d).all(-1)
-        ok &= torch.isfinite(a) & torch.isfinite(b) & torch.isfinite(c)
-        mx, my = means2d[:, 0], means2d[:, 1]
+        lam = mid + xp.sqrt(xp.clip(mid * mid - det, 0.1, None))
+        radii = xp.ceil(3.0 * xp.sqrt(lam))
+        ok = (det > 0) & xp.isfinite(det) & xp.isfinite(radii) & xp.isfinite(means2d).all(-1)
+        ok &= xp.isfinite(a) & xp.isfinite(b) & xp.isfinite(c)
+        mx, my = ops.detach(means2d[:, 0]), ops.detach(means2d[:, 1])
+        radii = ops.detach(radii)
         # ±r box contains a pixel centre (integers 0..w-1, 0..h-1) ...
-        box_hit = (torch.ceil(mx - radii) <= torch.floor(mx + radii)) & (torch.floor(mx + radii) >= 0)
-        box_hit &= torch.ceil(mx - radii) <= w - 1
-        box_hit &= (torch.ceil(my - radii) <= torch.floor(my + radii)) & (torch.floor(my + radii) >= 0)
-        box_hit &= torch.ceil(my - radii) <= h - 1
+        box_hit = (xp.ceil(mx - radii) <= xp.floor(mx + radii)) & (xp.floor(mx + radii) >= 0)
+        box_hit &= xp.ceil(mx - radii) <= w - 1
+        box_hit &= (xp.ceil(my - radii) <= xp.floor(my + radii)) & (xp.floor(my + radii) >= 0)
+        box_hit &= xp.ceil(my - radii) <= h - 1
         # ... or graphdeco's tile rectangle is non-empty
         x0, x1, y0, y1 = tile_rects(means2d, radii, w, h)
         ok &= box_hit | ((x1 > x0) & (y1 > y0))
-        keep = torch.nonzero(ok).squeeze(1)
+        keep = ops.flatnonzero(ok)
 
     ids = ids[keep]
     det_k = det[keep]
-    conics = torch.stack([c[keep] / det_k, -b[keep] / det_k, a[keep] / det_k], -1)
+    conics = xp.stack([c[keep] / det_k, -b[keep] / det_k, a[keep] / det_k], -1)
     dirs = means[keep] - centre
     dirs = dirs / row_norms(dirs)
     colors = sh_to_color(st.sh[ids], dirs, st.sh_degree)
     if opacities is None:
         opac = sigmoid(st.opacity_logit[ids])
     else:
-        opac = torch.as_tensor(opacities, device=dev, dtype=dtype).reshape(-1)[ids]
+        opac = ops.asarray(opacities, st.dtype, st.means).reshape(-1)[ids]
     return Projected(
         ids=ids,
         means2d=means2d[keep],
         conics=conics,
         depths=z[keep],
-        radii=radii[keep].to(dtype),
+        radii=ops.cast(radii[keep], st.dtype),
         colors=colors,
         opacities=opac,
         width=w,

@@ -11,12 +11,12 @@ conventions of graphdeco-inria ``computeColorFromSH`` (the same as gsplat's ``sp
   + C3[6]·x(xx − 3yy)·sh15``
 
 ``dirs`` are unit vectors from the camera centre to the splat centre in *world* coordinates. The caller
-adds 0.5 and clamps at 0 (:func:`sh_to_color`).
+adds 0.5 and clamps at 0 (:func:`sh_to_color`). Arrays are numpy or torch (:mod:`renderers.arrays`).
 """
 
 from __future__ import annotations
 
-import torch
+from renderers.arrays import ops_for
 
 SH_C0 = 0.28209479177387814
 SH_C1 = 0.4886025119029199
@@ -29,12 +29,13 @@ SH_C3 = (-0.5900435899266435, 2.890611442640554, -0.4570457994644658, 0.37317633
 SH_COEFFS = {0: 1, 1: 4, 2: 9, 3: 16}
 
 
-def sh_basis(dirs: torch.Tensor, degree: int) -> torch.Tensor:
+def sh_basis(dirs, degree: int):
     """The (M, (degree+1)²) basis values Y_k(dir) with the 3DGS signs and constants."""
     if degree not in SH_COEFFS:
         raise ValueError(f"SH degree must be 0..3, got {degree}")
-    x, y, z = dirs.unbind(-1)
-    cols = [torch.full_like(x, SH_C0)]
+    xp = ops_for(dirs).lib
+    x, y, z = dirs[..., 0], dirs[..., 1], dirs[..., 2]
+    cols = [xp.full_like(x, SH_C0)]
     if degree > 0:
         cols += [-SH_C1 * y, SH_C1 * z, -SH_C1 * x]
     if degree > 1:
@@ -57,10 +58,10 @@ def sh_basis(dirs: torch.Tensor, degree: int) -> torch.Tensor:
                 SH_C3[5] * z * (xx - yy),
                 SH_C3[6] * x * (xx - 3.0 * yy),
             ]
-    return torch.stack(cols, -1)
+    return xp.stack(cols, -1)
 
 
-def eval_sh(sh: torch.Tensor, dirs: torch.Tensor, degree: int) -> torch.Tensor:
+def eval_sh(sh, dirs, degree: int):
     """Σ_k sh[:, k, :]·Y_k(dirs) → (M, 3).
 
     ``sh`` is (M, K+1, 3): the dc coefficient first, then the higher ones coefficient-major (the
@@ -81,6 +82,6 @@ def eval_sh(sh: torch.Tensor, dirs: torch.Tensor, degree: int) -> torch.Tensor:
     return out
 
 
-def sh_to_color(sh: torch.Tensor, dirs: torch.Tensor, degree: int) -> torch.Tensor:
+def sh_to_color(sh, dirs, degree: int):
     """The 3DGS splat colour max(eval_sh + 0.5, 0), (M, 3)."""
-    return torch.clamp_min(eval_sh(sh, dirs, degree) + 0.5, 0.0)
+    return ops_for(sh).lib.clip(eval_sh(sh, dirs, degree) + 0.5, 0.0, None)

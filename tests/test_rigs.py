@@ -193,3 +193,16 @@ def test_shifted_protocol_views_come_from_another_distribution():
     assert min(elevation(c) for c in shifted) > max(elevation(c) for c in rig.train) - 5.0
     assert np.mean([elevation(c) for c in shifted]) > np.mean([elevation(c) for c in rig.train]) + 15.0
     assert all(c.fov_x < 0.7 * rig.train[0].fov_x for c in shifted)
+
+
+@pytest.mark.parametrize("shape", [(24, 24, 24), (5, 7, 3), (1, 30, 2), (9,)])
+def test_gaussian_blur_is_scipys_bit_for_bit(shape):
+    """The rig's density peak blurs its histogram without importing scipy.ndimage; the same bits."""
+    from scipy.ndimage import gaussian_filter
+
+    from harness.views.placement import gaussian_blur
+
+    rng = np.random.default_rng(len(shape))
+    for _ in range(10):
+        volume = rng.poisson(rng.uniform(0.1, 50), shape) * rng.uniform(0.1, 10)
+        assert np.array_equal(gaussian_blur(volume, 1.0), gaussian_filter(volume, sigma=1.0, mode="constant"))

@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 from harness.core.cameras import Camera
 from harness.core.scene import GaussianScene
 from renderers.gl import pack_instances
-from renderers.projection import project_gaussians, sigmoid
+from renderers.projection import project_arrays, project_gaussians, sigmoid
 from tests.scene_factory import random_scene
 from tests.test_gl_renderer import gl  # noqa: F401  (fixture: the GL renderer, one context, or a skip)
 
@@ -48,17 +48,26 @@ def _camera(seed: int, size=(48, 40)) -> Camera:
     return Camera.look_at(eye, (0.0, 0.0, 0.0), fov_y_deg=float(rng.uniform(30, 80)), width=size[0], height=size[1])
 
 
+#: the projection in each array library (renderers.arrays): torch (the reference renderer, the pruners)
+#: and numpy (the GL renderer on the CPU)
+PROJECTIONS = {"torch": lambda scene, cam: project_gaussians(scene, cam, device="cpu"), "numpy": project_arrays}
+
+
+def _numpy(x) -> np.ndarray:
+    return x.numpy() if isinstance(x, torch.Tensor) else x
+
+
 def _assert_projection_filters(scene: GaussianScene, cam: Camera, keep: np.ndarray) -> None:
-    full = project_gaussians(scene, cam, device="cpu")
-    sub = project_gaussians(scene.subset(keep), cam, device="cpu")
-    in_full = torch.as_tensor(keep)[full.ids]
-    assert torch.equal(full.ids[in_full], torch.as_tensor(np.flatnonzero(keep))[sub.ids])
-    for name in FIELDS:
-        a, b = getattr(full, name)[in_full], getattr(sub, name)
-        assert torch.equal(a, b), f"{name}: {int((a != b).reshape(len(b), -1).any(-1).sum())} splats differ"
-    whole, pruned = pack_instances(full).kept(keep), pack_instances(sub)
-    assert np.array_equal(whole.records, pruned.records)
-    assert np.array_equal(whole.ids, np.flatnonzero(keep)[pruned.ids])
+    for project in PROJECTIONS.values():
+        full, sub = project(scene, cam), project(scene.subset(keep), cam)
+        in_full = keep[_numpy(full.ids)]
+        assert np.array_equal(_numpy(full.ids)[in_full], np.flatnonzero(keep)[_numpy(sub.ids)])
+        for name in FIELDS:
+            a, b = _numpy(getattr(full, name))[in_full], _numpy(getattr(sub, name))
+            assert np.array_equal(a, b), f"{name}: {int((a != b).reshape(len(b), -1).any(-1).sum())} splats differ"
+        whole, pruned = pack_instances(full).kept(keep), pack_instances(sub)
+        assert np.array_equal(whole.records, pruned.records)
+        assert np.array_equal(whole.ids, np.flatnonzero(keep)[pruned.ids])
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])

@@ -131,6 +131,8 @@ def run(args) -> int:
             name=args.scene,
         )
         renderer = start_renderer(args.backend, args.device)
+    if hasattr(renderer, "preload_triton"):  # the GL renderer: this process never calls torch.compile
+        renderer.preload_triton = False
     from harness.io.files import make_output_folder, refuse_inputs
 
     make_output_folder(out)  # created, writable (not /proc, not read-only), stale temp files swept
