@@ -32,12 +32,23 @@ def git_commit() -> str:
     return f"{head}+dirty" if head and _git("status", "--porcelain", "--untracked-files=no") else head
 
 
-def describe_machine() -> dict:
-    """What the numbers were measured on."""
+def describe_machine(devices: bool = True) -> dict:
+    """What the numbers were measured on. ``devices`` False (a run that measured nothing: every
+    stage came from the cache) leaves out what only importing torch tells — its thread count and
+    the CUDA device — unless torch is loaded already; its version comes from the package metadata."""
+    import sys
+
+    out = {"platform": platform.platform(), "python": platform.python_version(), "cpus": os.cpu_count()}
+    if not devices and "torch" not in sys.modules:
+        from importlib.metadata import PackageNotFoundError, version
+
+        try:
+            return {**out, "torch": version("torch")}
+        except PackageNotFoundError:
+            return out
     import torch
 
-    return {"platform": platform.platform(), "python": platform.python_version(), "cpus": os.cpu_count(),
-            "torch": torch.__version__, "torch_threads": torch.get_num_threads(),
+    return {**out, "torch": torch.__version__, "torch_threads": torch.get_num_threads(),
             "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None}
 
 

@@ -9,6 +9,9 @@ Which tables and plots: the run record's (``run.json``: the config's ``tables``/
 all; ``harness tables --tables/--plots`` narrows them. The BD anchor is the record's (``anchor``,
 else the config's, else :data:`harness.report.bd.DEFAULT_ANCHOR`); ``reference`` is the method
 every cell table compares with (default ``random``).
+
+Tables and plots are rebuilt only when the results, these choices or the code that makes them
+changed (:mod:`harness.report.memo`); the page is always redrawn (it shows every run record).
 """
 
 from __future__ import annotations
@@ -45,14 +48,22 @@ def chosen(meta: dict) -> tuple[list[str], list[str], str | None]:
 def publish(run_dir: str | Path, df: pd.DataFrame, meta: dict, *, tables=None, plots=None,
             reference: str | None = None) -> Published:
     """Write a run folder's tables, plots and ``report.html`` from its results and run record."""
+    from harness.report import memo
     from harness.report.page import write_report
 
     run_dir = Path(run_dir)
     names, plot_names, anchor = chosen(meta)
     tables = names if tables is None else list(tables)
     plots = plot_names if plots is None else list(plots)
+    digest = memo.inputs_digest(df, {"tables": tables, "plots": plots, "reference": reference, "anchor": anchor})
+    kept = memo.load(run_dir, digest)
     with catalog.budget_notes(df):  # e.g. "ConfSplatPrune — lower bound (100 iterations)"
-        drawn = write_plots(df, run_dir, plots)
-        written = write_tables(df, run_dir, tables, reference=reference, anchor=anchor) + drawn
+        if kept is not None:
+            written, drawn = kept
+        else:
+            memo.forget(run_dir)
+            drawn = write_plots(df, run_dir, plots)
+            written = write_tables(df, run_dir, tables, reference=reference, anchor=anchor) + drawn
+            memo.save(run_dir, digest, written, drawn)
         page = write_report(run_dir, df, meta, written.built, written.missing, plots=drawn.paths)
     return Published(written, page)

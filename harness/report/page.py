@@ -241,7 +241,8 @@ def _record_detail(meta: dict) -> str:
     rows = [("name", meta.get("name", "")), ("when", meta.get("when", "")), ("commit", meta.get("commit", "")),
             ("config", meta.get("config_path", "")), ("command", " ".join(["harness", *meta.get("argv", [])])),
             ("workers", meta.get("workers", "")), ("CPU seconds", meta.get("cpu_seconds", "")),
-            ("calibration (s)", meta.get("calibration_s", ""))] + [(f"machine: {k}", v) for k, v in m.items()]
+            ("calibration (s)", meta.get("calibration_s") or "– (nothing computed: every stage from the cache)")]
+    rows += [(f"machine: {k}", v) for k, v in m.items()]
     stages = meta.get("stage_seconds") or {}
     counts = meta.get("cache_counts") or {}
     out = [kv_table(rows), "<h4>Stage seconds</h4>",

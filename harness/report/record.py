@@ -83,24 +83,28 @@ MAX_RECORDS = 200
 def write_run_json(out_dir: Path, config, result, *, workers: int, cache_root: Path, argv=None,
                    latest: bool = True) -> Path:
     """run.json, with the calibration workload timed right after the run (``harness track`` divides
-    stage times by it, so machine speed cancels out of the regression check); the same record is
+    stage times by it, so machine speed cancels out of the regression check) — when the run computed
+    anything: a run whose every stage came from the cache timed no work, so its record has no
+    calibration (``calibration_s`` null; ``harness track`` times one itself) and its machine is
+    described without importing torch (:func:`describe_machine`); the same record is
     kept as ``records/<when>-<pid>.json``, so every run into the folder stays visible. ``latest``
     False: the record only (a run that replaced no results leaves run.json to the run that did);
     returns the path written last."""
     status = [r.get("status") for r in result.rows]
+    computed = any(c.get("misses") for c in (result.counts or {}).values())
     payload = {
         "name": config.name,
         "config_path": config.source_path,
         "config": config.raw,
         "when": time.strftime("%Y-%m-%dT%H:%M:%S"),
         "commit": git_commit(),
-        "machine": describe_machine(),
+        "machine": describe_machine(devices=computed),
         "workers": workers,
         "executor": getattr(result, "executor", None) or {"name": "local", "workers": workers},
         "cache": str(cache_root),
         "stage_seconds": result.stage_s,
         "cpu_seconds": cpu_seconds(),
-        "calibration_s": time_calibration(),
+        "calibration_s": time_calibration() if computed else None,
         "cache_counts": result.counts,
         "skipped": [s.__dict__ for s in result.skips],
         "errors": result.errors,
