@@ -74,7 +74,6 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Self
 
 import numpy as np
@@ -363,13 +362,10 @@ class GLRenderer:
         """The torch device the splats are projected on, or None for numpy on the CPU: ``device``
         when given (``"cpu"`` means numpy); else CUDA when the machine has an NVIDIA GPU
         (``/dev/nvidiactl``; torch is imported only then, to ask whether it can use it)."""
-        if self.device is not None:
-            return None if str(self.device) == "cpu" else str(self.device)
-        if Path("/dev/nvidiactl").exists():
-            import torch
+        from harness.core.devices import default_device
 
-            return "cuda" if torch.cuda.is_available() else None
-        return None
+        device = str(self.device) if self.device is not None else default_device()
+        return None if device == "cpu" else device
 
     def render_projected(self, projected, background=(0.0, 0.0, 0.0), with_alpha: bool = False):
         """Composite already projected splats (a ``Projected`` of ``width × height``) into an image

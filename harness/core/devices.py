@@ -39,3 +39,16 @@ def check_device(text: str | None, source: str = "--device") -> str | None:
     if dev.type == "mps" and not (getattr(torch.backends, "mps", None) and torch.backends.mps.is_available()):
         raise InputError(source, f"{text} requested but MPS is not available")
     return str(text)
+
+
+def default_device() -> str:
+    """The device to compute on when none is named: ``"cuda"`` on a machine with an NVIDIA GPU that
+    torch can use, else ``"cpu"`` — decided without importing torch where there is no NVIDIA device
+    node (``/dev/nvidiactl``), so CPU-only commands never load it."""
+    from pathlib import Path
+
+    if not Path("/dev/nvidiactl").exists():
+        return "cpu"
+    import torch
+
+    return "cuda" if torch.cuda.is_available() else "cpu"

@@ -18,13 +18,15 @@ noise (the zero padding both images share makes border windows partly identical,
 higher), more on smaller images.
 
 The separable Gaussian runs over all planes at once (scipy on CPU, ``conv2d`` on GPU);
-float64 by default so the E[x^2] - mu^2 cancellation stays far below 1e-5.
+float64 by default so the E[x^2] - mu^2 cancellation stays far below 1e-5. On the CPU the images
+are numpy arrays and torch is not imported (``harness compare --metrics ssim``); on another device
+they are torch tensors. The arithmetic is the same elementwise float64 in both, so the CPU values
+are the bits the torch form gave there.
 """
 
 from __future__ import annotations
 
 import numpy as np
-import torch
 
 from harness.metrics.images import as_image, check_same_size
 
@@ -40,16 +42,29 @@ def gaussian_taps(window: int = WINDOW, sigma: float = SIGMA) -> np.ndarray:
     return g / g.sum()
 
 
-def blur_scipy(x: torch.Tensor, taps: np.ndarray) -> torch.Tensor:
-    """Separable zero-padded 'same' correlation of CPU ``x`` (..., H, W) with ``taps`` on both axes."""
+def _lib(x):
+    """numpy for a numpy array, else torch."""
+    if isinstance(x, np.ndarray):
+        return np
+    import torch
+
+    return torch
+
+
+def blur_scipy(x, taps: np.ndarray):
+    """Separable zero-padded 'same' correlation of CPU ``x`` (..., H, W) with ``taps`` on both axes
+    (a numpy array, or a CPU tensor: the result is of the same kind)."""
     from scipy import ndimage
 
-    a = ndimage.correlate1d(x.numpy(), taps, axis=-1, mode="constant", cval=0.0)
-    return torch.from_numpy(ndimage.correlate1d(a, taps, axis=-2, mode="constant", cval=0.0))
+    a = ndimage.correlate1d(np.asarray(x), taps, axis=-1, mode="constant", cval=0.0)
+    out = ndimage.correlate1d(a, taps, axis=-2, mode="constant", cval=0.0)
+    return out if isinstance(x, np.ndarray) else _lib(x).from_numpy(out)
 
 
-def blur_torch(x: torch.Tensor, taps: np.ndarray) -> torch.Tensor:
+def blur_torch(x, taps: np.ndarray):
     """Same as :func:`blur_scipy` with two 1-D ``conv2d`` passes (any device)."""
+    import torch
+
     h, w = x.shape[-2:]
     r = len(taps) // 2
     k = torch.as_tensor(taps, dtype=x.dtype, device=x.device)
@@ -59,19 +74,18 @@ def blur_torch(x: torch.Tensor, taps: np.ndarray) -> torch.Tensor:
     return planes.reshape(x.shape)
 
 
-def _blur(x: torch.Tensor, taps: np.ndarray) -> torch.Tensor:
+def _blur(x, taps: np.ndarray):
     # scipy is about 3x faster than torch's float64 conv2d on CPU; conv2d serves GPUs
-    return blur_scipy(x, taps) if x.device.type == "cpu" else blur_torch(x, taps)
+    return blur_scipy(x, taps) if isinstance(x, np.ndarray) or x.device.type == "cpu" else blur_torch(x, taps)
 
 
-def moments(x: torch.Tensor, blur=None) -> torch.Tensor:
+def moments(x, blur=None):
     """``g*x`` and ``g*(x x)`` of batched images, stacked: the first image's side of :func:`ssim_map`
     (a reference scored against many images needs them once)."""
-    return (blur or _blur)(torch.stack([x, x * x]), gaussian_taps())
+    return (blur or _blur)(_lib(x).stack([x, x * x]), gaussian_taps())
 
 
-def ssim_map(x: torch.Tensor, y: torch.Tensor, data_range: float = 1.0, blur=None,
-             x_moments: torch.Tensor | None = None) -> torch.Tensor:
+def ssim_map(x, y, data_range: float = 1.0, blur=None, x_moments=None):
     """Per-pixel SSIM of batched images ``(B, C, H, W)`` (zero-padded 'same' map, same shape).
 
     ``blur`` overrides the Gaussian implementation (:func:`blur_scipy` / :func:`blur_torch`);
@@ -81,7 +95,7 @@ def ssim_map(x: torch.Tensor, y: torch.Tensor, data_range: float = 1.0, blur=Non
     taps = gaussian_taps()
     c1, c2 = (K1 * data_range) ** 2, (K2 * data_range) ** 2
     (mu_x, e_xx) = x_moments if x_moments is not None else moments(x, blur)
-    mu_y, e_yy, e_xy = (blur or _blur)(torch.stack([y, y * y, x * y]), taps)
+    mu_y, e_yy, e_xy = (blur or _blur)(_lib(y).stack([y, y * y, x * y]), taps)
     mu_xy = mu_x * mu_y
     mu_xx, mu_yy = mu_x * mu_x, mu_y * mu_y
     num = (2 * mu_xy + c1) * (2 * (e_xy - mu_xy) + c2)
@@ -90,29 +104,52 @@ def ssim_map(x: torch.Tensor, y: torch.Tensor, data_range: float = 1.0, blur=Non
 
 
 class SsimReference:
-    """The first image's side of :func:`ssim_batch` (its tensor and :func:`moments`), computed once
+    """The first image's side of :func:`ssim_batch` (its array and :func:`moments`), computed once
     for a reference scored against many images: ``ssim_batch(ref, b)`` with ``ref`` one of these.
     ``blur``: the Gaussian used for it and for every image scored against it (default: scipy on
-    the CPU, ``conv2d`` elsewhere; :func:`blur_torch` is the torch form on any device)."""
+    the CPU, ``conv2d`` elsewhere; :func:`blur_torch` is the torch form on any device, and makes the
+    arrays torch tensors on the CPU too)."""
 
-    def __init__(self, a, *, device=None, dtype=torch.float64, blur=None):
-        self.device = _device(device)
+    def __init__(self, a, *, device=None, dtype=None, blur=None):
+        self.device = _device(device, blur)
         self.blur = blur
         self.x = _tensor(a, self.device, dtype)
-        with torch.inference_mode():
+        with _inference(self.x):
             self.moments = moments(self.x, blur)
 
 
-def _device(device) -> torch.device:
-    return torch.device(device) if device is not None else torch.device("cuda" if torch.cuda.is_available() else "cpu")
+def _device(device, blur=None):
+    """``"cpu"`` (numpy arrays) or a torch device: the one named, else :func:`default_device`;
+    the torch form of the blur asks for torch on the CPU too."""
+    from harness.core.devices import default_device
+
+    name = str(device) if device is not None else default_device()
+    if name == "cpu" and blur is not blur_torch:
+        return "cpu"
+    import torch
+
+    return torch.device(name)
 
 
-def _tensor(a, device, dtype) -> torch.Tensor:
+def _inference(x):
+    import contextlib
+
+    return contextlib.nullcontext() if isinstance(x, np.ndarray) else _lib(x).inference_mode()
+
+
+def _tensor(a, device, dtype):
+    """Images ``(B, H, W, 3)`` as ``(B, 3, H, W)`` float64 (or ``dtype``) clamped to [0, 1]: a numpy
+    array for ``device == "cpu"``, else a tensor on ``device``."""
+    if device == "cpu":
+        a = a.cpu().numpy() if not isinstance(a, np.ndarray) and hasattr(a, "cpu") else np.asarray(a)
+        return np.clip(a.astype(dtype or np.float64), 0, 1).transpose(0, 3, 1, 2)
+    import torch
+
     a = a if isinstance(a, torch.Tensor) else np.asarray(a)
-    return torch.as_tensor(a, device=device).to(dtype).clamp(0, 1).permute(0, 3, 1, 2)
+    return torch.as_tensor(a, device=device).to(dtype or torch.float64).clamp(0, 1).permute(0, 3, 1, 2)
 
 
-def ssim_batch(a, b, *, border: str = "zero", device=None, dtype=torch.float64) -> np.ndarray:
+def ssim_batch(a, b, *, border: str = "zero", device=None, dtype=None) -> np.ndarray:
     """SSIM of image pairs: ``a``, ``b`` arrays ``(B, H, W, 3)`` (or tensors) -> float64 ``(B,)``;
     ``a`` may be an :class:`SsimReference` (its device, dtype and blur win)."""
     if border not in ("zero", "valid"):
@@ -121,7 +158,7 @@ def ssim_batch(a, b, *, border: str = "zero", device=None, dtype=torch.float64) 
     device = ref.device if ref is not None else _device(device)
     x = ref.x if ref is not None else _tensor(a, device, dtype)
     y = _tensor(b, device, x.dtype)
-    with torch.inference_mode():
+    with _inference(x):
         s = ssim_map(x, y, blur=ref.blur if ref is not None else None,
                      x_moments=ref.moments if ref is not None else None)
         if border == "valid":
@@ -132,6 +169,8 @@ def ssim_batch(a, b, *, border: str = "zero", device=None, dtype=torch.float64) 
         # on the CPU the mean in numpy: torch splits a CPU reduction over its threads, so the last digit
         # would depend on the thread count (1 vs 2 workers of a run); numpy's summation order is fixed.
         # A GPU's reduction order is fixed for a shape, and reading back one number per image is the point
+        if isinstance(s, np.ndarray):
+            return s.astype(np.float64).reshape(len(s), -1).mean(axis=1)
         if s.device.type != "cpu":
             return s.reshape(len(s), -1).mean(1).cpu().numpy().astype(np.float64)
         return s.cpu().numpy().astype(np.float64).reshape(len(s), -1).mean(axis=1)
