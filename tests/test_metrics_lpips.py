@@ -134,3 +134,16 @@ def test_scoring_imports_neither_torchvision_nor_lpips():
               "print(sorted(k for k in ('torchvision', 'lpips') if k in sys.modules))")
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True)
     assert out.stdout.strip().splitlines()[-1] == "[]"
+
+
+@pytest.mark.parametrize("shape", [(64, 48), (100, 130)])
+def test_a_pair_in_step_is_the_cached_distance_bit_for_bit(model, shape):
+    """``model(a, b)`` runs both images through the trunk slice by slice and differences each layer
+    in place (a third less memory for 1024x768): the value is that of features(a) then distance(b),
+    which test_cached_distance_equals_the_lpips_package_forward checks against the package."""
+    rng = np.random.default_rng(shape[0])
+    a = rng.random((*shape, 3)).astype(np.float32)
+    b = np.clip(a + rng.normal(0, 0.05, a.shape), 0, 1).astype(np.float32)
+    assert model(a, b) == model.distance(model.features(a), b) > 0
+    assert model(b, a) == model.distance(model.features(b), a)
+    assert model(a, a) == 0.0

@@ -203,8 +203,41 @@ class LpipsVGG:
         return float(self.distances(ref, [image], source)[0])
 
     def __call__(self, a, b) -> float:
-        """LPIPS of a pair (two trunk passes); symmetric."""
-        return self.distance(self.features(a, "first image"), b, "second image")
+        """LPIPS of a pair (two trunk passes, in step: :meth:`_pair`); symmetric."""
+        a, b = self._check(a, "first image"), self._check(b, "second image")
+        if a.shape[:2] != b.shape[:2]:
+            raise InputError("second image", f"size {b.shape[1]}x{b.shape[0]} differs from the reference's "
+                                             f"{a.shape[1]}x{a.shape[0]}")
+        if self.precision != "float32":  # under autocast: the plain path
+            return self.distance(self.features(a, "first image"), b, "second image")
+        with torch.inference_mode():
+            return float(self._pair(self._to_input([a]), self._to_input([b])))
+
+    def _pair(self, xa: torch.Tensor, xb: torch.Tensor) -> torch.Tensor:
+        """:meth:`_combine` of the two images' normalised layers, computed slice by slice: both
+        images go through a slice of the trunk, the next slice's max-pool is taken, and only then
+        are the two activations normalised and differenced in place and summed, and freed — one
+        relu1_2-sized pair alive at a time instead of every layer of both images (1.9 GB for two
+        1024x768 images before). The arithmetic is :meth:`distance`'s, operation for operation."""
+        slices = [getattr(self._trunk, f"slice{k}") for k in range(1, len(self._lin) + 1)]
+        ra, rb = slices[0](xa), slices[0](xb)
+        total = 0.0
+        for k, w in enumerate(self._lin):
+            nxt = slices[k + 1] if k + 1 < len(slices) else None
+            pa = pb = None
+            if nxt is not None:  # the next slice's max-pool reads the raw activations: take it first
+                pa, pb = nxt[0](ra), nxt[0](rb)
+            fa = ra.div_(torch.sqrt((ra * ra).sum(dim=1, keepdim=True)) + EPS)
+            fb = rb.div_(torch.sqrt((rb * rb).sum(dim=1, keepdim=True)) + EPS)
+            d = fb.sub_(fa).square_()
+            total = total + torch.einsum("bchw,c->b", d, w) / (d.shape[2] * d.shape[3])
+            fa = fb = d = ra = rb = None  # freed before the next slice allocates its activations
+            if nxt is not None:
+                ra = nxt[1:](pa)
+                pa = None
+                rb = nxt[1:](pb)
+                pb = None
+        return total[0]
 
     def _auto_batch(self, size) -> int:
         if self.device.type != "cuda":
