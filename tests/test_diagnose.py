@@ -89,3 +89,19 @@ def test_diagnose_cli_on_grape_small(capsys):
     assert by["lightgs"]["correlations"]["score"] == pytest.approx(1.0)
     assert set(by["betadesc:reading=v1"]["correlations"]) == {"s", "ell", "o", "u", "w", "A", "B", "score"}
     assert main(["diagnose", "grape-small", "--method", "betadesc:o_norm=bad"]) == 2
+
+
+def test_spearman_is_scipys_without_importing_it():
+    from scipy import stats
+
+    from methods.diagnose import average_ranks, spearman
+
+    rng = np.random.default_rng(0)
+    for t in range(60):
+        n = int(rng.integers(2, 2000))
+        x = rng.integers(0, 5, n).astype(float) if t % 2 else rng.normal(size=n)  # ties, or none
+        y = x * rng.normal() + rng.normal(size=n)
+        assert np.array_equal(average_ranks(x), stats.rankdata(x))
+        if np.ptp(x) > 0 and np.ptp(y) > 0:
+            assert spearman(x, y) == pytest.approx(stats.spearmanr(x, y)[0], abs=1e-12)
+    assert spearman(np.ones(5), np.arange(5.0)) is None
