@@ -1,14 +1,20 @@
 """`harness bench calibrate --device DEV`: the unit costs of a study's per-image work on one device,
-for ``harness plan --estimate`` (``calibrate-cuda.json`` beside the CPU's benchmark files).
+for ``harness plan --estimate`` (``calibrate-cuda.json`` / ``calibrate-cpu.json`` beside the other
+benchmark files); ``--check RUN_DIR`` compares the estimate with a finished run instead
+(:mod:`harness.run.estimate_check`).
 
-On the smallest real scene at hand (:func:`harness.run.calibrate._scene`), wall seconds on DEV, each
-the best of ``--repeats`` after a warm-up (CUDA contexts, cuDNN's choices, numba's compile):
+On the smallest real scene at hand (:func:`harness.run.calibrate._scene`), each the best of
+``--repeats`` after a warm-up (CUDA contexts, cuDNN's choices, numba's compile) — on a GPU wall
+seconds of the device, on the CPU CPU seconds of this process with one thread (torch, OpenMP,
+llvmpipe), as a study's one-core workers run:
 
-* a GL render at half ``--size`` and at ``--size`` px (longest side): the per-pixel term is the
-  difference over the pixel difference, the per-splat term what is left at half size (projection,
-  sort, packing, upload, draw, read-back). Not 128 px, as ``plan --calibrate`` on the CPU: llvmpipe
-  took longer for a 128-px render of bonsai-7k-mini than for a 1024-px one (6.6 s vs 2.1 s here,
-  273k one-pixel triangles), which makes that difference meaningless;
+* the view packed once (projection, SH, sort, packing: ``pack_splat`` per splat), then drawn at
+  half ``--size`` and at ``--size`` px (longest side): the per-pixel term is the difference over
+  the pixel difference, the per-splat draw term what is left at half size (filtering, upload,
+  draw, read-back); ``render_splat`` is the two per-splat terms together. Not 128 px, as ``plan
+  --calibrate`` on the CPU: llvmpipe took longer for a 128-px render of bonsai-7k-mini than for a
+  1024-px one (6.6 s vs 2.1 s here, 273k one-pixel triangles), which makes that difference
+  meaningless;
 * the metric suite a study on DEV makes (:class:`harness.metrics.suite.MetricSuite`: the torch
   forms, batched, on CUDA; the CPU forms image by image on the CPU) scoring one batch of pruned
   renders at ``--size``, per pass kind of :data:`harness.metrics.registry.PASS_KINDS`: LPIPS (and a
@@ -33,17 +39,30 @@ FAMILIES = ("3dgs", "mpeg")
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--device", default="cuda", help="torch device to calibrate (default cuda; cpu to try it)")
-    parser.add_argument("--size", type=int, default=1024, help="longest image side (default 1024, the CTC's)")
+    parser.add_argument("--device", default="cuda", help="torch device to calibrate (default cuda; cpu: the units "
+                                                         "of plan --estimate on this machine, calibrate-cpu.json)")
+    parser.add_argument("--size", type=int, default=None,
+                        help="longest image side (default: 1024, the CTC's, on a GPU; 256, the default study's, "
+                             "on the CPU)")
     parser.add_argument("--repeats", type=int, default=3, help="timed repeats, best kept (default 3)")
+    parser.add_argument("--check", metavar="RUN_DIR", default=None,
+                        help="compare `plan --estimate` of a finished run's config with what the run measured "
+                             "(CPU seconds, wall, per stage and per view protocol; within 20 %% or not)")
+    parser.add_argument("--efficiency", type=float, default=0.75,
+                        help="parallel efficiency for --check's wall time (default 0.75, as plan's)")
+    parser.add_argument("--bench", default=None, help="--check: benchmark folder of the units (default results/bench)")
 
 
-def _best(fn, repeats: int) -> float:
-    """Least wall seconds of ``repeats`` calls after a warm-up call."""
+#: the clock of the measurements: wall seconds of a GPU, CPU seconds of this process on the CPU
+_CLOCK = {"cpu": time.process_time}
+
+
+def _best(fn, repeats: int, clock=time.perf_counter) -> float:
+    """Least ``clock`` seconds of ``repeats`` calls after a warm-up call."""
     from harness.run.calibrate import _cpu
 
     fn()
-    return _cpu(fn, repeats, clock=time.perf_counter)
+    return _cpu(fn, repeats, clock=clock)
 
 
 def _pass_names() -> dict[str, tuple[str, ...]]:
@@ -53,7 +72,7 @@ def _pass_names() -> dict[str, tuple[str, ...]]:
     return {kind: tuple(n for n in names if METRICS.get(n).cost == kind) for kind in ("lpips", "ssim", "psnr")}
 
 
-def _metrics(device: str, img: np.ndarray, alpha: np.ndarray, repeats: int) -> tuple[dict, dict]:
+def _metrics(device: str, img: np.ndarray, alpha: np.ndarray, repeats: int, clock) -> tuple[dict, dict]:
     from harness.metrics.suite import MetricSuite
 
     rng = np.random.default_rng(0)
@@ -65,11 +84,11 @@ def _metrics(device: str, img: np.ndarray, alpha: np.ndarray, repeats: int) -> t
         images = [np.clip(img + rng.normal(0, 0.01, img.shape), 0, 1).astype(np.float32) for _ in range(batch)]
         alphas = [alpha] * batch if suite.wants_alpha else None
         suite.reference("v", img, alpha=alpha)
-        seconds = _best(lambda: suite.score_many("v", images, alphas), repeats) / batch
+        seconds = _best(lambda: suite.score_many("v", images, alphas), repeats, clock) / batch
         units[f"{kind}_px"] = seconds / len(names) / (h * w)
         raw[kind] = {"metrics": list(names), "batch": batch, "seconds_per_image": seconds}
         if kind == "lpips":
-            ref = _best(lambda: suite.reference("v", img, alpha=alpha), repeats)
+            ref = _best(lambda: suite.reference("v", img, alpha=alpha), repeats, clock)
             units["lpips_ref_px"] = ref / (h * w)
             raw["lpips_reference_s"] = ref
     return units, raw
@@ -77,61 +96,89 @@ def _metrics(device: str, img: np.ndarray, alpha: np.ndarray, repeats: int) -> t
 
 def run(args) -> int:
     from harness.benchmarks._common import out_dir, write_result
-    from harness.benchmarks._study_device import _machine
     from harness.core.devices import check_device
     from harness.core.errors import InputError
-    from harness.run.calibrate import _scene
-    from harness.views import rigs
 
     folder = out_dir(args)
+    if args.check is not None:
+        from harness.run.estimate_check import check_run
+
+        payload, md = check_run(args.check, bench=args.bench, efficiency=args.efficiency)
+        write_result(f"{NAME}-check", payload, md, out=folder)
+        print(md)
+        return 0
     device = check_device(args.device, "--device")
-    if not 128 < args.size <= 4096:
-        raise InputError("--size", f"must be in 129..4096, got {args.size}")
+    size = args.size if args.size is not None else (256 if device == "cpu" else 1024)
+    if not 128 < size <= 4096:
+        raise InputError("--size", f"must be in 129..4096, got {size}")
     if args.repeats < 1:
         raise InputError("--repeats", f"must be >= 1, got {args.repeats}")
-    name, scene = _scene()
-    if scene is None:
-        raise InputError("scenes", "no real scene here to calibrate on (harness fetch --scenes)")
-    from renderers.gl import GLRenderer
+    if device == "cpu":
+        from harness.run.calibrate import one_thread
 
-    cam = rigs.make_rig("auto", scene, n_train=0, n_test=1, longest_side=args.size).test[0]
-    small = cam.resized(args.size // 2)
-    gl = GLRenderer(device=device)
-    try:
-        t_small = _best(lambda: gl.render(scene, small), args.repeats)
-        t_big = _best(lambda: gl.render(scene, cam), args.repeats)
-        img, alpha = gl.render_with_alpha(scene, cam)
-    finally:
-        gl.close()
-    px_small, px_big = small.width * small.height, cam.width * cam.height
-    render_px = max(t_big - t_small, 0.0) / (px_big - px_small)
-    units = {"render_px": render_px, "render_splat": max(t_small - render_px * px_small, 0.0) / len(scene)}
-    metric_units, raw = _metrics(device, np.asarray(img, np.float32), np.asarray(alpha, np.float32), args.repeats)
-    units.update(metric_units)
-    payload = {"device": device, "device_name": _machine(), "scene": name, "splats": len(scene),
-               "size": [cam.width, cam.height], "units": units,
-               "seconds": {"render_half": t_small, "render_full": t_big, **raw}}
+        with one_thread():
+            payload = _calibrate(device, size, args.repeats)
+    else:
+        payload = _calibrate(device, size, args.repeats)
     md = _markdown(payload)
     write_result(f"{NAME}-{device.replace(':', '')}", payload, md, out=folder)
     print(md)
     return 0
 
 
+def _calibrate(device: str, size: int, repeats: int) -> dict:
+    from harness.benchmarks._study_device import _machine
+    from harness.core.errors import InputError
+    from harness.run.calibrate import _scene
+    from harness.views import rigs
+
+    name, scene = _scene()
+    if scene is None:
+        raise InputError("scenes", "no real scene here to calibrate on (harness fetch --scenes)")
+    from renderers.gl import GLRenderer
+
+    clock = _CLOCK.get(device, time.perf_counter)
+    cam = rigs.make_rig("auto", scene, n_train=0, n_test=1, longest_side=size).test[0]
+    small = cam.resized(size // 2)
+    gl = GLRenderer(device=device)
+    try:
+        t_pack = _best(lambda: gl.pack(scene, cam), repeats, clock)
+        view, view_small = gl.pack(scene, cam), gl.pack(scene, small)
+        t_small = _best(lambda: gl.draw(view_small), repeats, clock)
+        t_big = _best(lambda: gl.draw(view), repeats, clock)
+        img, alpha = gl.render_with_alpha(scene, cam)
+    finally:
+        gl.close()
+    px_small, px_big = small.width * small.height, cam.width * cam.height
+    render_px = max(t_big - t_small, 0.0) / (px_big - px_small)
+    pack_splat = t_pack / len(scene)
+    draw_splat = max(t_small - render_px * px_small, 0.0) / len(scene)
+    units = {"render_px": render_px, "render_splat": pack_splat + draw_splat, "pack_splat": pack_splat}
+    metric_units, raw = _metrics(device, np.asarray(img, np.float32), np.asarray(alpha, np.float32), repeats, clock)
+    units.update(metric_units)
+    return {"device": device, "device_name": _machine() if device != "cpu" else "CPU, one thread",
+            "clock": "CPU seconds" if device == "cpu" else "wall seconds", "scene": name, "splats": len(scene),
+            "size": [cam.width, cam.height], "units": units,
+            "seconds": {"pack": t_pack, "draw_half": t_small, "draw_full": t_big, **raw}}
+
+
 def _markdown(p: dict) -> str:
     w, h = p["size"]
     s = p["seconds"]
     lines = [f"# harness bench calibrate --device {p['device']} ({p['device_name']})", "",
-             f"{p['scene']} ({p['splats']:,} splats), {w}×{h}; wall seconds, best of the repeats after a warm-up.", "",
+             f"{p['scene']} ({p['splats']:,} splats), {w}×{h}; {p.get('clock', 'wall seconds')}, best of the repeats "
+             "after a warm-up.", "",
              "| unit | value (s) |", "|---|---|"]
     lines += [f"| {k} | {v:.3g} |" for k, v in p["units"].items()]
     lines += ["", "| work | batch | s per image |", "|---|---|---|",
-              f"| GL render {max(w, h) // 2} px | 1 | {s['render_half']:.4f} |",
-              f"| GL render {max(w, h)} px | 1 | {s['render_full']:.4f} |"]
+              f"| GL pack (projection, sort) | 1 | {s['pack']:.4f} |",
+              f"| GL draw {max(w, h) // 2} px | 1 | {s['draw_half']:.4f} |",
+              f"| GL draw {max(w, h)} px | 1 | {s['draw_full']:.4f} |"]
     lines += [f"| {k}: {', '.join(s[k]['metrics'])} | {s[k]['batch']} | {s[k]['seconds_per_image']:.4f} |"
               for k in ("lpips", "ssim", "psnr")]
     lines += [f"| LPIPS reference features | 1 | {s['lpips_reference_s']:.4f} |", "",
-              "`harness plan CONFIG --estimate` reads `calibrate-cuda.json` from the benchmark folder for the time "
-              "on one GPU" + (" (this file measures the CPU: a check of the benchmark)." if p["device"] == "cpu"
-                              else ".")]
+              "`harness plan CONFIG --estimate` reads `calibrate-cpu.json` from the benchmark folder for its CPU "
+              "units (they replace the other benchmarks' render and metric units) and `calibrate-cuda.json` for the "
+              "time on one GPU."]
     return "\n".join(lines)
 

@@ -18,6 +18,7 @@ llvmpipe): on a busy machine, idle threads spinning for work would count as CPU 
 
 from __future__ import annotations
 
+import contextlib
 import os
 import time
 
@@ -47,9 +48,10 @@ def _scene():
     return None, None
 
 
-def calibrate(costs: UnitCosts, log=print) -> UnitCosts:
-    """Measure the units above and write them into ``costs`` (returned); what cannot be measured
-    here (no scene, no GL, no LPIPS weights) keeps its benchmark value and adds a note."""
+@contextlib.contextmanager
+def one_thread():
+    """Within the block, torch, OpenMP, llvmpipe and numba use one thread (torch's count restored
+    after), as a study's one-core worker does."""
     import torch
 
     before = torch.get_num_threads()
@@ -57,9 +59,16 @@ def calibrate(costs: UnitCosts, log=print) -> UnitCosts:
         os.environ[var] = "1"
     torch.set_num_threads(1)
     try:
-        return _calibrate(costs, log)
+        yield
     finally:
         torch.set_num_threads(before)
+
+
+def calibrate(costs: UnitCosts, log=print) -> UnitCosts:
+    """Measure the units above and write them into ``costs`` (returned); what cannot be measured
+    here (no scene, no GL, no LPIPS weights) keeps its benchmark value and adds a note."""
+    with one_thread():
+        return _calibrate(costs, log)
 
 
 def _calibrate(costs: UnitCosts, log) -> UnitCosts:
@@ -82,7 +91,9 @@ def _calibrate(costs: UnitCosts, log) -> UnitCosts:
         px_small, px_big = small.width * small.height, big.width * big.height
         costs.render_px = max(t_big - t_small, 0.0) / (px_big - px_small)
         costs.render_splat = max(t_small - costs.render_px * px_small, 0.0) / len(scene)
+        costs.pack_splat = min(_cpu(lambda: gl.pack(scene, small)) / len(scene), costs.render_splat)
         costs.sources["render_px"] = costs.sources["render_splat"] = f"{tag}: GL render at 128 and 1024 px"
+        costs.sources["pack_splat"] = f"{tag}: a view packed (projection, sort)"
         img = np.asarray(gl.render(scene, cam), np.float32)
     except Exception as err:  # no GL here: the benchmark's render units stay
         costs.notes.append(f"--calibrate: GL render failed ({type(err).__name__}: {err}); benchmark values kept")

@@ -19,21 +19,31 @@ Counting follows the runner's stages (:mod:`harness.run.runner`) and reads no mo
   on its training cameras (an extra score task and pruned sets), a camera-free one shares its
   scores — and views with photos are measured against them too: the metric passes again except
   the LPIPS trunk (its pass is shared), plus once per view for the unpruned render.
-* **render+metrics** — one image per pruned set × held-out view: ``render(N·keep, W·H)`` plus the
+* **render+metrics** — one task per held-out view: the view is projected, sorted and packed once
+  (``pack(N)``), and each pruned set drawn from that packing, its splats filtered from it
+  (``draw(N·keep, W·H)``: the GL renderer's :meth:`~renderers.gl.PackedView.kept`), plus the
   metric passes of the config's metrics (:func:`metric_passes`: 3dgs = PSNR + SSIM + LPIPS; mpeg =
   4 PSNR-like passes on 8-bit images + 2 SSIM passes, YUV and occupancy-masked) plus
-  :data:`IMAGE_OVERHEAD_S`; one task per view measures all its sets and computes the view's LPIPS
-  reference features once (``lpips_ref_px · W·H``; the runner splits views only when there are
-  fewer than a few per worker). Pruned sets are counted as distinct (score
-  task, ratio) pairs: an **upper bound**, since methods that keep identical splats share one entry
-  (the default study measures 114 sets where this counts 130).
+  :data:`IMAGE_OVERHEAD_S`; the task computes the view's LPIPS reference features once
+  (``lpips_ref_px · W·H``; the runner splits views only when there are fewer than a few per
+  worker). Pruned sets are counted as distinct (score task, ratio) pairs: an **upper bound**, since
+  methods that keep identical splats share one entry (the default study measures 114 sets where
+  this counts 130). An earlier model charged every pruned image a whole render, projection
+  included: 2.2× the default study's measured CPU time.
 
-``render(N, P) = c_N·N + c_P·P`` and the other units are core-seconds per splat or pixel
-(:mod:`harness.run.unit_costs`). **Wall time on W workers** (one core each, parallel efficiency e):
-the pool stages run one after another, each taking ``max(core_s / (W·e), longest task)`` plus
-:data:`STARTUP_S` (spawn, imports, JIT); the driver's stages (load, prune) are serial. So doubling
-the workers halves a stage's wall time until its longest single task — camera-aware scoring of the
-largest scene, or one view task of the largest — bounds it from below.
+``render(N, P) = pack(N) + draw(N, P)``, ``pack(N) = c_pack·N`` (projection, SH, sort, packing),
+``draw(n, P) = c_draw·n + c_P·P`` (filtering, upload, rasterising, read-back), and the other units
+are core-seconds per splat or pixel (:mod:`harness.run.unit_costs`). Each protocol's share of the
+view work (its reference renders and view tasks) is kept (:attr:`Estimate.protocols`). Beyond the
+units, a run spends :data:`DRIVER_CPU_S` in its driver (imports, hashing, the run record) and
+:data:`WORKER_CPU_S` per worker that starts (torch, the LPIPS weights, numba's cached kernels).
+
+**Wall time on W workers** (one core each, parallel efficiency e): the pool stages run one after
+another, each taking ``max(core_s / (W·e), longest task)`` plus :data:`STARTUP_S` (spawn, imports,
+JIT); the driver's stages (load, prune) are serial. So doubling the workers halves a stage's wall
+time until its longest single task — camera-aware scoring of the largest scene, or one view task
+of the largest — bounds it from below. ``harness bench calibrate --check RUN_DIR`` compares an
+estimate with what a finished run measured.
 
 Scenes whose files are absent (the MPEG sequences are not public) are estimated from
 :class:`~harness.run.scene_sizes.Assumptions`, and every row says whether it was read or assumed
@@ -56,6 +66,12 @@ STARTUP_S = 20.0
 #: PNGs, cache writes, the driver (default study, second half on this machine: 2,009 CPU-s for
 #: 1,498 images where the render and metric units give 1.23 core-s each: +0.1 s)
 IMAGE_OVERHEAD_S = 0.1
+#: CPU seconds of a run's driver beyond its stages' units: imports, configuration, hashing the
+#: scene files, the run record (ci.yaml's cached rerun, which computes nothing: 2.0 CPU-s)
+DRIVER_CPU_S = 2.0
+#: CPU seconds of a pool worker starting: imports (torch, numba), the LPIPS weights, numba's
+#: cached kernels (ci.yaml cold with one worker: ~6 CPU-s between the driver's and the units')
+WORKER_CPU_S = 6.0
 STAGES = ("load", "score", "prune", "render_ref", "render+metrics")
 SERIAL = ("load", "prune")
 
@@ -80,10 +96,18 @@ class Estimate:
     scenes: list[dict]
     passes: dict[str, int]
     notes: list[str] = field(default_factory=list)
+    #: core-seconds of each held-out view protocol's reference renders and view tasks
+    protocols: dict[str, float] = field(default_factory=dict)
 
     @property
     def core_s(self) -> float:
+        """The stages' core-seconds (the units of work; :meth:`cpu_s` adds the fixed overheads)."""
         return sum(s.core_s for s in self.stages.values())
+
+    def cpu_s(self, workers: int) -> float:
+        """CPU seconds of the whole run on ``workers`` workers: the stages' plus the driver's and each
+        worker's start-up (:data:`DRIVER_CPU_S`, :data:`WORKER_CPU_S`)."""
+        return self.core_s + DRIVER_CPU_S + WORKER_CPU_S * workers
 
     def wall_s(self, workers: int, efficiency: float) -> float:
         """Projected wall seconds on ``workers`` one-core workers (module docstring)."""
@@ -164,6 +188,7 @@ def estimate(config: RunConfig, infos: list[SceneInfo], units: UnitCosts | None)
     st["score"].detail = {"training_renders": 0, "camera_aware_tasks": 0}
     st["render+metrics"].detail = {"view_tasks": 0, **{f"{k}_passes": 0 for k in passes}}
     rows = []
+    per_protocol: dict[str, float] = {p.name: 0.0 for p in config.protocols}
     specs = {s.name: s for s in config.scenes}
     for info in infos:
         tasks = _score_tasks(config, specs[info.name], info, cost.notes)
@@ -172,11 +197,12 @@ def estimate(config: RunConfig, infos: list[SceneInfo], units: UnitCosts | None)
         by_proto = {p: _keeps(config, specs[info.name], tasks, p) for p in set(protos)}
         before = {k: (s.units, s.core_s) for k, s in st.items()}
         for n in info.splats:
-            _cost_frame(st, n, info, tasks, [by_proto[p] for p in protos], cost)
+            for proto, core_s in _cost_frame(st, n, info, tasks, [by_proto[p] for p in protos], cost, protos):
+                per_protocol[proto] = per_protocol.get(proto, 0.0) + core_s
         for k, v in passes.items():
             st["render+metrics"].detail[f"{k}_passes"] = v * st["render+metrics"].units
         rows.append(_scene_row(info, st, before, len(keeps)))
-    return Estimate(st, rows, passes, sorted(cost.notes))
+    return Estimate(st, rows, passes, sorted(cost.notes), per_protocol)
 
 
 def _score_tasks(config: RunConfig, spec, info: SceneInfo, notes: set) -> dict[str, tuple]:
@@ -207,16 +233,18 @@ def _keeps(config: RunConfig, spec, tasks: dict, protocol: str) -> list[float]:
     return list(sets.values())
 
 
-def _cost_frame(st: dict, n: int, info: SceneInfo, tasks: dict, keeps: list[list[float]], cost: _Costing) -> None:
+def _cost_frame(st: dict, n: int, info: SceneInfo, tasks: dict, keeps: list[list[float]], cost: _Costing,
+                protos: list[str]) -> list[tuple[str, float]]:
     """Add one frame of ``n`` splats to the stages: its load; per training set (the scene's, and each
     one a protocol brings: :mod:`harness.run.plan`) its score tasks and selections; per held-out view
     its reference render and one view task measuring the pruned sets of its protocol (``keeps``:
-    their keep fractions, per view of :meth:`SceneInfo.view_protocols`); views with photos are also
-    measured against them."""
+    their keep fractions, per view of :meth:`SceneInfo.view_protocols`, whose protocol ``protos``
+    names); views with photos are also measured against them. Returns (protocol, core-seconds) of
+    each view's reference render and task."""
     u = cost.u
     sets = [(info.train, info.views, False)] * bool(info.views) + [(o.train, o.views, o.photos) for o in info.own]
     st["load"].add(1, u.read_splat * n)
-    first = 0
+    first, out = 0, []
     for j, (train, views, photos) in enumerate(sets):
         for mv, pruner, rs in tasks.values():
             aware = "cameras" in pruner.needs
@@ -227,18 +255,21 @@ def _cost_frame(st: dict, n: int, info: SceneInfo, tasks: dict, keeps: list[list
             st["score"].detail["training_renders"] += renders
             st["score"].detail["camera_aware_tasks"] += aware
             st["prune"].add(len(rs), u.select_splat * n * len(rs), u.select_splat * n)
-        for (w, h), kept in zip(views, keeps[first:first + len(views)]):
+        for (w, h), kept, proto in zip(views, keeps[first:first + len(views)], protos[first:first + len(views)]):
             px = w * h
             st["render_ref"].add(1, u.render(n, px), u.render(n, px))
+            out.append((proto, u.render(n, px)))
             if not kept:
                 continue
             extra = cost.gt_px * px if photos else 0.0
-            image = [u.render(n * k, px) + cost.per_px * px + extra + IMAGE_OVERHEAD_S for k in kept]
+            image = [u.draw(n * k, px) + cost.per_px * px + extra + IMAGE_OVERHEAD_S for k in kept]
             ref_cost = cost.ref_px * px + (extra + 2 * cost.ref_px * px) * photos  # + photo features, gt
-            task = ref_cost + sum(image)  # one task per view
+            task = u.pack(n) + ref_cost + sum(image)  # one task per view: packed once, each set drawn
             st["render+metrics"].add(len(kept), task, task)
             st["render+metrics"].detail["view_tasks"] += 1
+            out.append((proto, task))
         first += len(views)
+    return out
 
 
 def _scene_row(info: SceneInfo, st: dict, before: dict, n_sets: int) -> dict:

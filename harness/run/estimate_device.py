@@ -48,8 +48,9 @@ def one_gpu(config, infos, folder: Path, cpu: UnitCosts, cores: int, efficiency:
         return {"measured": False,
                 "note": f"GPU time not measured: no {CALIBRATION} in {folder} (`harness bench calibrate --device "
                         "cuda --out results/bench` on a GPU machine writes it)"}
-    gpu = replace(cpu, **{k: float(cal["units"][k]) for k in GPU_UNITS}, sources={}, notes=[])
-    free = replace(cpu, render_splat=0.0, render_px=0.0, aware={})  # camera-free scoring only, CPU units
+    gpu = replace(cpu, **{k: float(cal["units"][k]) for k in GPU_UNITS}, sources={}, notes=[],
+                  pack_splat=float(cal["units"].get("pack_splat", 0.0)))
+    free = replace(cpu, render_splat=0.0, render_px=0.0, pack_splat=0.0, aware={})  # camera-free scoring, CPU units
     on_gpu, on_cpu = estimate(config, infos, gpu).stages, estimate(config, infos, free).stages
     aware_s = on_gpu["score"].core_s - on_cpu["score"].core_s
     stages = {"load": on_cpu["load"].core_s, "prune": on_cpu["prune"].core_s,

@@ -6,9 +6,11 @@ file and field it was read from (``sources``), so the estimate says what it stan
 =================  =====================================================  ==============================
 unit               meaning (core-seconds = CPU seconds of one core)       anchor
 =================  =====================================================  ==============================
-``render_splat``   per splat of a GL render (projection, SH, sort,        ``render-*.json`` with the most
-                   upload): ``c_N``                                       splats, ``backends.gl.``
-``render_px``      per pixel of a GL render (fill, read-back): ``c_P``    ``cpu_seconds_per_view`` (below)
+``render_splat``   per splat of a GL render (projection, SH, sort,        ``calibrate-cpu.json``, else
+                   upload, draw): ``c_N = c_pack + c_draw``               ``render-*.json`` with the most
+``pack_splat``     its part done once per view (projection, SH, sort,     splats, ``backends.gl.``
+                   packing): ``c_pack``                                   ``cpu_seconds_per_view`` (below)
+``render_px``      per pixel of a GL render (fill, read-back): ``c_P``
 ``lpips_px``       LPIPS-VGG of one pruned image, per pixel               ``metrics.json`` ``lpips_cached_per_pruned_s``
 ``lpips_ref_px``   LPIPS reference features of a view task, per pixel     ``metrics.json``
                                                                           ``lpips_reference_features_s``
@@ -31,6 +33,13 @@ close-up, measured with two threads on a busy machine) implies 4× the per-pixel
 runs on it measured 0.3–0.55 µs per pixel: per-pixel cost depends on overdraw and load, so an estimate for unseen
 content carries that spread. ``--calibrate`` measures both terms directly (two sizes).
 
+**Measured split.** ``harness bench calibrate --device cpu`` (``calibrate-cpu.json``) measures
+``c_pack`` (a view packed), ``c_draw`` and ``c_P`` (the packed view drawn at two sizes) and the
+metric passes at the study's image size, with one thread and in CPU seconds, as a study's workers
+run; when the file is there its units replace the others' (``sources`` says so). Without it,
+``c_pack`` is :data:`PACK_SHARE` of ``c_N`` (measured: 0.4–0.6 µs per splat packed against
+0.55–0.65 µs per splat drawn, numpy projection, one thread).
+
 **Metrics** ran with ``threads`` torch threads; core-seconds = wall × threads (an upper bound:
 the threads were busy). Costs scale with pixels: ``unit_px = seconds × threads / (W₀·H₀)``.
 
@@ -49,6 +58,12 @@ from pathlib import Path
 
 #: share of the per-splat work in the GL render of the largest benchmark scene (module docstring)
 SPLAT_SHARE = 0.65
+#: share of the per-splat work done once per view (projection, sort, packing) when no
+#: calibrate-cpu.json measures it (module docstring)
+PACK_SHARE = 0.45
+#: ``harness bench calibrate --device cpu``'s units (module docstring)
+CPU_CALIBRATION = "calibrate-cpu.json"
+CALIBRATED = ("render_splat", "pack_splat", "render_px", "lpips_px", "lpips_ref_px", "ssim_px", "psnr_px")
 #: the training-view benchmark's rig (harness bench methods: 48 views at 1024×768)
 BENCH_TRAIN = (48, (1024, 768))
 
@@ -89,10 +104,20 @@ class UnitCosts:
     rss_px: float = 0.0  # peak memory of a metrics worker per pixel (MiB), metrics.json peak_rss_mb
     sources: dict[str, str] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    #: the part of ``render_splat`` spent once per view, projecting, sorting and packing (``c_pack``)
+    pack_splat: float = 0.0
 
     def render(self, splats: float, pixels: float) -> float:
-        """Core-seconds of one GL render of ``splats`` splats at ``pixels`` pixels."""
+        """Core-seconds of one GL render of ``splats`` splats at ``pixels`` pixels: pack + draw."""
         return self.render_splat * splats + self.render_px * pixels
+
+    def pack(self, splats: float) -> float:
+        """Core-seconds of projecting, sorting and packing a view of ``splats`` splats (once per view)."""
+        return self.pack_splat * splats
+
+    def draw(self, splats: float, pixels: float) -> float:
+        """Core-seconds of drawing ``splats`` splats of a packed view at ``pixels`` pixels."""
+        return (self.render_splat - self.pack_splat) * splats + self.render_px * pixels
 
 
 def _read(folder: Path, name: str, notes: list[str]):
@@ -172,12 +197,30 @@ def from_bench(folder: Path) -> UnitCosts:
     read = {"splats": r["splats"], "read_ply": r["steps"]["read_ply"]["seconds"]} if r else BUILTIN["read"]
     src["read_splat"] = ("read.json" if r else "built-in read.json") + " steps.read_ply.seconds / splats"
 
+    src["pack_splat"] = f"{PACK_SHARE} × render_splat (no {CPU_CALIBRATION})"
     costs = UnitCosts(render_splat=c_n, render_px=c_p, select_splat=prune["select"] / prune["splats"],
                       read_splat=read["read_ply"] / read["splats"], score_splat={}, aware={}, rss_px=rss_px,
-                      sources=src, notes=notes, **units)
+                      sources=src, notes=notes, pack_splat=PACK_SHARE * c_n, **units)
+    _calibrated(costs, folder)  # before the camera-aware multiples, which divide by a training render's cost
     meth = _read(folder, "methods.json", notes) or BUILTIN["methods"]
     add_methods(costs, meth, "methods.json" if meth is not BUILTIN["methods"] else "built-in methods.json")
     return costs
+
+
+def _calibrated(costs: UnitCosts, folder: Path) -> None:
+    """The units ``calibrate-cpu.json`` measured replace the benchmarks' (module docstring)."""
+    path = folder / CPU_CALIBRATION
+    try:
+        cal = json.loads(path.read_text())
+        units = {k: float(cal["units"][k]) for k in CALIBRATED}
+    except FileNotFoundError:
+        return
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        costs.notes.append(f"{path} is unreadable ({type(err).__name__}): the benchmarks' units are used")
+        return
+    for k, v in units.items():
+        setattr(costs, k, v)
+        costs.sources[k] = f"{CPU_CALIBRATION} units.{k} ({cal.get('scene', '?')}, {'×'.join(map(str, cal['size']))})"
 
 
 def add_methods(costs: UnitCosts, meth: dict, tag: str) -> None:
