@@ -12,10 +12,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from harness.report import claims, verdicts
 from harness.report.results import to_frame
 from harness.report.tabledata import Missing
-from harness.report.verdicts import INF, Estimate, combine, outcome, verdict_average, verdict_per_scene
+from harness.study import claims, verdicts
+from harness.study.verdicts import INF, Estimate, combine, outcome, verdict_average, verdict_per_scene
 from methods.registry import get_pruner
 
 VIEWS = 8

@@ -16,8 +16,8 @@ the base, and any axis given explicitly next to it overrides the bundle (``{read
 o_norm: rank}`` is paper-literal with rank-normalised opacity):
 
 * ``default``: the field defaults below, chosen by two pre-registered rules: round one
-  (``ctc_configs/reading.yaml``, outcome ``results/reading/selection.md``): paper-literal except
-  ``ell_def = nbhd-std``; round two (``ctc_configs/reading2.yaml``, ``results/reading/selection2.md``):
+  (``ctc_configs/study/reading.yaml``, outcome ``results/reading/selection.md``): paper-literal except
+  ``ell_def = nbhd-std``; round two (``ctc_configs/study/reading2.yaml``, ``results/reading/selection2.md``):
   ``voxel = 0.2`` (× the diagonal; the only round-two change that beat its incumbent beyond the
   interval on both selection scenes — outside the paper's stated 1–2 % default, L314, and one of
   its sensitivity values, L470), ``nodesc_def = splat-params`` kept. So the default reverses the
@@ -36,13 +36,13 @@ o_norm: rank}`` is paper-literal with rank-normalised opacity):
   directions on real scenes (measured: ``results/reading/directions.md``; each reading's doc below);
 * ``round-one``: the default selected by round one (paper-literal with ``ell_def = nbhd-std``, and
   its no-descriptor ablation of the time, ``opacity-only``), frozen: round two
-  (``ctc_configs/reading2.yaml``) starts from it and its confirmation compares with it;
+  (``ctc_configs/study/reading2.yaml``) starts from it and its confirmation compares with it;
 * ``v1``: the project's first reading (results before issue 13 are re-made with it).
 
 **Direction.** Every reading of ℓ, s and u says whether it *preserves* or *reverses* the direction
 the paper's words give (ℓ and s rise with neighbourhood homogeneity, u falls with it), with the
 Spearman ρ measured against homogeneity on luigi / grape-small / bonsai-7k-mini
-(:mod:`methods.betadesc.directions`, ``harness bench reading directions``; geometric homogeneity
+(:mod:`harness.study.directions`, ``harness bench reading directions``; geometric homogeneity
 for ℓ and u, colour homogeneity for s).
 
 Variants share the reading: an ablation takes the same bundle and the same values of the axes it

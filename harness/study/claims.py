@@ -62,7 +62,7 @@ import pandas as pd
 from harness.core import ratios
 from harness.report import catalog, cells, stats
 from harness.report.tabledata import Missing, Table
-from harness.report.verdicts import (
+from harness.study.verdicts import (
     INF,
     MARK,
     Estimate,

@@ -1,5 +1,5 @@
 """What a claim's numbers say: estimates with their 95 % interval, an interval against a claimed band,
-the verdict rules of :mod:`harness.report.claims` (documented there), and the run's cells.
+the verdict rules of :mod:`harness.study.claims` (documented there), and the run's cells.
 
 * :class:`Estimate` — a mean with its t interval (:func:`harness.report.stats.mean_ci`) over n values;
   :func:`pooled` — the mean of per-scene means with the t interval over the scenes;
