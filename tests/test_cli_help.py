@@ -71,7 +71,8 @@ def test_a_typo_gets_the_commands_usage_and_a_suggestion(capsys):
 
 def test_another_pruners_flag_names_its_owners(capsys):
     err = _usage_error(capsys, "prune", "a.ply", "b.ply", "--ratio", "0.3", "--method", "random", "--voxel", "1")
-    assert "--voxel: a parameter of betadesc" in err and "not of random" in err
+    owners = err.split("--voxel: a parameter of ", 1)[1]  # other tests' pruners may own one too
+    assert "betadesc" in owners.split(", not of")[0] and "not of random" in owners
 
 
 def test_prune_help_shows_the_chosen_pruners_flags_only(capsys):

@@ -1,13 +1,14 @@
 """The plan of a run: which (scene, frame), cameras, method variants, ratios and views to evaluate.
 
-Stages and their cache keys (every key also holds the code digest of what computes it):
+Stages and their cache keys (every key also holds the code digest of what computes it, and the
+config values whose fields declare it: :mod:`harness.run.config.keys`):
 
 * **load**  — per (scene, frame): file digest (+ LOD) -> splat count, SH degree, size model of its .ply.
 * **views** — per scene: rig (or camera file digest) + counts, resolution, aspect, seed -> train/test
   cameras. Multi-frame sequences use the rig of their first frame for every frame, so all frames
   are seen from the same held-out views.
 * **score** — per (scene, frame, method, resolved params): scores (N,), computed once for all ratios.
-  Camera-aware pruners also key on the train cameras and the renderer.
+  Camera-aware pruners also key on the train cameras and the device.
 * **prune** — per (score key, ratio): keep mask (stored by its own digest), τ, counts.
 * **render_ref** — per (scene, frame, test view): the unpruned render.
 * **metrics** — per (reference render, keep-mask digest): PSNR/SSIM/LPIPS of the pruned render.
@@ -38,6 +39,7 @@ from harness.core.cameras import Camera
 from harness.run.cache import StageCache, digest_json
 from harness.run.cache.versions import Versions
 from harness.run.config import MethodVariant, RunConfig, SceneSpec
+from harness.run.config.keys import key_inputs
 from harness.run.toolkit import Toolkit
 from harness.views.protocols import HeldOut
 
@@ -202,15 +204,15 @@ def scene_views(item_spec: SceneSpec, scene, path: Path, protocol, cache: StageC
     if item_spec.cameras is not None:
         cpath = Path(item_spec.cameras.path)
         cpath = cpath if cpath.is_absolute() else base / cpath
-        source = {"cameras": cache.files.digest(cpath), "test": list(item_spec.cameras.test),
-                  "test_every": item_spec.cameras.test_every}
+        inputs = key_inputs("file_views", p, item_spec.cameras)
+        inputs["source"]["cameras"] = cache.files.digest(cpath)
     else:
         dataset = item_spec.source if item_spec.source and toolkit.resolve_dataset(item_spec.source) else None
-        source = {"rig": item_spec.rig, "scene": scene_digest, "dataset": dataset, "kind": item_spec.kind,
-                  "n_train": item_spec.n_train, "n_test": item_spec.n_test, "aspect": p.aspect, "seed": p.seed}
+        inputs = key_inputs("rig_views", p, item_spec)
+        inputs["source"].update(scene=scene_digest, dataset=dataset)
     from harness.run.verify import views_check
 
-    key = cache.key("views", source=source, longest_side=p.longest_side, code=versions.rigs)
+    key = cache.key("views", code=versions.rigs, **inputs)
     hit = cache.get_json("views", key, check=views_check())
     if hit is not None:
         return hit["rig"], [Camera.from_dict(c) for c in hit["train"]], [Camera.from_dict(c) for c in hit["test"]]
@@ -252,8 +254,9 @@ def _sequence_views(spec: SceneSpec, cache: StageCache, versions: Versions, base
     from harness.run.cache.versions import module_versions
 
     code = [versions.rigs, module_versions(("harness.io.sequences", "harness.io.gscameras", "harness.io.colmap"))]
-    key = cache.key("views", source={"sequence": digest, "test": list(spec.test), "test_every": spec.test_every,
-                                     "size": [spec.width, spec.height]}, code=code)
+    inputs = key_inputs("sequence_views", spec)
+    inputs["source"]["sequence"] = digest
+    key = cache.key("views", code=code, **inputs)
     hit = cache.get_json("views", key)
     if hit is not None:
         return hit["rig"], [Camera.from_dict(c) for c in hit["train"]], [Camera.from_dict(c) for c in hit["test"]]
@@ -330,7 +333,7 @@ def _scene_items(spec, frames, config, cache, toolkit, versions, base, on_note=N
 
     items, views, held = [], None, None
     for frame, path in frames:
-        digest = digest_json({"file": cache.files.scene(path), "lod": spec.lod})
+        digest = digest_json({"file": cache.files.scene(path), **key_inputs("load", spec)})
         scene = _LazyScene(toolkit, str(path), spec.lod)
         key = cache.key("load", scene=digest, code=versions.reader)
         info = cache.get_json("load", key, check=load_check())
@@ -364,9 +367,9 @@ def protocol_views(spec: SceneSpec, scene, views, config: RunConfig, cache: Stag
     req = pv.request(spec, config, toolkit, base, scene=scene, held_out=lambda: list(test),
                      digest=cache.files.digest)
     req.synthetic = req.synthetic and rig not in ("file", "sequence")
-    held, why = {}, {}
+    held, why, inputs = {}, {}, key_inputs("protocol_views", config.protocol, spec)
     for proto in config.protocols:
-        got, reason = pv.held_out(proto, req, cache, versions.protocol(proto.spec.name), scene_digest)
+        got, reason = pv.held_out(proto, req, cache, versions.protocol(proto.spec.name), scene_digest, inputs)
         if got is not None:
             held[proto.name] = got
             if on_note and got.source:

@@ -28,6 +28,7 @@ from harness.metrics.registry import gt_names
 from harness.run.cache import StageCache, digest_json, digest_mask
 from harness.run.cache.versions import module_versions
 from harness.run.config import RunConfig
+from harness.run.config.keys import key_inputs
 from harness.run.executors import Bars, Executor, LocalExecutor, Stage
 from harness.run.plan import SceneItem, Skip, Versions, load_items, training_sets_for, variants_for
 from harness.run.tasks import (
@@ -163,11 +164,11 @@ class Runner:
         """Camera-aware pruners key on their training cameras (``train``: the item's rig views)."""
         aware = spec.wants_cameras(mv.params)
         cams = item.train_digest if train is None else digest_json([c.to_dict() for c in train])
+        p = self.config.protocol
         return self.cache.key(
             "score", scene=item.digest, method=mv.method, params=mv.params.to_dict(),
-            seed=self.config.protocol.seed, code=self.versions.pruner(mv.method),
-            cameras=cams if aware else None,
-            device=self.config.protocol.device if aware else None,
+            code=self.versions.pruner(mv.method), cameras=cams if aware else None,
+            **key_inputs("score", p), **key_inputs("aware_score", p, unset=not aware),
         )
 
     def _score_stage(self, items, get_pruner):
@@ -276,20 +277,19 @@ class Runner:
         return out
 
     def ref_key(self, item: SceneItem, cam) -> str:
-        p = self.config.protocol
-        return self.cache.key("render_ref", scene=item.digest, camera=cam.to_dict(), renderer=p.renderer,
-                              code=self.versions.renderer, background=list(p.background))
+        return self.cache.key("render_ref", scene=item.digest, camera=cam.to_dict(), code=self.versions.renderer,
+                              **key_inputs("render_ref", self.config.protocol))
 
     def metrics_key(self, ref_key: str, mask: str, photo: str | None = None) -> str:
         """A view with a photo keys on its sha256 too (its entry holds the ``gt_`` metrics)."""
         extra = {"photo": photo} if photo else {}  # keys of views without a photo are unchanged
-        return self.cache.key("metrics", ref=ref_key, mask=mask, metrics=list(self.config.protocol.metrics),
-                              code=self.versions.metrics, **extra)
+        return self.cache.key("metrics", ref=ref_key, mask=mask, code=self.versions.metrics,
+                              **key_inputs("metrics", self.config.protocol), **extra)
 
     def gt_key(self, ref_key: str, photo: str) -> str:
         """The unpruned render of a view against its photo (and the photo's PNG at the render size)."""
-        return self.cache.key("gt", ref=ref_key, photo=photo, metrics=list(self.config.protocol.metrics),
-                              code=self.versions.metrics)
+        return self.cache.key("gt", ref=ref_key, photo=photo, code=self.versions.metrics,
+                              **key_inputs("gt", self.config.protocol))
 
     def measured_names(self, photo) -> tuple[str, ...]:
         p = self.config.protocol
