@@ -22,8 +22,8 @@ from harness.run.config.keys import KEYS, changes_of, key_inputs
 from harness.run.config.reference import SECTIONS, reference
 from harness.run.config.schema import config_param, declared
 from harness.run.config.sections import CameraSpec, MethodEntry, Protocol, SceneSpec, Settings
-from harness.run.plan import scene_views
 from harness.run.runner import Runner
+from harness.run.scene_views import scene_views
 from harness.run.toolkit import Toolkit
 
 REPO = Path(__file__).resolve().parent.parent

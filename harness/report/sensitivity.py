@@ -122,10 +122,15 @@ def table_sensitivity(df: pd.DataFrame, keep: float = 0.7):
                                           "n_pairs"].dropna()),
              "the paper gives values only for the baseline preset; flat, opacity-heavy and structure-heavy are "
              "this project's own coefficients"]
+    return Table(disp, notes + _psnr_spread(tidy), tidy.reset_index(drop=True), secs)
+
+
+def _psnr_spread(tidy: pd.DataFrame) -> list[str]:
+    """The note of the PSNR spread across the variants, per scene (none without PSNR rows)."""
     psnr = tidy[(tidy["metric"] == "psnr") & (tidy["scene"] != cells.POOLED)]
-    if len(psnr):
-        spread = psnr.groupby("label", sort=False)["mean"].agg(lambda m: np.nanmax(m) - np.nanmin(m)
-                                                                if np.isfinite(m).any() else np.nan)
-        notes.append("PSNR spread across the variants, per scene: " + ", ".join(
-            f"{lab} {v:.2f} dB" for lab, v in spread.items() if np.isfinite(v)))
-    return Table(disp, notes, tidy.reset_index(drop=True), secs)
+    if not len(psnr):
+        return []
+    spread = psnr.groupby("label", sort=False)["mean"].agg(lambda m: np.nanmax(m) - np.nanmin(m)
+                                                            if np.isfinite(m).any() else np.nan)
+    return ["PSNR spread across the variants, per scene: " + ", ".join(
+        f"{lab} {v:.2f} dB" for lab, v in spread.items() if np.isfinite(v))]

@@ -321,22 +321,9 @@ class Runner:
         for i, item in enumerate(items):
             masks = self._masks(i, item, prunes)
             for proto, v, cam in item.views():
-                ref_key = self.ref_key(item, cam)
-                views[ref_key] = f"{_where(item)} {proto} view {cam.name or f'view{v:02d}'}"
-                photo = item.photo(proto, cam.name)
-                # the first view of the primary protocol and of one with photos keep their renders as images
-                first = v == 0 and (proto == self.primary or photo is not None)
-                jobs = self._view_jobs(ref_key, masks.get(proto, {}), photo, first, users)
-                gt_key = self._gt_to_measure(ref_key, photo, v)
-                task = functools.partial(self._view_task, ref_key, item, cam, photo, views[ref_key])
-                ref_png = not self.cache.has("images", ref_key, "png")  # contact sheets and figures
-                have_ref = self.cache.get_json("render_ref", ref_key,
-                                               check=render_ref_record_check(cam.width, cam.height)) is not None
-                if not have_ref or ref_png:
-                    refs.append(task([], render_ref=not have_ref, ref_png=ref_png))
-                if jobs or gt_key:  # LPIPS pass + render (N); a photo adds its comparisons
-                    cost = max(len(jobs) * (1.0 + item.n_splats / 5e5) * (1.6 if photo else 1.0), 1.0)
-                    chunks.append((cost, jobs, task, gt_key))
+                view_refs, view_chunks = self._view_work(item, proto, v, cam, masks.get(proto, {}), views, users)
+                refs += view_refs
+                chunks += view_chunks
         chunks = self._split_views(chunks)
         if self.executor.parallel:  # longest first; in-process order keeps a view's chunks together
             refs.sort(key=lambda t: -t.n_splats)
@@ -350,6 +337,24 @@ class Runner:
                 what = views.get(res["ref_key"], res["ref_key"][:12])
                 self.errors.append(f"render {what}" + ("" if key is None else f" pruned by {users.get(key) or '?'} "
                                                        f"[{key[:12]}]") + f": {err}")
+
+    def _view_work(self, item: SceneItem, proto: str, v: int, cam, kept_by: dict, views: dict, users: dict):
+        """What is still to compute of one held-out view (its label into ``views``): ([its reference
+        task] or [], [(cost, jobs, task, gt key) of its pruned sets] or [])."""
+        ref_key = self.ref_key(item, cam)
+        views[ref_key] = f"{_where(item)} {proto} view {cam.name or f'view{v:02d}'}"
+        photo = item.photo(proto, cam.name)
+        # the first view of the primary protocol and of one with photos keep their renders as images
+        first = v == 0 and (proto == self.primary or photo is not None)
+        jobs = self._view_jobs(ref_key, kept_by, photo, first, users)
+        gt_key = self._gt_to_measure(ref_key, photo, v)
+        task = functools.partial(self._view_task, ref_key, item, cam, photo, views[ref_key])
+        ref_png = not self.cache.has("images", ref_key, "png")  # contact sheets and figures
+        have_ref = self.cache.get_json("render_ref", ref_key,
+                                       check=render_ref_record_check(cam.width, cam.height)) is not None
+        refs = [task([], render_ref=not have_ref, ref_png=ref_png)] if not have_ref or ref_png else []
+        cost = max(len(jobs) * (1.0 + item.n_splats / 5e5) * (1.6 if photo else 1.0), 1.0)  # LPIPS pass + render (N)
+        return refs, [(cost, jobs, task, gt_key)] if jobs or gt_key else []
 
     def _view_jobs(self, ref_key: str, kept_by: dict, photo, first: bool, users: dict) -> list[MaskJob]:
         """The pruned sets of a view still to measure (or whose image the figures still need)."""
