@@ -169,6 +169,18 @@ def check_value(spec: ParamSpec, value):
             raise ParamError(spec.name, f"expected a list of {spec.kind} values, got {value!r}")
         one = dataclasses.replace(spec, many=False, optional=False)
         return tuple(check_value(one, v) for v in value)
+    value = _typed(spec, value)
+    if spec.choices is not None and value not in spec.choices:
+        raise ParamError(spec.name, f"{value!r} is not one of {', '.join(map(str, spec.choices))}")
+    for op, bound in spec.bounds:
+        test = next(fn for o, fn in _OPS.values() if o == op)
+        if not test(value, bound):
+            raise ParamError(spec.name, f"{value!r} is not {op} {bound:g}")
+    return value
+
+
+def _typed(spec: ParamSpec, value):
+    """``value`` if it is of ``spec``'s kind (an int widened to float for a float field)."""
     kind = spec.kind
     if kind == "bool":
         if not isinstance(value, bool):
@@ -184,12 +196,6 @@ def check_value(spec: ParamSpec, value):
             raise ParamError(spec.name, f"expected a finite number, got {value!r}")
     elif not isinstance(value, str):
         raise ParamError(spec.name, f"expected a string, got {value!r}")
-    if spec.choices is not None and value not in spec.choices:
-        raise ParamError(spec.name, f"{value!r} is not one of {', '.join(map(str, spec.choices))}")
-    for op, bound in spec.bounds:
-        test = next(fn for o, fn in _OPS.values() if o == op)
-        if not test(value, bound):
-            raise ParamError(spec.name, f"{value!r} is not {op} {bound:g}")
     return value
 
 

@@ -38,30 +38,6 @@ def capture(d, where, src):
                        test_every=every, transform=opt("transform"))
 
 
-def _protocol(e, where: str, src):
-    """One entry of ``protocols:`` (:func:`protocols`) as a protocol instance."""
-    from harness.core.params import ParamError
-    from harness.views.heldout import SHIFT_BLANK
-    from harness.views.protocols import PROTOCOL_SPECS, protocol
-
-    e = {"name": e} if isinstance(e, str) else dict(_mapping(e, where, src))
-    name = _str(e.pop("name", None), f"{where}.name", src)
-    kind = e.pop("protocol", None)
-    blank = SHIFT_BLANK if kind is None and e and name not in PROTOCOL_SPECS else {}
-    kind = ("shifted" if blank else name) if kind is None else _str(kind, f"{where}.protocol", src)
-    if kind not in PROTOCOL_SPECS:
-        from harness.core.suggest import unknown
-
-        raise InputError(src, f"{where}{'.protocol' if kind != name else ''}: "
-                              f"{unknown('view protocol', kind, PROTOCOL_SPECS.names())} (or give a mapping)")
-    if "/" in name:
-        raise InputError(src, f"{where}.name: {name!r} has a '/' (it names views and table files)")
-    try:
-        return protocol(name, kind, e, blank=blank)
-    except ParamError as err:
-        raise InputError(src, f"{where}.{err}" if err.key else f"{where}: {err}") from None
-
-
 def protocols(v, src) -> tuple:
     """``protocols: [rig, shifted, {name: real, n_test: 8}, {name: steep, protocol: shifted, rings_above: [40]}]``:
     each a registered view protocol (:mod:`harness.views.protocols`) named by a word, or a mapping
@@ -73,7 +49,7 @@ def protocols(v, src) -> tuple:
 
     if not isinstance(v, list) or not v:
         raise InputError(src, "protocols: expected a non-empty list of view protocols (e.g. [rig, shifted])")
-    out = [_protocol(e, f"protocols[{i}]", src) for i, e in enumerate(v)]
+    out = tuple(_protocol(e, f"protocols[{i}]", src) for i, e in enumerate(v))
     names = [p.name for p in out]
     if len(set(names)) != len(names):
         raise InputError(src, f"protocols: duplicate names in {names}")
@@ -81,4 +57,27 @@ def protocols(v, src) -> tuple:
         leads = ", ".join(f"`{s.name}`" for s in PROTOCOL_SPECS if s.primary)
         raise InputError(src, f"protocols[0]: the first protocol must be the training rig's own views or one with "
                               f"training views of its own ({leads})")
-    return tuple(out)
+    return out
+
+
+def _protocol(e, where: str, src):
+    """One entry of ``protocols:`` (:func:`protocols`) as a :class:`harness.views.protocols.Protocol`."""
+    from harness.core.params import ParamError
+    from harness.core.suggest import unknown
+    from harness.views.heldout import SHIFT_BLANK
+    from harness.views.protocols import PROTOCOL_SPECS, protocol
+
+    e = {"name": e} if isinstance(e, str) else dict(_mapping(e, where, src))
+    name = _str(e.pop("name", None), f"{where}.name", src)
+    kind = e.pop("protocol", None)
+    blank = SHIFT_BLANK if kind is None and e and name not in PROTOCOL_SPECS else {}
+    kind = "shifted" if blank else name if kind is None else _str(kind, f"{where}.protocol", src)
+    if kind not in PROTOCOL_SPECS:
+        raise InputError(src, f"{where}{'.protocol' if kind != name else ''}: "
+                              f"{unknown('view protocol', kind, PROTOCOL_SPECS.names())} (or give a mapping)")
+    if "/" in name:
+        raise InputError(src, f"{where}.name: {name!r} has a '/' (it names views and table files)")
+    try:
+        return protocol(name, kind, e, blank=blank)
+    except ParamError as err:
+        raise InputError(src, f"{where}.{err}" if err.key else f"{where}: {err}") from None
