@@ -1,0 +1,81 @@
+"""Random-effects meta-analysis over scenes: DerSimonian–Laird τ², the Hartung–Knapp–Sidik–Jonkman
+interval and the prediction interval.
+
+A claim about an average over scenes generalises over scenes, each measured with its own error. With
+scene s's estimate y_s (a mean over its views) and its squared standard error v_s = s_s²/n_s:
+
+* fixed-effect weights w_s = 1/v_s, μ_FE = Σ w_s y_s / Σ w_s, Cochran's Q = Σ w_s (y_s − μ_FE)²;
+* **τ²** (DerSimonian–Laird): max(0, (Q − (k − 1)) / (Σ w_s − Σ w_s² / Σ w_s)), the variance of the
+  true scene effects around their mean;
+* random-effects weights w*_s = 1/(v_s + τ²), **μ** = Σ w*_s y_s / Σ w*_s, SE_RE² = 1/Σ w*_s;
+* **HKSJ**: SE² = q · SE_RE² with q = Σ w*_s (y_s − μ)² / (k − 1) (not truncated at 1), and the
+  interval μ ± t₀.₉₇₅,ₖ₋₁ · SE — the standard random-effects interval is too narrow with few scenes;
+* **prediction interval** (Higgins, Thompson & Spiegelhalter 2009), where a new scene's true effect
+  is expected: μ ± t₀.₉₇₅,ₖ₋₂ · √(τ² + SE_RE²), for k ≥ 3.
+
+These are statsmodels' ``combine_effects(method_re="dl")`` "random effect wls" row with ``use_t=True``
+(``tests/test_meta.py`` checks both, and a case by hand). A scene whose views all agree (v_s = 0)
+would take every weight; its variance is floored at :data:`VAR_FLOOR`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+#: the smallest squared standard error a scene may carry (a cell whose views all differ by the same amount)
+VAR_FLOOR = 1e-12
+
+
+@dataclass(frozen=True)
+class RandomEffects:
+    """μ with its HKSJ standard error (``df`` = k − 1), τ², Q and the prediction interval over k scenes."""
+
+    mean: float
+    se: float
+    df: int
+    tau2: float
+    q: float
+    k: int
+    se_re: float
+    pi: tuple[float, float]
+
+    def interval(self, level: float = 0.95) -> tuple[float, float]:
+        """The two-sided HKSJ interval at ``level``."""
+        if self.df < 1 or not np.isfinite(self.se):
+            return (math.nan, math.nan)
+        h = stats.t.ppf(0.5 + level / 2, self.df) * self.se
+        return (self.mean - h, self.mean + h)
+
+    @property
+    def p_heterogeneity(self) -> float:
+        """Cochran's Q test of τ² = 0 (χ² with k − 1 degrees of freedom)."""
+        return float(stats.chi2.sf(self.q, self.k - 1)) if self.k > 1 else math.nan
+
+
+def random_effects(effects, variances) -> RandomEffects:
+    """Pool per-scene ``effects`` with their squared standard errors ``variances`` (module doc); k ≥ 2."""
+    y = np.asarray(effects, dtype=np.float64)
+    v = np.maximum(np.asarray(variances, dtype=np.float64), VAR_FLOOR)
+    k = len(y)
+    if k < 2 or len(v) != k or not (np.isfinite(y).all() and np.isfinite(v).all()):
+        raise ValueError(f"random_effects needs k >= 2 finite effects with their variances, got {k}")
+    w = 1.0 / v
+    mu_fe = float(np.sum(w * y) / np.sum(w))
+    q = float(np.sum(w * (y - mu_fe) ** 2))
+    c = float(np.sum(w) - np.sum(w * w) / np.sum(w))
+    tau2 = max(0.0, (q - (k - 1)) / c) if c > 0 else 0.0
+    ws = 1.0 / (v + tau2)
+    mu = float(np.sum(ws * y) / np.sum(ws))
+    var_re = 1.0 / float(np.sum(ws))
+    scale = float(np.sum(ws * (y - mu) ** 2)) / (k - 1)
+    se = math.sqrt(scale * var_re)
+    if k >= 3:
+        h = stats.t.ppf(0.975, k - 2) * math.sqrt(tau2 + var_re)
+        pi = (mu - h, mu + h)
+    else:
+        pi = (math.nan, math.nan)
+    return RandomEffects(mu, se, k - 1, tau2, q, k, math.sqrt(var_re), pi)
