@@ -17,7 +17,7 @@ from methods import get_pruner
 from methods.betadesc.params import DEFAULT_READING, READINGS, TUNED_READINGS
 
 REPO = Path(__file__).resolve().parent.parent
-PAPER = Path("/work/shared/paper/000_c1a9120657c37710.txt")
+PAPER = REPO.parent / "shared" / "paper" / "000_c1a9120657c37710.txt"  # the paper's LaTeX source, beside the repo
 ABLATIONS = ("betadesc", "betadesc-nodesc", "betadesc-nobeta", "betadesc-nodesc-nobeta")
 
 

@@ -27,18 +27,20 @@ def test_three_scenes_by_hand():
     assert r.p_heterogeneity == pytest.approx(stats.chi2.sf(14 / 3, 2))
 
 
-def test_the_hksj_scale_shrinks_an_interval_when_scenes_agree_better_than_their_errors_say():
+def test_the_hksj_scale_never_shrinks_the_interval_below_the_standard_one():
     # y = 1, 2 with variances 1, 4: w = 1, 1/4; μ_FE = 1.2; Q = 0.2 < k − 1, so τ² = 0; μ = 1.2,
-    # SE_RE² = 0.8, q = 0.2: SE² = 0.16 (the standard interval would use 0.8)
+    # SE_RE² = 0.8, q = 0.2: the untruncated HKSJ would give SE² = 0.16; truncated at 1: 0.8
     r = random_effects([1.0, 2.0], [1.0, 4.0])
-    assert r.tau2 == 0.0 and r.mean == pytest.approx(1.2) and r.se == pytest.approx(0.4)
-    assert r.interval() == pytest.approx((1.2 - 12.706204736174698 * 0.4, 1.2 + 12.706204736174698 * 0.4))
+    assert r.tau2 == 0.0 and r.mean == pytest.approx(1.2) and r.scale == pytest.approx(0.2)
+    assert r.se == pytest.approx(math.sqrt(0.8))
+    h = 12.706204736174698 * math.sqrt(0.8)
+    assert r.interval() == pytest.approx((1.2 - h, 1.2 + h))
     assert all(math.isnan(x) for x in r.pi)  # k = 2: no prediction interval
 
 
 def test_a_scene_whose_views_agree_exactly_is_floored_not_infinite():
     r = random_effects([1.0, 1.0, 1.0, 1.0], [0.0, 0.0, 0.0, 0.0])
-    assert r.mean == 1.0 and r.tau2 == 0.0 and r.se == 0.0
+    assert r.mean == 1.0 and r.tau2 == 0.0 and r.se == pytest.approx(math.sqrt(VAR_FLOOR / 4))
     r = random_effects([1.0, 3.0, 2.0], [0.0, 0.5, 0.5])
     assert np.isfinite(r.mean) and 1.0 <= r.mean < 2.0 and VAR_FLOOR > 0
 
@@ -49,7 +51,7 @@ def test_bad_input_is_refused(bad):
         random_effects(*bad)
 
 
-@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("seed", range(12))
 def test_equals_statsmodels(seed):
     ma = pytest.importorskip("statsmodels.stats.meta_analysis",
                              reason="statsmodels (the test extra) is the independent implementation")
@@ -65,7 +67,12 @@ def test_equals_statsmodels(seed):
     row = frame.loc["random effect wls"]
     assert ours.tau2 == pytest.approx(res.tau2, rel=1e-9, abs=1e-12)
     assert ours.mean == pytest.approx(row["eff"], rel=1e-9)
-    assert ours.se == pytest.approx(row["sd_eff"], rel=1e-9)
-    assert ours.interval() == pytest.approx((row["ci_low"], row["ci_upp"]), rel=1e-9)
+    standard = frame.loc["random effect"]
+    if ours.scale >= 1:  # the HKSJ row; below 1 the truncation keeps the standard error
+        assert ours.se == pytest.approx(row["sd_eff"], rel=1e-9)
+        assert ours.interval() == pytest.approx((row["ci_low"], row["ci_upp"]), rel=1e-9)
+    else:
+        assert ours.se == pytest.approx(standard["sd_eff"], rel=1e-9) and row["sd_eff"] < ours.se
+    assert ours.scale == pytest.approx(res.scale_hksj_re, rel=1e-9)
     assert ours.q == pytest.approx(res.q, rel=1e-9)
     assert ours.se_re == pytest.approx(frame.loc["random effect", "sd_eff"], rel=1e-9)

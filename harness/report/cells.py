@@ -13,8 +13,9 @@ registered metric the results carry (:func:`harness.report.catalog.display_metri
   (``betadesc``) at 20 %, so Δ < 0 in the higher-is-better sense means the removed part helped.
   Bold: the best mean of a row.
 * ``versus``: every measured (method, variant, ratio) against the reference method at the same
-  ratio, per scene and pooled over scenes (all pairs of all scenes, near-identical ones left out),
-  with a verdict per row: on how many scenes the CI lies above / below 0.
+  ratio, per scene and pooled over scenes (the random-effects mean of the scene means with its HKSJ
+  interval, near-identical pairs left out), with a verdict per row: on how many scenes the CI lies
+  above / below 0.
 * ``per_scene``: the descriptor gain betadesc − betadesc-nodesc at keep 0.7/0.5/0.3 per scene
   (positive = descriptors help; the paper's "+4.04 dB" sense), paired per view.
 
@@ -105,12 +106,10 @@ def cell_rows(ok, mets, cells, reference_of, table: str, pooled: bool = False, l
                     continue
                 vals = np.concatenate([x for x, _ in pooled_vals[mk]])
                 near = np.concatenate([n for _, n in pooled_vals[mk]])
-                d = np.concatenate([x for x, _ in diffs[mk]])
                 out.append({"table": table, "scene": POOLED, "label": "all scenes", "method": m,
                             "method_label": catalog.method_label(m), "variant": v, "ratio": r,
                             "level": levels.get(r, ""), "metric": mk, **stats.summary(vals, near, mk),
-                            "reference": f"{rk[0]}[{rk[1]}]",
-                            **_delta(d, sum(e for _, e in diffs[mk]), mk)})
+                            "reference": f"{rk[0]}[{rk[1]}]", **_pooled_delta(diffs[mk], mk)})
     tidy = pd.DataFrame(out, columns=TIDY)
     rank = {s: i for i, s in enumerate([*labels, POOLED])}  # scenes in results order, pooled last; cells as given
     return tidy.iloc[np.argsort(tidy["scene"].map(rank).to_numpy(), kind="stable")].reset_index(drop=True)
@@ -144,11 +143,26 @@ def caption(tidy: pd.DataFrame, interval: bool = True) -> str:
     if len(pooled):
         k = per["scene"].nunique()
         lo, hi = int(pooled["n_pairs"].min()), int(pooled["n_pairs"].max())
-        parts.append(f"all scenes: n = {lo if lo == hi else f'{lo}–{hi}'} pairs pooled over {k} scene(s) — the "
-                     "interval is over views, so it does not generalise to scenes outside this run")
+        parts.append(f"all scenes: n = {lo if lo == hi else f'{lo}–{hi}'} pairs over {k} scene(s); Δ pooled over "
+                     "the scenes (random effects, HKSJ 95 % interval over the scene means)")
     if interval:
         parts.append(f"Δ: {stats.INTERVAL_DESCRIPTION}")
     return "; ".join(parts)
+
+
+def _pooled_delta(per_scene: list[tuple[np.ndarray, int]], metric: str) -> dict:
+    """Δ over scenes: the random-effects mean of the per-scene mean differences with its HKSJ 95 %
+    interval (:func:`harness.report.rules.pooled`; one scene: its own t interval) — never the views
+    of different scenes pooled as one sample."""
+    from harness.report import rules
+
+    ests = [rules.of_values(d) for d, _ in per_scene]
+    e = rules.pooled(ests)
+    lo, hi = e.interval() if e.n else (np.nan, np.nan)
+    d = np.concatenate([x for x, _ in per_scene])
+    return {"delta": e.mean, "ci_low": lo, "ci_high": hi, "delta_median": float(np.median(d)) if d.size else np.nan,
+            "n_pairs": int(d.size), "n_pairs_excluded": int(sum(x for _, x in per_scene)),
+            "verdict": stats.verdict(lo, hi, catalog.higher_is_better(metric))}
 
 
 def _delta(d: np.ndarray, excluded: int, metric: str) -> dict:
@@ -348,8 +362,8 @@ def table_versus(df: pd.DataFrame, reference: str | None = None):
         t["better / worse / unclear"] = [verdicts.get((*k, mk), "") for k in t.index]
     disp = pd.concat({h: t for h, t in secs}, names=["Metric"])
     notes = [f"Δ = mean paired per-view difference against {catalog.method_label(reference)} at the same ratio "
-             f"[CI]; all scenes = every pair of every scene; better/worse = scenes whose CI "
-             f"excludes 0 in the metric's good/bad direction",
+             "[CI]; all scenes: Δ pooled over the scenes (random effects, HKSJ interval); better/worse = scenes "
+             "whose CI excludes 0 in the metric's good/bad direction",
              f"{NEAR}: some pairs left out as near-identical (PSNR ≥ {stats.NEAR_IDENTICAL_DB:g} dB or inf)"]
     return Table(disp, notes, tidy.drop(columns=["row", "prune"]), secs, caption=caption(tidy))
 

@@ -8,13 +8,17 @@ scene s's estimate y_s (a mean over its views) and its squared standard error v_
 * **τ²** (DerSimonian–Laird): max(0, (Q − (k − 1)) / (Σ w_s − Σ w_s² / Σ w_s)), the variance of the
   true scene effects around their mean;
 * random-effects weights w*_s = 1/(v_s + τ²), **μ** = Σ w*_s y_s / Σ w*_s, SE_RE² = 1/Σ w*_s;
-* **HKSJ**: SE² = q · SE_RE² with q = Σ w*_s (y_s − μ)² / (k − 1) (not truncated at 1), and the
-  interval μ ± t₀.₉₇₅,ₖ₋₁ · SE — the standard random-effects interval is too narrow with few scenes;
+* **HKSJ**: SE² = max(1, q) · SE_RE² with q = Σ w*_s (y_s − μ)² / (k − 1), and the interval
+  μ ± t₀.₉₇₅,ₖ₋₁ · SE — the standard random-effects interval is too narrow with few scenes. q is
+  truncated at 1 (the "modified" HKSJ of Röver, Knapp & Friede 2015): when the scenes agree more
+  closely than their own errors suggest, the untruncated q < 1 would make the interval narrower
+  than the standard one;
 * **prediction interval** (Higgins, Thompson & Spiegelhalter 2009), where a new scene's true effect
   is expected: μ ± t₀.₉₇₅,ₖ₋₂ · √(τ² + SE_RE²), for k ≥ 3.
 
-These are statsmodels' ``combine_effects(method_re="dl")`` "random effect wls" row with ``use_t=True``
-(``tests/test_meta.py`` checks both, and a case by hand). A scene whose views all agree (v_s = 0)
+With q ≥ 1 these are statsmodels' ``combine_effects(method_re="dl")`` "random effect wls" row with
+``use_t=True``, with q < 1 its "random effect" standard error with the same t quantile
+(``tests/test_meta.py`` checks both, and cases by hand). A scene whose views all agree (v_s = 0)
 would take every weight; its variance is floored at :data:`VAR_FLOOR`.
 """
 
@@ -32,7 +36,8 @@ VAR_FLOOR = 1e-12
 
 @dataclass(frozen=True)
 class RandomEffects:
-    """μ with its HKSJ standard error (``df`` = k − 1), τ², Q and the prediction interval over k scenes."""
+    """μ with its HKSJ standard error (``df`` = k − 1), τ², Q, the HKSJ scale q (before truncation) and
+    the prediction interval over k scenes."""
 
     mean: float
     se: float
@@ -42,6 +47,7 @@ class RandomEffects:
     k: int
     se_re: float
     pi: tuple[float, float]
+    scale: float = 1.0
 
     def interval(self, level: float = 0.95) -> tuple[float, float]:
         """The two-sided HKSJ interval at ``level``."""
@@ -72,10 +78,10 @@ def random_effects(effects, variances) -> RandomEffects:
     mu = float(np.sum(ws * y) / np.sum(ws))
     var_re = 1.0 / float(np.sum(ws))
     scale = float(np.sum(ws * (y - mu) ** 2)) / (k - 1)
-    se = math.sqrt(scale * var_re)
+    se = math.sqrt(max(1.0, scale) * var_re)
     if k >= 3:
         h = stats.t.ppf(0.975, k - 2) * math.sqrt(tau2 + var_re)
         pi = (mu - h, mu + h)
     else:
         pi = (math.nan, math.nan)
-    return RandomEffects(mu, se, k - 1, tau2, q, k, math.sqrt(var_re), pi)
+    return RandomEffects(mu, se, k - 1, tau2, q, k, math.sqrt(var_re), pi, scale)
