@@ -29,7 +29,7 @@ from harness.report.verdicts import Evaluation, evaluate, scene_outcome
 
 DEPENDS = "depends on the reading"
 SCENE_MARK = {rules.HOLDS: "✓", rules.FAILS: "✗", rules.UNCLEAR: "?", "above 0": "↑", "below 0": "↓"}
-TIDY = ["key", "claim", "type", "unit", "quote", "lines", "paper", "at", "band_low", "band_high", "reading",
+TIDY = ["key", "claim", "type", "unit", "quote", "lines", "paper", "at", "band_low", "band_high", "size_low", "reading",
         "verdict", "verdict_reading", "verdict_direction", "verdict_size", "k", "comparison", "test", "scene",
         "label", "selection_scene", "a", "b", "mean", "se", "df", "n", "alpha", "ci_low", "ci_high", "outcome",
         "decisive", "tau2", "pi_low", "pi_high", "dropped_identical", "capped", "why"]
@@ -159,7 +159,8 @@ def _tidy(ev: Evaluation, verdict: str, labels: dict) -> list[dict]:
     c = ev.claim
     base = {"key": c.key, "claim": c.title, "type": c.type, "unit": c.unit or c.type, "quote": c.quote,
             "lines": ",".join(map(str, c.lines)), "paper": c.paper, "at": c.at, "band_low": c.band[0],
-            "band_high": c.band[1], "reading": ev.reading, "verdict": verdict, "verdict_reading": ev.verdict,
+            "band_high": c.band[1], "size_low": rules.effect_bands(c.smallest)["size"][0] if c.type == rules.EFFECT
+            else np.nan, "reading": ev.reading, "verdict": verdict, "verdict_reading": ev.verdict,
             "verdict_direction": ev.verdicts.get("direction", ""), "verdict_size": ev.verdicts.get("size", ""),
             "k": ev.k, "why": ev.why}
     decisive = {id(scene_outcome(ev, s)[1]) for s in {r.scene for r in ev.rows}}
