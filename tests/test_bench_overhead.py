@@ -60,7 +60,7 @@ def test_overhead_needs_two_repeats(capsys):
 
 
 def test_directions_report_marks_each_reading():
-    from harness.benchmarks.reading import directions_markdown
+    from harness.study.bench.reading import directions_markdown
 
     rows = [{"scene": "x", "statistic": "s", "reading": "dims-var", "rho_geo": 0.1, "rho_app": -0.9,
              "rho_coherence": 0.0, "preserves": False},

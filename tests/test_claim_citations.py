@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from harness.report.claim_list import CLAIMS
+from harness.study.claim_list import CLAIMS
 
 PAPER = Path(__file__).resolve().parent.parent.parent / "shared" / "paper" / "000_c1a9120657c37710.txt"
 

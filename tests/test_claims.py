@@ -1,5 +1,5 @@
-"""The claims table's verdict rules (harness/report/rules.py) by hand, and every claim type and edge on
-small synthetic result tables whose differences are known (harness/report/claims.py, verdicts.py)."""
+"""The claims table's verdict rules (harness/study/rules.py) by hand, and every claim type and edge on
+small synthetic result tables whose differences are known (harness/study/claims.py, verdicts.py)."""
 
 from __future__ import annotations
 
@@ -11,11 +11,12 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from harness.report import claims, rules
-from harness.report.claim_list import CLAIMS
+from harness.report.meta import Estimate
 from harness.report.results import to_frame
-from harness.report.rules import INF, Estimate
 from harness.report.tabledata import Missing
+from harness.study import claims, rules
+from harness.study.claim_list import CLAIMS
+from harness.study.rules import INF
 from methods.registry import get_pruner
 
 VIEWS = 8

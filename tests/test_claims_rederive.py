@@ -4,7 +4,7 @@ differences from views.csv.gz with the 100 dB cap, Holm's step-down written out 
 random-effects interval from statsmodels, the type rules from the document.
 
 A study folder qualifies when it holds ``views.csv.gz`` and ``claims*.csv`` (``results/claims-ci``:
-a run of ``ctc_configs/claims_ci.yaml``; ``results/default`` once the default study is committed with
+a run of ``ctc_configs/study/claims_ci.yaml``; ``results/default`` once the default study is committed with
 its per-view file). The runtime rows come from the benchmark, not the views: their per-scene numbers
 are taken as recorded and their verdicts recomputed."""
 

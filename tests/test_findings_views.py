@@ -9,8 +9,8 @@ import re
 import numpy as np
 import pandas as pd
 
-from harness.report import claims, findings
 from harness.report.views_csv import long_views, read_views, write_views
+from harness.study import claims, findings
 from tests.test_claims import SCENES, _study
 
 

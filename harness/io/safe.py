@@ -15,11 +15,8 @@ Rules (issue 15):
   climbs out, and symlinks that lead out are refused.
 * **JSON**: bounded size; nesting too deep for the parser is an error, not a RecursionError.
 * **Images** (:func:`open_image`, :func:`image_size`): bytes read as above, the pixel count taken
-  from the header and checked against the maximum render size before anything is decoded. As every
-  image reader checks that count itself, Pillow's ``DecompressionBombWarning`` (printed for an image
-  above its own limit, before our check refuses it or for a large photo that is fine) is silenced
-  for the whole process once this module is imported; its ``DecompressionBombError`` still refuses.
-  :func:`pillow_problem` words what Pillow could not open (an empty PNG, an unknown format).
+  from the header and checked against the maximum render size before anything is decoded; so
+  Pillow's own ``DecompressionBombWarning`` is silenced (process-wide, once this is imported).
 * **What a command read is remembered** (:func:`recording_inputs`): while a CLI command runs,
   every file opened here is recorded by its identity ``(st_dev, st_ino)`` taken from the open
   descriptor, with the path the user gave. :mod:`harness.io.files` refuses to replace any of them,
@@ -377,9 +374,8 @@ def image_size(path: str | Path, what: str = "image") -> tuple[int, int]:
 
 
 def pillow_problem(err: BaseException, head: bytes = b"") -> str:
-    """What Pillow could not open, in one line: a PNG whose header says 0 pixels wide or high (which
-    Pillow reports as unidentified) is called empty; "cannot identify image file <_io.BytesIO object
-    at 0x…>" loses the object; anything else is Pillow's message (160 characters at most)."""
+    """What Pillow could not open, in one line: an empty PNG (0 pixels wide or high) said so, never
+    "cannot identify image file <_io.BytesIO object at 0x…>"; else Pillow's message, shortened."""
     if head[:8] == PNG_SIGNATURE and head[12:16] == b"IHDR" and len(head) >= 24:
         w, h = int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
         if w == 0 or h == 0:

@@ -152,12 +152,11 @@ def caption(tidy: pd.DataFrame, interval: bool = True) -> str:
 
 def _pooled_delta(per_scene: list[tuple[np.ndarray, int]], metric: str) -> dict:
     """Δ over scenes: the random-effects mean of the per-scene mean differences with its HKSJ 95 %
-    interval (:func:`harness.report.rules.pooled`; one scene: its own t interval) — never the views
+    interval (:func:`harness.report.meta.pooled`; one scene: its own t interval) — never the views
     of different scenes pooled as one sample."""
-    from harness.report import rules
+    from harness.report import meta
 
-    ests = [rules.of_values(d) for d, _ in per_scene]
-    e = rules.pooled(ests)
+    e = meta.pooled([meta.of_values(d) for d, _ in per_scene])
     lo, hi = e.interval() if e.n else (np.nan, np.nan)
     d = np.concatenate([x for x, _ in per_scene])
     return {"delta": e.mean, "ci_low": lo, "ci_high": hi, "delta_median": float(np.median(d)) if d.size else np.nan,

@@ -20,6 +20,10 @@ With q ≥ 1 these are statsmodels' ``combine_effects(method_re="dl")`` "random 
 ``use_t=True``, with q < 1 its "random effect" standard error with the same t quantile
 (``tests/test_meta.py`` checks both, and cases by hand). A scene whose views all agree (v_s = 0)
 would take every weight; its variance is floored at :data:`VAR_FLOOR`.
+
+:class:`Estimate` is a mean with its standard error and degrees of freedom — :func:`of_values` over
+a cell's views, :func:`pooled` over scenes by the model above — with its interval at any one-sided
+level (the claims' Holm levels; 95 % two-sided by default).
 """
 
 from __future__ import annotations
@@ -32,6 +36,8 @@ from scipy import stats
 
 #: the smallest squared standard error a scene may carry (a cell whose views all differ by the same amount)
 VAR_FLOOR = 1e-12
+#: one-sided level of an interval: mean ± t₁₋α · SE at α = 0.025 is the 95 % two-sided interval
+ALPHA = 0.025
 
 
 @dataclass(frozen=True)
@@ -85,3 +91,49 @@ def random_effects(effects, variances) -> RandomEffects:
     else:
         pi = (math.nan, math.nan)
     return RandomEffects(mu, se, k - 1, tau2, q, k, math.sqrt(var_re), pi, scale)
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """A mean with its standard error and degrees of freedom over ``n`` values (views, repeats or
+    scenes); ``tau2``, ``pi`` (prediction interval) for a random-effects estimate over scenes."""
+
+    mean: float
+    se: float
+    df: int
+    n: int
+    tau2: float = math.nan
+    pi: tuple[float, float] = (math.nan, math.nan)
+
+    def interval(self, alpha: float = ALPHA) -> tuple[float, float]:
+        """mean ± t₁₋α,df · SE (one-sided α per side); NaN without degrees of freedom."""
+        if self.df < 1 or not (np.isfinite(self.mean) and np.isfinite(self.se)):
+            return (math.nan, math.nan)
+        h = stats.t.ppf(1.0 - alpha, self.df) * self.se
+        return (self.mean - h, self.mean + h)
+
+    def text(self, alpha: float = ALPHA, digits: int = 2) -> str:
+        if not self.n or not np.isfinite(self.mean):
+            return "–"
+        lo, hi = self.interval(alpha)
+        ci = f" [{lo:+.{digits}f}, {hi:+.{digits}f}]" if np.isfinite(lo) else ""
+        return f"{self.mean:+.{digits}f}{ci}"
+
+
+def of_values(values) -> Estimate:
+    """The mean of ``values`` (finite ones) with SE = s/√n and n − 1 d.f."""
+    v = np.asarray(values, dtype=np.float64)
+    v = v[np.isfinite(v)]
+    if not v.size:
+        return Estimate(math.nan, math.nan, 0, 0)
+    se = float(v.std(ddof=1) / math.sqrt(v.size)) if v.size >= 2 else math.nan
+    return Estimate(float(v.mean()), se, v.size - 1, int(v.size))
+
+
+def pooled(per_scene: list[Estimate]) -> Estimate:
+    """The random-effects estimate over scenes (HKSJ SE, k − 1 d.f., τ², prediction interval)."""
+    ok = [e for e in per_scene if e.n >= 2 and np.isfinite(e.mean) and np.isfinite(e.se)]
+    if len(ok) < 2:
+        return ok[0] if len(ok) == 1 else Estimate(math.nan, math.nan, 0, 0)
+    r = random_effects([e.mean for e in ok], [e.se ** 2 for e in ok])
+    return Estimate(r.mean, r.se, r.df, r.k, r.tau2, r.pi)

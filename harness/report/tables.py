@@ -17,10 +17,6 @@ registry (every registered metric the results carry).
 * ``runtime``: scoring seconds per scene of every method's default variant, with the descriptor
   overhead betadesc − betadesc-nodesc in seconds and in % of betadesc-nodesc's time — "–" when that
   time is under :data:`MIN_BASE_S` (a percentage of timer noise means nothing).
-* ``claims``: one row per claim of the paper with its number, ours per scene and pooled, and a
-  verdict under each faithful reading (:mod:`harness.report.claims`; rules: ``docs/claims.md``);
-  ``findings``: the claims grouped by verdict with their numbers, generated from the claims table
-  (:mod:`harness.report.findings`).
 * ``bd`` and ``ctc``: rate points, BD-rate / BD-PSNR against the config's anchor, and the CTC's
   per-sequence CSV layout (:mod:`harness.report.bd`).
 """
@@ -38,7 +34,7 @@ import pandas as pd
 
 from harness.core.registry import Registry
 from harness.io.files import atomic_write_text
-from harness.report import bd, catalog, cells, claims, findings, photos, sensitivity
+from harness.report import bd, catalog, cells, photos, sensitivity
 from harness.report.summary import protocol_subsets, summarise
 from harness.report.tabledata import Built, Missing, Table, Written, as_table
 
@@ -133,10 +129,6 @@ register_table("versus", build=cells.table_versus, title="Every method against t
 register_table("bd", build=bd.table_bd, reads="summary",
                title="Bjøntegaard deltas against the anchor (BD-rate on .ply bytes; RGB-PSNR, YUV-PSNR, YUV-SSIM)")
 register_table("ctc", build=bd.table_ctc, title="Per sequence and rate point (MPEG CTC layout)", reads="summary")
-register_table("claims", build=claims.table_claims,
-               title="The paper's claims, each tested as the paper states it, with a verdict")
-register_table("findings", build=findings.table_findings,
-               title="Findings: which of the paper's claims hold, fail, depend on the reading or are underpowered")
 register_table("photos", build=photos.table_photos, with_photos=True,
                title="Against the captured photos: pruned and unpruned renders, per held-out view")
 

@@ -29,13 +29,13 @@ o_norm: rank}`` is paper-literal with rank-normalised opacity):
   ``s_def = dims-peak``, ``u_def = spread-hsfh``. Paper-literal's formulas reverse all three
   directions on real scenes (measured: ``results/reading/directions.md``; each reading's doc below);
 * ``round-two`` (*tuned*): the reading round two of the pre-registered selection chose
-  (``ctc_configs/reading2.yaml``, ``results/reading/selection2.md``): round one's ℓ over the
+  (``ctc_configs/study/reading2.yaml``, ``results/reading/selection2.md``): round one's ℓ over the
   neighbourhood (``ell_def = nbhd-std``) and ``voxel = 0.2`` × the diagonal, ``nodesc_def =
   splat-params``. Selected on bonsai-7k-mini and luigi only, and contradicted by its confirmation
   on the scenes it was not selected on (``results/reading/confirmation2.md``); with
   ``radius_voxels = 5`` its FPFH neighbourhood spans the whole diagonal. A named variant, never the
   default (docs/reading.md: how a default may change);
-* ``round-one`` (*tuned*): the reading round one selected (``ctc_configs/reading.yaml``,
+* ``round-one`` (*tuned*): the reading round one selected (``ctc_configs/study/reading.yaml``,
   ``results/reading/selection.md``): paper-literal with ``ell_def = nbhd-std``, and its no-descriptor
   ablation of the time, ``opacity-only``; frozen: round two starts from it and its confirmation
   compares with it;
@@ -44,7 +44,7 @@ o_norm: rank}`` is paper-literal with rank-normalised opacity):
 **Direction.** Every reading of ℓ, s and u says whether it *preserves* or *reverses* the direction
 the paper's words give (ℓ and s rise with neighbourhood homogeneity, u falls with it), with the
 Spearman ρ measured against homogeneity on luigi / grape-small / bonsai-7k-mini
-(:mod:`methods.betadesc.directions`, ``harness bench reading directions``; geometric homogeneity
+(:mod:`harness.study.directions`, ``harness bench reading directions``; geometric homogeneity
 for ℓ and u, colour homogeneity for s).
 
 Variants share the reading: an ablation takes the same bundle and the same values of the axes it

@@ -46,7 +46,7 @@ class BetaDescVRParams(BetaDescParams, NoDescStatisticsParams, VirtualRigParams,
     """BetaDescPrune's reading, the virtual rig's geometry and the weight joining them.
 
     The reading defaults to ``round-two``, not BetaDescPrune's paper-literal default: the
-    pre-registered selection of ``vr_weight`` and of the rig (``ctc_configs/virtualrig.yaml``: "fixed,
+    pre-registered selection of ``vr_weight`` and of the rig (``ctc_configs/study/virtualrig.yaml``: "fixed,
     not searched: … betadesc-vr: the default reading of betadesc") was made and measured when
     BetaDescPrune's default was round two's reading, so that is the reading the selected values
     belong to. Changing it is a change of this pruner's default and follows docs/reading.md."""

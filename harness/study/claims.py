@@ -1,10 +1,10 @@
-"""The ``claims`` table: every claim of the paper (:mod:`harness.report.claim_list`), tested as the
+"""The ``claims`` table: every claim of the paper (:mod:`harness.study.claim_list`), tested as the
 paper states it under both faithful readings, with a verdict.
 
 Each claim is evaluated under ``paper-literal`` (the default: the formulas as written) and
-``paper-direction`` (ℓ, s, u oriented as the prose says; :mod:`harness.report.verdicts`). Its verdict
+``paper-direction`` (ℓ, s, u oriented as the prose says; :mod:`harness.study.verdicts`). Its verdict
 is theirs when they agree, **depends on the reading** when they differ, and the one reading's when the
-run measured only one (said so). The rules: :mod:`harness.report.rules` and ``docs/claims.md``.
+run measured only one (said so). The rules: :mod:`harness.study.rules` and ``docs/claims.md``.
 
 Outputs: the ``.md`` has a first section with one row per claim (type, the paper's number, band,
 the verdict under each reading and overall) and one section per reading with the numbers (pooled
@@ -21,11 +21,11 @@ import json
 import numpy as np
 import pandas as pd
 
-from harness.report import rules
-from harness.report.claim_cells import POOLED, READINGS, Run
-from harness.report.claim_list import CLAIMS, SELECTION_SCENES
 from harness.report.tabledata import Missing, Table
-from harness.report.verdicts import Evaluation, evaluate, scene_outcome
+from harness.study import rules
+from harness.study.claim_cells import POOLED, READINGS, Run
+from harness.study.claim_list import CLAIMS, SELECTION_SCENES
+from harness.study.verdicts import Evaluation, evaluate, scene_outcome
 
 DEPENDS = "depends on the reading"
 SCENE_MARK = {rules.HOLDS: "✓", rules.FAILS: "✗", rules.UNCLEAR: "?", "above 0": "↑", "below 0": "↓"}
@@ -145,7 +145,7 @@ def table_claims(df: pd.DataFrame, overhead: dict | None = None):
     notes = [
         "intervals: Student t over a scene's paired views (per scene) or the HKSJ random-effects interval over "
         "scenes (pooled), each at the Holm level that decided its mark (95 % two-sided for a single test); "
-        "rules: docs/claims.md (harness/report/rules.py)",
+        "rules: docs/claims.md (harness/study/rules.py)",
         f"† selection scene of the pre-registered reading rounds ({', '.join(SELECTION_SCENES)}): numbers there "
         "may be optimistically biased",
         f"near-identical view pairs: {dropped} identical on both sides (≥ 100 dB) left out, {capped} with one side "

@@ -1,5 +1,5 @@
 """The driver of a pre-registered greedy selection (the rule's arithmetic:
-:mod:`harness.report.reading_search`), shared by ``harness bench reading`` and ``harness bench
+:mod:`harness.study.reading_search`), shared by ``harness bench reading`` and ``harness bench
 virtualrig``: run the rule's config, walk the axes (running the stage configs the walk needs), write
 the report; and the ``select|confirm`` command line of such a benchmark.
 
@@ -24,8 +24,8 @@ import yaml
 
 from harness.core.paths import REPO_ROOT as REPO
 from harness.io.files import atomic_write_text
-from harness.report import reading_search as rs
 from harness.report.results import read_results
+from harness.study import reading_search as rs
 
 
 def harness_run(config: Path, workers: int) -> float:
@@ -138,7 +138,7 @@ def add_stage_arguments(parser, stage_help: str, configs: str, extra_stages: tup
 
 
 def run_stage(args, select_config: str, confirm_config: str, select: Callable, confirm: Callable) -> int:
-    """``select`` or ``confirm`` (``args.stage``) on ``--config``, else ``ctc_configs/<the stage's config>``."""
+    """``select`` or ``confirm`` (``args.stage``) on ``--config``, else ``ctc_configs/study/<the stage's config>``."""
     default = select_config if args.stage == "select" else confirm_config
-    args.config = args.config or str(REPO / "ctc_configs" / default)
+    args.config = args.config or str(REPO / "ctc_configs" / "study" / default)
     return select(args) if args.stage == "select" else confirm(args)

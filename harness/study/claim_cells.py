@@ -29,9 +29,10 @@ import numpy as np
 import pandas as pd
 
 from harness.core import ratios
-from harness.report import catalog, cells, rules
-from harness.report.claim_list import Claim
-from harness.report.rules import Estimate, Mark
+from harness.report import catalog, cells
+from harness.study import rules
+from harness.study.claim_list import Claim
+from harness.study.rules import Estimate, Mark
 from methods.registry import GROUPS
 
 CAP_DB = 100.0

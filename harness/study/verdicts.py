@@ -1,11 +1,11 @@
-"""One claim (:mod:`harness.report.claim_list`) evaluated on a run under one reading: its estimates
-per scene (:mod:`harness.report.claim_cells`), pooled where its type asks, and its verdict by the rules
-of :mod:`harness.report.rules`.
+"""One claim (:mod:`harness.study.claim_list`) evaluated on a run under one reading: its estimates
+per scene (:mod:`harness.study.claim_cells`), pooled where its type asks, and its verdict by the rules
+of :mod:`harness.study.rules`.
 
 Scenes enter a claim when the run has every cell of its comparisons there (k of them). Order of the
 checks: a missing cell or a claim that cannot be tested as stated → "not testable here"; an absolute
 level measured at another render size than the paper's → "not comparable (render size)"; fewer
-than :data:`harness.report.rules.MIN_SCENES` scenes → "underpowered"; else the type's rule. The
+than :data:`harness.study.rules.MIN_SCENES` scenes → "underpowered"; else the type's rule. The
 numbers are computed and shown in every case but the first.
 """
 
@@ -14,10 +14,10 @@ from __future__ import annotations
 import numpy as np
 
 from harness.core import ratios
-from harness.report import rules
-from harness.report.claim_cells import POOLED, Cell, Evaluation, Row, Run, best_camera, roles
-from harness.report.claim_list import LARGE_SPLATS, PAPER_LONGEST_SIDE, Claim
-from harness.report.rules import AVERAGE, EFFECT, EQUIVALENCE, EXISTENCE, UNIVERSAL
+from harness.study import rules
+from harness.study.claim_cells import POOLED, Cell, Evaluation, Row, Run, best_camera, roles
+from harness.study.claim_list import LARGE_SPLATS, PAPER_LONGEST_SIDE, Claim
+from harness.study.rules import AVERAGE, EFFECT, EQUIVALENCE, EXISTENCE, UNIVERSAL
 
 
 def _specs(claim: Claim, run: Run, reading: str, ev: Evaluation):

@@ -4,8 +4,8 @@ Fixed before the data they judge: the study's document (``docs/claims.md``) stat
 names the commit that fixed them. Every claim of the paper has a **type**, read from its wording
 (:data:`TYPES`), and a **band** for a measured quantity Δ (a paired per-view difference, a level, an
 overhead). The quantities are :class:`Estimate`\\ s: a mean with its standard error and degrees of
-freedom — a scene's mean over its n paired views (SE = s/√n, n − 1 d.f.) or a random-effects mean
-over k scenes (:func:`harness.report.meta.random_effects`: HKSJ SE, k − 1 d.f.).
+freedom (:class:`harness.report.meta.Estimate`) — a scene's mean over its n paired views (SE = s/√n,
+n − 1 d.f.) or a random-effects mean over k scenes (:func:`harness.report.meta.pooled`: HKSJ SE, k − 1 d.f.).
 
 **Inside / outside a band, one-sided tests.** At one-sided level α an estimate's interval is
 mean ± t₁₋α,df · SE. It is *inside* the band (lo, hi) when lo < its lower end and its upper end < hi,
@@ -49,10 +49,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
-from harness.report.meta import random_effects
+from harness.report.meta import ALPHA, Estimate, of_values, pooled  # noqa: F401  (the rules' estimates)
 
-#: one-sided level of every test: a single test is the 95 % two-sided interval
-ALPHA = 0.025
 #: fewer scenes than this cannot give a verdict ("underpowered")
 MIN_SCENES = 4
 HOLDS, FAILS, UNCLEAR = "holds", "fails", "unclear"
@@ -62,52 +60,6 @@ TYPES = (UNIVERSAL, AVERAGE, EXISTENCE, EQUIVALENCE, EFFECT)
 #: the verdicts a claim can have (and "depends on the reading" when two readings disagree)
 VERDICTS = ("holds", "fails", "inconclusive", "underpowered", "not testable here", "not comparable (render size)")
 INF = math.inf
-
-
-@dataclass(frozen=True)
-class Estimate:
-    """A mean with its standard error and degrees of freedom over ``n`` values (views, repeats or
-    scenes); ``tau2``, ``pi`` (prediction interval) for a random-effects estimate over scenes."""
-
-    mean: float
-    se: float
-    df: int
-    n: int
-    tau2: float = math.nan
-    pi: tuple[float, float] = (math.nan, math.nan)
-
-    def interval(self, alpha: float = ALPHA) -> tuple[float, float]:
-        """mean ± t₁₋α,df · SE (one-sided α per side); NaN without degrees of freedom."""
-        if self.df < 1 or not (np.isfinite(self.mean) and np.isfinite(self.se)):
-            return (math.nan, math.nan)
-        h = stats.t.ppf(1.0 - alpha, self.df) * self.se
-        return (self.mean - h, self.mean + h)
-
-    def text(self, alpha: float = ALPHA, digits: int = 2) -> str:
-        if not self.n or not np.isfinite(self.mean):
-            return "–"
-        lo, hi = self.interval(alpha)
-        ci = f" [{lo:+.{digits}f}, {hi:+.{digits}f}]" if np.isfinite(lo) else ""
-        return f"{self.mean:+.{digits}f}{ci}"
-
-
-def of_values(values) -> Estimate:
-    """The mean of ``values`` (finite ones) with SE = s/√n and n − 1 d.f."""
-    v = np.asarray(values, dtype=np.float64)
-    v = v[np.isfinite(v)]
-    if not v.size:
-        return Estimate(math.nan, math.nan, 0, 0)
-    se = float(v.std(ddof=1) / math.sqrt(v.size)) if v.size >= 2 else math.nan
-    return Estimate(float(v.mean()), se, v.size - 1, int(v.size))
-
-
-def pooled(per_scene: list[Estimate]) -> Estimate:
-    """The random-effects estimate over scenes (HKSJ SE, k − 1 d.f., τ², prediction interval)."""
-    ok = [e for e in per_scene if e.n >= 2 and np.isfinite(e.mean) and np.isfinite(e.se)]
-    if len(ok) < 2:
-        return ok[0] if len(ok) == 1 else Estimate(math.nan, math.nan, 0, 0)
-    r = random_effects([e.mean for e in ok], [e.se ** 2 for e in ok])
-    return Estimate(r.mean, r.se, r.df, r.k, r.tau2, r.pi)
 
 
 def _upper_p(t: float, df: int) -> float:

@@ -4,7 +4,7 @@ Each :class:`Claim` quotes the paper verbatim (``quote``: a substring of its LaT
 test ``tests/test_claim_citations.py`` finds it), cites the lines it is read from (``lines``: the
 sentence, and the table rows its numbers come from), lists the numbers it takes from them
 (``numbers``: each appears within ±2 lines of a cited line), and has a **type** read from its
-wording (:data:`harness.report.rules.TYPES`; ``reason`` quotes the words that make it that type).
+wording (:data:`harness.study.rules.TYPES`; ``reason`` quotes the words that make it that type).
 
 Bands (the paper's number each is read from):
 
@@ -28,7 +28,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from harness.report.rules import AVERAGE, EFFECT, EQUIVALENCE, EXISTENCE, INF, UNIVERSAL
+from harness.study.rules import AVERAGE, EFFECT, EQUIVALENCE, EXISTENCE, INF, UNIVERSAL
 
 #: "large scenes" of the Table 1 high-ratio claim: at least this many splats (the paper's breakfast
 #: and cinema are room-scale captures; of the public scenes only bonsai-7k qualifies)
@@ -36,14 +36,14 @@ LARGE_SPLATS = 1_000_000
 #: the paper's render size (L305: "at 1024 px longest side"); an absolute level measured at another
 #: size is not comparable with the paper's
 PAPER_LONGEST_SIDE = 1024
-#: the scenes the pre-registered reading selections chose on (ctc_configs/reading.yaml, reading2.yaml):
+#: the scenes the pre-registered reading selections chose on (ctc_configs/study/reading.yaml, reading2.yaml):
 #: marked † in every claims table — what was tuned there is optimistically biased there
 SELECTION_SCENES = ("bonsai-7k-mini", "luigi")
 
 
 @dataclass(frozen=True)
 class Claim:
-    """One claim: ``what`` it measures (the recipe :mod:`harness.report.verdicts` evaluates) and how
+    """One claim: ``what`` it measures (the recipe :mod:`harness.study.verdicts` evaluates) and how
     the paper states it. ``unit`` is ``universal`` or ``average`` for an effect-size claim (how each
     of its two verdicts is reached); ``smallest``: the smallest effect the paper reports for it."""
 

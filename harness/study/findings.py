@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from harness.report.claims import DEPENDS
 from harness.report.tabledata import Missing, Table
+from harness.study.claims import DEPENDS
 
 ORDER = ("holds", "fails", DEPENDS, "inconclusive", "underpowered", "not comparable (render size)",
          "not testable here")
@@ -78,7 +78,7 @@ def from_claims(tidy: pd.DataFrame) -> pd.DataFrame:
 
 
 def table_findings(df: pd.DataFrame, overhead: dict | None = None):
-    from harness.report.claims import table_claims
+    from harness.study.claims import table_claims
 
     claims = table_claims(df, overhead)
     if isinstance(claims, Missing):
