@@ -178,7 +178,7 @@ def evaluate(claim: Claim, run: Run, reading: str, bench: dict | None = None) ->
         ev.verdict = rules.overall(ev.verdicts.values())
     else:
         ev.verdict = _decide(UNIVERSAL if kind == UNIVERSAL else AVERAGE, ev, claim.band, mark=True)
-    if ev.pooled and kind != EFFECT and not any(p.mark for p in ev.pooled):
+    if ev.pooled and kind not in (EFFECT, EXISTENCE) and not any(p.mark for p in ev.pooled):
         for p, m in zip(ev.pooled, rules.judge([p.est for p in ev.pooled], claim.band)):
             p.mark = m
     if claim.untestable:
