@@ -8,7 +8,9 @@
 
 :meth:`Params.parse` checks a mapping (a YAML ``params:`` block) once, at load, and returns the
 instance every later stage uses; :meth:`Params.parse_text` does the same for command-line strings.
-A problem is a :class:`ParamError` naming the key (callers add the file or flag). Accepted types:
+A problem is a :class:`ParamError` naming the key (callers add the file or flag); values that are
+valid but a user should hear about (a descriptor radius that is no longer local) are
+:meth:`Params.advisories`. Accepted types:
 ``bool`` (YAML booleans; on the command line true/false/yes/no/1/0), ``int`` (integers only, never
 booleans), ``float`` (finite numbers; integers accepted), ``str`` and ``Literal[...]`` (one of the
 listed values), each optionally ``| None`` (YAML ``null``; ``none`` on the command line), and
@@ -155,6 +157,11 @@ class Params:
 
     def replace(self, **changes):
         return type(self).parse({**self.to_dict(), **changes})
+
+    def advisories(self) -> list[str]:
+        """Valid values whose combination a user should hear about (one sentence each); none by default.
+        Commands print each once as a ``warning:`` line (:func:`harness.core.advice.warn_once`)."""
+        return []
 
 
 def check_value(spec: ParamSpec, value):

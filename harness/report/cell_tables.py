@@ -7,8 +7,9 @@
   reference: the full method (``betadesc``) at 20 %, so Δ < 0 in the higher-is-better sense means the
   removed part helped. Bold: the best mean of a row.
 * ``versus``: every measured (method, variant, ratio) against the reference method at the same
-  ratio, per scene and pooled over scenes (all pairs of all scenes, near-identical ones left out),
-  with a verdict per row: on how many scenes the CI lies above / below 0.
+  ratio, per scene and pooled over scenes (the random-effects mean of the scene means with its HKSJ
+  interval, near-identical pairs left out), with a verdict per row: on how many scenes the CI lies
+  above / below 0.
 * ``per_scene``: the descriptor gain betadesc − betadesc-nodesc at keep 0.7/0.5/0.3 per scene
   (positive = descriptors help; the paper's "+4.04 dB" sense), paired per view.
 """
@@ -183,8 +184,8 @@ def table_versus(df: pd.DataFrame, reference: str | None = None):
         t["better / worse / unclear"] = [verdicts.get((*k, mk), "") for k in t.index]
     disp = pd.concat({h: t for h, t in secs}, names=["Metric"])
     notes = [f"Δ = mean paired per-view difference against {catalog.method_label(reference)} at the same ratio "
-             f"[CI]; all scenes = every pair of every scene; better/worse = scenes whose CI "
-             f"excludes 0 in the metric's good/bad direction",
+             "[CI]; all scenes: Δ pooled over the scenes (random effects, HKSJ interval); better/worse = scenes "
+             "whose CI excludes 0 in the metric's good/bad direction",
              f"{NEAR}: some pairs left out as near-identical (PSNR ≥ {stats.NEAR_IDENTICAL_DB:g} dB or inf)"]
     return Table(disp, notes, spec.csv(tidy), secs, caption=caption(tidy))
 

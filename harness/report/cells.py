@@ -77,9 +77,8 @@ class _Pool:
             if not self.diffs[mk]:
                 continue
             vals, near = np.concatenate([x for x, _ in values]), np.concatenate([n for _, n in values])
-            d = np.concatenate([x for x, _ in self.diffs[mk]])
             out.append({**base, "scene": POOLED, "label": "all scenes", "metric": mk, **stats.summary(vals, near, mk),
-                        "reference": ref, **_delta(d, sum(e for _, e in self.diffs[mk]), mk)})
+                        "reference": ref, **_pooled_delta(self.diffs[mk], mk)})
         return out
 
 
@@ -153,11 +152,25 @@ def caption(tidy: pd.DataFrame, interval: bool = True) -> str:
     if len(pooled):
         k = per["scene"].nunique()
         lo, hi = int(pooled["n_pairs"].min()), int(pooled["n_pairs"].max())
-        parts.append(f"all scenes: n = {lo if lo == hi else f'{lo}–{hi}'} pairs pooled over {k} scene(s) — the "
-                     "interval is over views, so it does not generalise to scenes outside this run")
+        parts.append(f"all scenes: n = {lo if lo == hi else f'{lo}–{hi}'} pairs over {k} scene(s); Δ pooled over "
+                     "the scenes (random effects, HKSJ 95 % interval over the scene means)")
     if interval:
         parts.append(f"Δ: {stats.INTERVAL_DESCRIPTION}")
     return "; ".join(parts)
+
+
+def _pooled_delta(per_scene: list[tuple[np.ndarray, int]], metric: str) -> dict:
+    """Δ over scenes: the random-effects mean of the per-scene mean differences with its HKSJ 95 %
+    interval (:func:`harness.report.meta.pooled`; one scene: its own t interval) — never the views
+    of different scenes pooled as one sample."""
+    from harness.report import meta
+
+    e = meta.pooled([meta.of_values(d) for d, _ in per_scene])
+    lo, hi = e.interval() if e.n else (np.nan, np.nan)
+    d = np.concatenate([x for x, _ in per_scene])
+    return {"delta": e.mean, "ci_low": lo, "ci_high": hi, "delta_median": float(np.median(d)) if d.size else np.nan,
+            "n_pairs": int(d.size), "n_pairs_excluded": int(sum(x for _, x in per_scene)),
+            "verdict": stats.verdict(lo, hi, catalog.higher_is_better(metric))}
 
 
 def _delta(d: np.ndarray, excluded: int, metric: str) -> dict:

@@ -1,223 +1,233 @@
-"""What a claim's numbers say: estimates with their 95 % interval, an interval against a claimed band,
-the verdict rules of :mod:`harness.study.claims` (documented there), and the run's cells.
+"""One claim (:mod:`harness.study.claim_list`) evaluated on a run under one reading: its estimates
+per scene (:mod:`harness.study.claim_cells`), pooled where its type asks, and its verdict by the rules
+of :mod:`harness.study.rules`.
 
-* :class:`Estimate` — a mean with its t interval (:func:`harness.report.stats.mean_ci`) over n values;
-  :func:`pooled` — the mean of per-scene means with the t interval over the scenes;
-* :func:`outcome` — ``holds`` (the interval inside the band), ``fails`` (entirely outside),
-  ``unclear`` (it straddles a bound); :func:`combine` — several comparisons that must all hold;
-* :func:`verdict_per_scene`, :func:`verdict_average` — a claim's verdict from its scenes or its pooled interval;
-* :class:`Run` — measured rows by (scene, method, variant, ratio), paired differences and levels;
-* :class:`Result` — one claim's comparisons per scene, pooled, and its verdict (:meth:`Result.decide`);
-  :func:`comparisons` fills it from cell pairs, :func:`need` names the cells a run lacks.
+Scenes enter a claim when the run has every cell of its comparisons there (k of them). Order of the
+checks: a missing cell or a claim that cannot be tested as stated → "not testable here"; an absolute
+level measured at another render size than the paper's → "not comparable (render size)"; fewer
+than :data:`harness.study.rules.MIN_SCENES` scenes → "underpowered"; else the type's rule. The
+numbers are computed and shown in every case but the first.
 """
 
 from __future__ import annotations
 
-import json
-import math
-from dataclasses import dataclass, field
-
 import numpy as np
-import pandas as pd
 
 from harness.core import ratios
-from harness.report import cells, stats
-
-INF = math.inf
-HOLDS, FAILS, UNCLEAR = "holds", "fails", "unclear"
-MARK = {HOLDS: "✓", FAILS: "✗", UNCLEAR: "?"}
-
-
-@dataclass(frozen=True)
-class Estimate:
-    """Δ (or a level) with its 95 % interval over n values."""
-
-    mean: float
-    lo: float
-    hi: float
-    n: int
-
-    def text(self, digits: int = 2) -> str:
-        if not self.n or not np.isfinite(self.mean):
-            return "–"
-        ci = f" [{self.lo:+.{digits}f}, {self.hi:+.{digits}f}]" if np.isfinite(self.lo) else ""
-        return f"{self.mean:+.{digits}f}{ci}"
+from harness.study import rules
+from harness.study.claim_cells import POOLED, Cell, Evaluation, Row, Run, best_camera, roles
+from harness.study.claim_list import LARGE_SPLATS, PAPER_LONGEST_SIDE, Claim
+from harness.study.rules import AVERAGE, EFFECT, EQUIVALENCE, EXISTENCE, UNIVERSAL
 
 
-def estimate(values) -> Estimate:
-    v = np.asarray(values, dtype=np.float64)
-    v = v[np.isfinite(v)]
-    lo, hi = stats.mean_ci(v) if v.size >= 2 else (np.nan, np.nan)
-    return Estimate(float(v.mean()) if v.size else np.nan, lo, hi, int(v.size))
+def _specs(claim: Claim, run: Run, reading: str, ev: Evaluation):
+    """[(name, a(scene) -> Cell | None, b(scene) -> Cell | None, metric)] of ``claim`` (None: the
+    level of a), or [] with ``ev.why`` saying what the run lacks."""
+    kind, *args = claim.what
+    cells = roles(run, reading)
 
-
-def pooled(per_scene: dict[str, Estimate]) -> Estimate:
-    """Mean of the scene means, t interval over the k scenes (one scene: its own estimate)."""
-    means = [e.mean for e in per_scene.values() if e.n and np.isfinite(e.mean)]
-    if len(means) == 1:
-        return next(e for e in per_scene.values() if e.n and np.isfinite(e.mean))
-    return estimate(means)
-
-
-def outcome(e: Estimate, band: tuple[float, float]) -> str:
-    """holds: the interval inside the band; fails: entirely outside; unclear: it straddles a bound."""
-    lo_b, hi_b = band
-    if not (e.n and np.isfinite(e.lo) and np.isfinite(e.hi)):
-        if e.n == 1 and np.isfinite(e.mean):  # a single value (zero-width): judged by itself
-            e = Estimate(e.mean, e.mean, e.mean, 1)
-        else:
-            return UNCLEAR
-    if e.lo > lo_b and e.hi <= hi_b:
-        return HOLDS
-    if e.hi <= lo_b or e.lo > hi_b:
-        return FAILS
-    return UNCLEAR
-
-
-def combine(outcomes: list[str]) -> str:
-    """Several comparisons that must all hold: fails if any fails, holds if all hold."""
-    if FAILS in outcomes:
-        return FAILS
-    return HOLDS if outcomes and all(o == HOLDS for o in outcomes) else UNCLEAR
-
-
-def verdict_per_scene(per_scene: dict[str, str]) -> str:
-    got = set(per_scene.values())
-    if not got:
-        return "not testable here"
-    if got == {HOLDS}:
-        return "holds"
-    if got == {FAILS}:
-        return "fails"
-    if HOLDS in got and FAILS in got:
-        return "mixed"
-    return "inconclusive"
-
-
-def verdict_average(pooled_outcome: str) -> str:
-    return {HOLDS: "holds", FAILS: "fails"}.get(pooled_outcome, "inconclusive")
-
-
-# --------------------------------------------------------------------------- the run's cells
-@dataclass
-class Run:
-    """Measured rows with the ``near`` flag (:func:`harness.report.cells.prepare`), indexed by cell."""
-
-    ok: pd.DataFrame
-    groups: dict = field(default_factory=dict)
-    labels: dict = field(default_factory=dict)
-
-    @classmethod
-    def of(cls, df: pd.DataFrame) -> "Run":
-        ok, _ = cells.prepare(df)
-        groups = {k: g for k, g in ok.groupby(["scene", "method", "variant", "rkey"], sort=False)}
-        return cls(ok, groups, dict(zip(ok["scene"], ok["label"])))
-
-    def cell(self, scene, method, ratio, variant="default"):
-        return self.groups.get((scene, method, variant, ratios.key(ratio)))
-
-    def diff(self, scene, a: tuple, b: tuple, metric="psnr") -> Estimate | None:
-        """Δ = cell a − cell b (each (method, ratio[, variant])), paired per view; None if either is missing."""
-        ga, gb = self.cell(scene, *a), self.cell(scene, *b)
-        if ga is None or gb is None or metric not in ga:
+    def cell(role, ratio):
+        got = cells.get(role)
+        if got is None or got[1] is None:
             return None
-        d, _ = stats.paired_diffs(ga, gb, metric)
-        return estimate(d) if d.size else None
+        return Cell(got[0], got[1], ratio)
 
-    def level(self, scene, method, ratio, metric) -> Estimate | None:
-        g = self.cell(scene, method, ratio)
-        if g is None or metric not in g or g[metric].isna().all():
-            return None
-        return estimate(pd.to_numeric(g[metric], errors="coerce"))
+    def need(*wanted):
+        absent = [f"{role} ({reading}) at {ratios.percent(r)}" for role, r in wanted
+                  if (c := cell(role, r)) is None or not run.measured(c)]
+        if absent:
+            ev.why = "the run has no " + ", ".join(dict.fromkeys(absent))
+        return not absent
 
-    def splats(self, scene) -> float:
-        s = self.ok.loc[self.ok["scene"] == scene, "splats_in"]
-        return float(s.max()) if len(s) else np.nan
-
-    def variant_with(self, method, ratio, key, value) -> str | None:
-        """The variant of ``method`` at ``ratio`` whose params equal the default's except ``key`` = ``value``."""
-        rows = self.ok[(self.ok["method"] == method) & (self.ok["rkey"] == ratios.key(ratio))]
-        params = {v: json.loads(p or "{}") for v, p in zip(rows["variant"], rows["params"])}
-        base = params.get("default")
+    if kind in ("best-camera", "best-camera-large"):
+        (r,) = args
+        if not need(("full", r)):
+            return []
+        return [("BetaDesc − best camera-aware", lambda s: cell("full", r), lambda s: best_camera(run, s, r), "psnr")]
+    if kind == "best":
+        (r,) = args
+        if not need(*((role, r) for role in ("full", "neither", "nodesc", "nobeta"))):
+            return []
+        return [(f"full − {role}", lambda s: cell("full", r), lambda s, role=role: cell(role, r), "psnr")
+                for role in ("neither", "nodesc", "nobeta")]
+    if kind == "pair":
+        r, x, y = args
+        if not need((x, r), (y, r)):
+            return []
+        return [(f"{x} − {y}", lambda s: cell(x, r), lambda s: cell(y, r), "psnr")]
+    if kind == "gain":
+        (keeps,) = args
+        rs = [ratios.from_keep(k) for k in keeps]
+        if not need(*((role, r) for r in rs for role in ("full", "nodesc"))):
+            return []
+        name = "with − without descriptors"
+        return [(name if len(keeps) == 1 else f"{name}, keep {k:g}", lambda s, r=r: cell("full", r),
+                 lambda s, r=r: cell("nodesc", r), "psnr") for k, r in zip(keeps, rs)]
+    if kind == "monotonic":
+        a, b, c = (ratios.from_keep(k) for k in (0.7, 0.5, 0.3))
+        if not need(("full", a), ("full", b), ("full", c)):
+            return []
+        return [("keep 0.7 − 0.5", lambda s: cell("full", a), lambda s: cell("full", b), "psnr"),
+                ("keep 0.5 − 0.3", lambda s: cell("full", b), lambda s: cell("full", c), "psnr")]
+    if kind == "level":
+        keep, metric = args
+        r = ratios.from_keep(keep)
+        if not need(("full", r)):
+            return []
+        if metric not in run.ok or run.ok[metric].isna().all():
+            ev.why = f"the run measured no {metric.upper()}"
+            return []
+        return [(f"mean {metric.upper()}", lambda s: cell("full", r), None, metric)]
+    if kind == "sweep":
+        param, reference, values = args
+        r = ratios.from_keep(0.7)
+        base = cell("full", r)
         if base is None:
-            return None
-        for v, p in params.items():
-            if _close(p.get(key), value) and {k: x for k, x in p.items() if k != key} == \
-                    {k: x for k, x in base.items() if k != key}:
-                return v
-        return None
+            ev.why = f"the run has no full ({reading}) at keep 0.7"
+            return []
+        ref = base.variant if reference is None else run.sweep_variant(base.method, base.variant, param, reference)
+        found = {v: run.sweep_variant(base.method, base.variant, param, v) for v in values}
+        absent = [f"{param}={v}" for v, name in [(reference, ref), *found.items()] if name is None]
+        if absent:
+            ev.why = f"the run has no {base.method} ({reading}) variant {', '.join(map(str, absent))} at keep 0.7"
+            return []
+        ref_text = "default" if reference is None else f"{reference:g}" if isinstance(reference, float) else reference
+        return [(f"{param} {v:g} − {ref_text}" if isinstance(v, float) else f"{param} {v} − {ref_text}",
+                 lambda s, n=name: Cell(base.method, n, r), lambda s: Cell(base.method, ref, r), "psnr")
+                for v, name in found.items()]
+    raise ValueError(f"unknown claim recipe {kind!r}")
 
 
-def _close(a, b) -> bool:
-    if isinstance(a, (int, float)) and isinstance(b, (int, float)):
-        return abs(float(a) - float(b)) <= 1e-9 * max(1.0, abs(float(b)))
-    return a == b
-
-
-@dataclass
-class Result:
-    key: str
-    claim: str
-    paper: str
-    at: str
-    unit: str  # "scene", "average" or "split"
-    band: tuple[float, float] = (-INF, INF)
-    per_scene: dict[str, list[tuple[str, Estimate]]] = field(default_factory=dict)
-    pooled: dict[str, Estimate] = field(default_factory=dict)
-    verdict: str = "not testable here"
-    why: str = ""
-    digits: int = 2
-    note: str = ""
-
-    def scene_outcome(self, scene: str) -> str:
-        return combine([outcome(e, self.band) for _, e in self.per_scene[scene]])
-
-    def decide(self) -> "Result":
-        if self.why:
-            self.verdict = "not testable here"
-            return self
-        if not self.per_scene:
-            self.verdict, self.why = "not testable here", "no scene has the cells this claim needs"
-            return self
-        names = list(dict.fromkeys(n for comps in self.per_scene.values() for n, _ in comps))
-        self.pooled = {n: pooled({s: e for s, comps in self.per_scene.items() for m, e in comps if m == n})
-                       for n in names}
-        per = {s: self.scene_outcome(s) for s in self.per_scene}
-        if self.unit == "scene":
-            self.verdict = verdict_per_scene(per)
-        elif self.unit == "split":
-            up = any(e.n and e.lo > 0 for comps in self.per_scene.values() for _, e in comps)
-            down = any(e.n and e.hi < 0 for comps in self.per_scene.values() for _, e in comps)
-            same = all(o != UNCLEAR for o in (outcome(e, (0, INF)) for c in self.per_scene.values() for _, e in c))
-            self.verdict = "holds" if up and down else ("fails" if same else "inconclusive")
-        else:
-            self.verdict = verdict_average(combine([outcome(e, self.band) for e in self.pooled.values()]))
-        return self
-
-
-def comparisons(run: Run, res: Result, specs, metric: str = "psnr") -> Result:
-    """Fill ``res.per_scene`` from ``specs``: [(name, a(scene) -> cell | None, b(scene) -> cell | None)]."""
-    empty = []
-    for scene in run.labels:
+def _rows(claim: Claim, run: Run, reading: str, ev: Evaluation, bench: dict | None) -> list[Row]:
+    """Every (scene, comparison) estimate of the scenes that have all of the claim's cells."""
+    if claim.what[0] == "bench":
+        return _bench_rows(claim, run, ev, bench)
+    specs = _specs(claim, run, reading, ev)
+    out = []
+    scenes = list(run.labels)
+    if claim.what[0] == "best-camera-large":
+        scenes = [s for s in scenes if run.splats(s) >= LARGE_SPLATS]
+        ev.notes.append(f"large = ≥ {LARGE_SPLATS:,} splats: {', '.join(run.labels[s] for s in scenes) or 'none'}")
+    for scene in scenes:
         got = []
-        for name, a, b in specs:
-            ca, cb = a(scene), b(scene)
-            e = run.diff(scene, ca, cb, metric) if ca and cb else None
-            if e is not None:
-                got.append((name, e))
-            elif ca and cb and run.cell(scene, *ca) is not None and run.cell(scene, *cb) is not None:
-                empty.append(run.labels[scene])  # both measured, every pair near-identical
-        if len(got) == len(specs):
-            res.per_scene[scene] = got
-    if empty:
-        res.note = "; ".join(filter(None, [res.note, "left out, every view pair near-identical (≥ 100 dB): "
-                                           + ", ".join(dict.fromkeys(empty))]))
-    return res
+        for name, a, b, metric in specs:
+            ca, cb = a(scene), (b(scene) if b is not None else None)
+            row = None
+            if ca is not None and b is None:
+                row = run.level(scene, ca, metric)
+            elif ca is not None and cb is not None:
+                row = run.diff(scene, ca, cb, metric)
+            if row is not None and not row.est.n and row.dropped:
+                ev.left_out[scene] = ev.left_out.get(scene, 0) + row.dropped
+            if row is None or not row.est.n:
+                break
+            row.name = name
+            got.append(row)
+        if specs and len(got) == len(specs):
+            out.extend(got)
+    if ev.left_out:
+        ev.notes.append("left out, every view pair identical on both sides (≥ 100 dB): " + ", ".join(
+            f"{run.labels[s]} ({n} pairs)" for s, n in ev.left_out.items()))
+    if specs and not out and not ev.why:
+        ev.why = "no scene has every cell this claim needs"
+    return out
 
 
-def need(run: Run, res: Result, cells_needed: list[tuple[str, float]]) -> Result:
-    missing = list(dict.fromkeys(f"{m} at {ratios.percent(r)}" for m, r in cells_needed
-                                 if not any(run.cell(s, m, r) is not None for s in run.labels)))
-    if missing:
-        res.why = "the run has no " + ", ".join(missing)
-    return res
+def _bench_rows(claim: Claim, run: Run, ev: Evaluation, bench: dict | None) -> list[Row]:
+    if not bench:
+        ev.why = "no benchmark: run `harness bench methods --overhead --out results/bench` (overhead.json)"
+        return []
+    field = claim.what[1]
+    by_scene = {r["scene"]: r for r in bench.get("scenes", []) if field in r}
+    rows = [Row("overhead %" if field == "overhead_pct" else "added seconds", s, rules.of_values(by_scene[s][field]),
+                "betadesc", "betadesc-nodesc") for s in run.labels if s in by_scene]
+    if not rows:
+        ev.why = f"the benchmark timed none of this run's scenes ({', '.join(by_scene) or 'none'})"
+    ev.notes.append(f"{bench.get('timed', 'scoring only')}; {bench.get('repeats', '?')} interleaved rounds per "
+                    f"scene ({bench.get('when', 'undated')})" + (f"; {bench['note']}" if bench.get("note") else ""))
+    return rows
+
+
+def _pool(rows: list[Row]) -> list[Row]:
+    """One random-effects row per comparison over the scenes (none below two scenes)."""
+    if len({r.scene for r in rows}) < 2:
+        return []
+    names = list(dict.fromkeys(r.name for r in rows))
+    return [Row(n, POOLED, rules.pooled([r.est for r in rows if r.name == n])) for n in names]
+
+
+def evaluate(claim: Claim, run: Run, reading: str, bench: dict | None = None) -> Evaluation:
+    """``claim`` on ``run`` under ``reading`` (module doc)."""
+    ev = Evaluation(claim, reading)
+    ev.rows = _rows(claim, run, reading, ev, bench)
+    if ev.why:
+        return ev
+    ev.k = len({r.scene for r in ev.rows})
+    kind = claim.type
+    if kind in (AVERAGE, EQUIVALENCE, EXISTENCE) or claim.unit == AVERAGE:
+        ev.pooled = _pool(ev.rows)
+    if kind == EXISTENCE:
+        verdict, ups, downs = rules.existence_verdict([r.est for r in ev.rows])
+        for r, u, d in zip(ev.rows, ups, downs):
+            r.mark = u if u.outcome == rules.HOLDS else d if d.outcome == rules.HOLDS else u
+            r.test = "above 0" if u.outcome == rules.HOLDS else "below 0" if d.outcome == rules.HOLDS else ""
+        ev.verdict = verdict
+    elif kind == EFFECT:
+        for test, band in rules.effect_bands(claim.smallest).items():
+            ev.verdicts[test] = _decide(claim.unit, ev, band, mark=test == "direction")
+        ev.verdict = rules.overall(ev.verdicts.values())
+    else:
+        ev.verdict = _decide(UNIVERSAL if kind == UNIVERSAL else AVERAGE, ev, claim.band, mark=True)
+    if ev.pooled and kind not in (EFFECT, EXISTENCE) and not any(p.mark for p in ev.pooled):
+        for p, m in zip(ev.pooled, rules.judge([p.est for p in ev.pooled], claim.band)):
+            p.mark = m
+    if claim.untestable:
+        ev.verdict, ev.why, ev.verdicts = "not testable here", claim.untestable, {}
+    elif claim.what[0] == "level" and run_sides(run) - {PAPER_LONGEST_SIDE}:
+        ev.verdict, ev.verdicts = "not comparable (render size)", {}
+        ev.why = (f"measured at {', '.join(f'{s} px' for s in sorted(run_sides(run)))} longest side; the paper's "
+                  f"level is at {PAPER_LONGEST_SIDE} px")
+    elif ev.k < rules.MIN_SCENES:
+        ev.verdict = "underpowered"
+        ev.verdicts = {t: "underpowered" for t in ev.verdicts}
+        ev.why = f"{ev.k} scene{'s' * (ev.k != 1)}: a verdict needs at least {rules.MIN_SCENES}"
+    return ev
+
+
+def run_sides(run: Run) -> set[int]:
+    return set().union(*run.sides.values()) if run.sides else set()
+
+
+def _decide(unit: str, ev: Evaluation, band, *, mark: bool) -> str:
+    """The verdict of ``unit``'s rule on ``band``; ``mark``: keep the marks on the rows shown."""
+    scene_marks = rules.judge([r.est for r in ev.rows], band)
+    if mark:
+        for r, m in zip(ev.rows, scene_marks):
+            r.mark = m
+    if unit == UNIVERSAL:
+        return rules.family_verdict(scene_marks)
+    pooled_marks = rules.judge([p.est for p in ev.pooled], band)
+    if mark:
+        for p, m in zip(ev.pooled, pooled_marks):
+            p.mark = m
+    return rules.family_verdict(pooled_marks)
+
+
+def scene_outcome(ev: Evaluation, scene: str) -> tuple[str, Row]:
+    """A scene's outcome over its comparisons and the row that decided it: a failing one (the
+    clearest), else the weakest of the holding ones, else the unclear one with the least evidence."""
+    rows = [r for r in ev.rows if r.scene == scene]
+    band = ev.claim.band if ev.claim.type != EFFECT else rules.effect_bands(ev.claim.smallest)["direction"]
+    outcome = rules.combine(r.mark.outcome for r in rows if r.mark)
+    if ev.claim.type == EXISTENCE:
+        return (rows[0].test or rules.UNCLEAR), rows[0]
+    if outcome == rules.FAILS:
+        pick = min((r for r in rows if r.mark.outcome == rules.FAILS), key=lambda r: rules.p_outside(r.est, band))
+    else:
+        pool = [r for r in rows if r.mark.outcome != rules.HOLDS] or rows
+        pick = max(pool, key=lambda r: rules.p_inside(r.est, band))
+    return outcome, pick
+
+
+def finite(x) -> bool:
+    return x is not None and bool(np.isfinite(x))

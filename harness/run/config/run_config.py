@@ -146,6 +146,7 @@ def _check_sweep(sweep: dict, params: dict, where: str, src) -> None:
 
 def _variants(spec, e: dict, where: str, src):
     """(variant name, resolved parameters) of every combination of the entry's sweep (one without)."""
+    from harness.core.advice import announce
     from harness.core.params import ParamError
 
     params, sweep = e["params"] or {}, e["sweep"] or {}
@@ -158,7 +159,9 @@ def _variants(spec, e: dict, where: str, src):
             section = "sweep" if err.key in sweep else "params"
             key = f".{section}.{err.key}" if err.key is not None else f".{section}"
             raise InputError(src, f"{where}{key}: method {e['name']!r}: {err.problem}") from None
-        yield ":".join(x for x in (e["variant"], label) if x) or "default", resolved
+        variant = ":".join(x for x in (e["variant"], label) if x) or "default"
+        announce(f"{src}: {where} ({e['name']}, variant {variant})", resolved)
+        yield variant, resolved
 
 
 def _method(d, i, default_ratios, scene_names, src, protocol_names=()) -> list[MethodVariant]:
