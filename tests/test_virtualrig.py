@@ -60,7 +60,7 @@ def test_reference_backend_matches_dense_and_pairs(early_stop):
 
 
 def test_auto_backend_follows_the_device():
-    assert resolve_backend("auto", "cpu") == "pairs"
+    assert resolve_backend("auto", "cpu") == "sweep"
     assert resolve_backend("auto", "cuda") == resolve_backend("auto", "cuda:0") == "reference"
     with pytest.raises(ValueError, match="unknown significance backend"):
         resolve_backend("gl", "cpu")
