@@ -27,7 +27,9 @@ splat (no sampling: deterministic in the scene) and ignores non-finite centres.
   camera positions (:mod:`.rig`), kept for any kind (most clearance first) with their enclosure, so
   ``rig: inside-out`` can be forced where such free space exists.
 * **Subject**: ``peak``, the cell with the most opacity mass after Gaussian smoothing (σ = 1 cell)
-  — what a room capture circles (bonsai-7k: the bonsai on its table). :func:`free_reach` measures
+  — what a room capture circles (bonsai-7k: the bonsai on its table); ``subject``, its blob: the
+  connected cells (faces) around the peak whose smoothed mass is at least :data:`SUBJECT_SHARE` of
+  the peak's (a table top it stands on is a thin, lighter layer, not part of it). :func:`free_reach` measures
   how far a ray from it runs through free space, which is where the room rig puts its cameras.
 
 Measured on the five default scenes (render-free, before any evaluation; grid 32, mass 1), and the
@@ -45,7 +47,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import binary_closing, distance_transform_edt, gaussian_filter
+from scipy.ndimage import binary_closing, distance_transform_edt, gaussian_filter, label
 
 from harness.core.scene import GaussianScene, opacities
 from harness.core.sphere import fibonacci_sphere
@@ -54,6 +56,7 @@ MIN_CLEARANCE = 1.5  # cells between a probe and the nearest occupied cell
 MAX_PROBES = 512
 N_RAYS = 64
 CENTRAL_QUANTILE = 0.25  # the central region: within this weighted quantile of the distance to the centre
+SUBJECT_SHARE = 0.5  # smoothed mass, relative to the peak's, of the subject's blob
 SUBJECT_CELLS = 1.5  # occupied cells this close to the subject's peak are the subject, not an obstacle
 
 
@@ -72,6 +75,8 @@ class Shape:
     probe_enclosure: np.ndarray  # (K,) their enclosure
     peak: np.ndarray  # (3,) the subject: peak of the smoothed opacity mass
     occupied: np.ndarray  # (X, Y, Z) bool occupancy grid
+    mass: np.ndarray  # (X, Y, Z) opacity mass per cell
+    subject: np.ndarray  # (X, Y, Z) bool: the subject's blob around the peak
     origin: np.ndarray  # (3,) world position of the grid's corner
 
     def describe(self) -> str:
@@ -167,9 +172,12 @@ def analyse(scene: GaussianScene, *, grid: int = 32, occupied_mass: float = 1.0,
     cells = _subsample(free[np.linalg.norm(world - center, axis=1) <= central], seed)
     enc = ray_enclosure(occupied, cells + 0.5, fibonacci_sphere(N_RAYS)) if len(cells) else np.zeros(0)
     median = float(np.median(enc)) if len(enc) else 0.0
-    peak_cell = np.array(np.unravel_index(np.argmax(gaussian_filter(mass, 1.0, mode="constant")), mass.shape))
+    smooth = gaussian_filter(mass, 1.0, mode="constant")
+    peak_cell = np.array(np.unravel_index(np.argmax(smooth), mass.shape))
+    blobs = label(smooth >= SUBJECT_SHARE * smooth[tuple(peak_cell)])[0]
+    subject = blobs == blobs[tuple(peak_cell)]
     order = np.argsort(-clearance[tuple(cells.T)], kind="stable")
     cells = cells[order]
     return Shape("room" if median >= room_enclosure else "object", center, extent, radius, cell, median,
                  origin + (cells + 0.5) * cell, clearance[tuple(cells.T)] * cell, enc[order],
-                 origin + (peak_cell + 0.5) * cell, occupied, origin)
+                 origin + (peak_cell + 0.5) * cell, occupied, mass, subject, origin)
