@@ -16,15 +16,16 @@ subject (the line of sight to the opacity peak reaches the subject's blob before
 cell: not from under the table top it stands on) and lie at least :data:`MIN_CELLS` cells from it,
 chosen by :mod:`.coverage` — the positions whose views of the subject see the most content, greedily
 with diminishing returns — looking at the subject with ``fov_deg``. ``"around"``: along each of
-``views`` Fibonacci directions (seeded rotation) from the subject (the opacity peak of :mod:`.shape`),
-at :data:`REACH_SHARE` of the free run of that ray (how far it gets before an occupied cell that
-is not the subject's own; at least :data:`MIN_CELLS` cells out), looking back at the subject with
-``fov_deg``: a capture circles its subject from wherever the room leaves space. ``"enclosed"`` (the
-first, pre-registered version): ``⌈views / 6⌉`` positions by farthest-point sampling over the central probes whose own enclosure reaches the room threshold
-(the first the one with the most clearance), each the centre of a cube of six 90° views turned by a
-seeded random rotation. On bonsai-7k those positions all lie below the table top, hidden from the
-bonsai, and its selection run pruned worse than random (``results/virtualrig/selection.md``): the
-open space a capture is taken from is the *less* enclosed part of a room.
+``views`` Fibonacci directions (seeded rotation) from the subject (the opacity peak of
+:mod:`.shape`), at :data:`REACH_SHARE` of the free run of that ray (how far it gets before an
+occupied cell that is not the subject's own; at least :data:`MIN_CELLS` cells out), looking back at
+the subject with ``fov_deg``: a capture circles its subject from wherever the room leaves space.
+``"enclosed"`` (the first, pre-registered version): ``⌈views / 6⌉`` positions by farthest-point
+sampling over the central probes whose own enclosure reaches the room threshold (the first the one
+with the most clearance), each the centre of a cube of six 90° views turned by a seeded random
+rotation. On bonsai-7k those positions all lie below the table top, hidden from the bonsai, and its
+selection run pruned worse than random (``results/virtualrig/selection.md``): the open space a
+capture is taken from is the *less* enclosed part of a room.
 
 Images are square, ``resolution`` px; focal length from the field of view.
 """
