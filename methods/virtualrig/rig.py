@@ -7,8 +7,12 @@ multipliers ``m`` spaced geometrically from ``radius_max`` down to ``radius_min`
 object fills the frame; m < 1: closer views of its middle, where most detail is seen close up).
 Each shell holds an equal share of ``views`` directions from a Fibonacci sphere turned by its own
 seeded random rotation (no two shells share directions, and no axis of the scene's frame is
-favoured); every camera looks at ``center``. The full sphere of directions, below the content as
-well: which way is up cannot be told from splats.
+favoured); every camera looks at ``center``. When the content stands on a support plane
+(:mod:`.support`: the ground under an object), no camera goes below it: each shell's directions are
+then a Fibonacci spiral over the cap of directions u with up·u ≥ z_min, z_min putting the camera
+one occupancy cell above the plane (z_min = (plane + cell − up·center) / distance, clamped to
+[−1, 1)), turned about up by a seeded angle, and up is drawn up in the images; without a support,
+the full sphere of directions.
 
 **Inside-out** (``room``): the cameras stand inside the room, in its free space.
 ``positions="coverage"`` (default): at the central free-space probes of :mod:`.shape` that see the
@@ -27,7 +31,8 @@ rotation. On bonsai-7k those positions all lie below the table top, hidden from 
 selection run pruned worse than random (``results/virtualrig/selection.md``): the open space a
 capture is taken from is the *less* enclosed part of a room.
 
-Images are square, ``resolution`` px; focal length from the field of view.
+Images are square, ``resolution`` px; focal length from the field of view. ``harness diagnose SCENE
+--method virtual-rig`` draws where the cameras went.
 """
 
 from __future__ import annotations
