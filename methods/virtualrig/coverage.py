@@ -94,15 +94,21 @@ def sees_subject(occupied: np.ndarray, subject: np.ndarray, starts: np.ndarray, 
                          np.ascontiguousarray(point, np.float64))
 
 
-def greedy(seen: np.ndarray, mass: np.ndarray, k: int) -> np.ndarray:
-    """Indices of ``k`` candidates chosen by the diminishing-returns gain (module docstring)."""
+def greedy(seen: np.ndarray, mass: np.ndarray, k: int, positions: np.ndarray | None = None,
+           spacing: float = 0.0) -> np.ndarray:
+    """Indices of ``k`` candidates chosen by the diminishing-returns gain (module docstring); with
+    ``positions``, a candidate closer than ``spacing`` to a chosen one waits until no other is left."""
     weight = mass.astype(np.float64).copy()
     chosen: list[int] = []
     free = np.ones(len(seen), bool)
+    apart = np.ones(len(seen), bool)
     for _ in range(min(k, len(seen))):
-        gain = np.where(free, seen @ weight, -1.0)
-        best = int(np.argmax(gain))
+        gain = seen @ weight
+        pool = free & apart if (free & apart).any() else free
+        best = int(np.argmax(np.where(pool, gain, -1.0)))
         chosen.append(best)
         free[best] = False
         weight = np.where(seen[best], weight * 0.5, weight)
+        if positions is not None and spacing > 0:
+            apart &= np.linalg.norm(positions - positions[best], axis=1) >= spacing
     return np.array(chosen, np.int64)

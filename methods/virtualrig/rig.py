@@ -15,11 +15,11 @@ one occupancy cell above the plane (z_min = (plane + cell − up·center) / dist
 the full sphere of directions.
 
 **Inside-out** (``room``): the cameras stand inside the room, in its free space.
-``positions="coverage"`` (default): at the central free-space probes of :mod:`.shape` that see the
+``positions="coverage"`` (default): at free-space cells (:func:`coverage_candidates`) that see the
 subject (the line of sight to the opacity peak reaches the subject's blob before any other occupied
-cell: not from under the table top it stands on) and lie at least :data:`MIN_CELLS` cells from it,
-chosen by :mod:`.coverage` — the positions whose views of the subject see the most content, greedily
-with diminishing returns — looking at the subject with ``fov_deg``. ``"around"``: along each of
+cell: not from under the table top it stands on), chosen by :mod:`.coverage` — the positions whose
+views of the subject see the most content, greedily with diminishing returns, :data:`SPACING` cells
+apart — looking at the subject with ``fov_deg``. ``"around"``: along each of
 ``views`` Fibonacci directions (seeded rotation) from the subject (the opacity peak of
 :mod:`.shape`), at :data:`REACH_SHARE` of the free run of that ray (how far it gets before an
 occupied cell that is not the subject's own; at least :data:`MIN_CELLS` cells out), looking back at
@@ -44,12 +44,14 @@ import numpy as np
 from harness.core.cameras import Camera
 from harness.core.sphere import fibonacci_sphere, random_rotation
 from methods.virtualrig import coverage
-from methods.virtualrig.shape import SUBJECT_CELLS, Shape, free_reach
+from methods.virtualrig.shape import MIN_CLEARANCE, SUBJECT_CELLS, Shape, free_reach
 from methods.virtualrig.support import Support
 
 CUBE_FOV = 90.0
 REACH_SHARE = 0.7
 MIN_CELLS = 2.0
+MAX_CANDIDATES = 600  # room positions the coverage rig weighs
+SPACING = 2.0  # cells between two chosen room positions (while others remain)
 
 
 def _camera(eye, forward, *, fov_deg: float, resolution: int, name: str, up=None) -> Camera:
@@ -122,31 +124,40 @@ def around_subject(shape: Shape, *, views: int, fov_deg: float, resolution: int,
             for i, (u, d) in enumerate(zip(dirs, dist))]
 
 
-def by_coverage(shape: Shape, *, views: int, fov_deg: float, resolution: int) -> list[Camera]:
+def coverage_candidates(shape: Shape, seed: int) -> np.ndarray:
+    """World positions a room camera may stand at: free cells with :data:`.shape.MIN_CLEARANCE`
+    clearance within the content's weighted median distance of its centre, at least
+    :data:`MIN_CELLS` cells from the subject, at most :data:`MAX_CANDIDATES` (seeded sample)."""
+    free = np.argwhere(~shape.occupied & (shape.clearance >= MIN_CLEARANCE))
+    world = shape.origin + (free + 0.5) * shape.cell
+    near = np.linalg.norm(world - shape.center, axis=1) <= shape.median_distance
+    near &= np.linalg.norm(world - shape.peak, axis=1) >= MIN_CELLS * shape.cell
+    world = world[near]
+    if len(world) > MAX_CANDIDATES:
+        world = world[np.sort(np.random.default_rng(seed).choice(len(world), MAX_CANDIDATES, replace=False))]
+    return world
+
+
+def by_coverage(shape: Shape, *, views: int, fov_deg: float, resolution: int, seed: int) -> list[Camera]:
     """The room rig with ``positions="coverage"`` (module docstring)."""
-    if len(shape.probes) == 0:
-        raise ValueError("inside-out virtual rig: the scene has no central free space to stand in")
-    starts = (shape.probes - shape.origin) / shape.cell
-    to_subject = shape.peak - shape.probes
-    dist = np.linalg.norm(to_subject, axis=1)
-    ok = dist >= MIN_CELLS * shape.cell
-    ok &= coverage.sees_subject(shape.occupied, shape.subject, starts, (shape.peak - shape.origin) / shape.cell)
-    starts, forwards = starts[ok], to_subject[ok] / dist[ok, None]
-    if len(starts) == 0:
+    where = coverage_candidates(shape, seed)
+    starts = (where - shape.origin) / shape.cell
+    where = where[coverage.sees_subject(shape.occupied, shape.subject, starts, (shape.peak - shape.origin) / shape.cell)]
+    if len(where) == 0:
         raise ValueError("inside-out virtual rig: no free-space position in sight of the subject")
-    seen = coverage.visibility(shape.occupied, starts, forwards, fov_deg)
-    mass = shape.mass[shape.occupied]
-    pick = coverage.greedy(seen, mass, views)
-    eyes = shape.probes[ok][pick]
-    return [_camera(e, f, fov_deg=fov_deg, resolution=resolution, name=f"vr_cover_{i:03d}")
-            for i, (e, f) in enumerate(zip(eyes, forwards[pick]))]
+    forwards = (shape.peak - where) / np.linalg.norm(shape.peak - where, axis=1, keepdims=True)
+    seen = coverage.visibility(shape.occupied, (where - shape.origin) / shape.cell, forwards, fov_deg)
+    pick = coverage.greedy(seen, shape.mass[shape.occupied], views, positions=where / shape.cell,
+                           spacing=SPACING)
+    return [_camera(where[k], forwards[k], fov_deg=fov_deg, resolution=resolution, name=f"vr_cover_{i:03d}")
+            for i, k in enumerate(pick)]
 
 
 def inside_out(shape: Shape, *, views: int, resolution: int, seed: int, positions: str = "coverage",
                room_enclosure: float = 0.8, fov_deg: float = 60.0) -> list[Camera]:
     """The room rig (module docstring)."""
     if positions == "coverage":
-        return by_coverage(shape, views=views, fov_deg=fov_deg, resolution=resolution)
+        return by_coverage(shape, views=views, fov_deg=fov_deg, resolution=resolution, seed=seed)
     if positions == "around":
         return around_subject(shape, views=views, fov_deg=fov_deg, resolution=resolution, seed=seed)
     if positions != "enclosed":

@@ -77,6 +77,8 @@ class Shape:
     occupied: np.ndarray  # (X, Y, Z) bool occupancy grid
     mass: np.ndarray  # (X, Y, Z) opacity mass per cell
     subject: np.ndarray  # (X, Y, Z) bool: the subject's blob around the peak
+    clearance: np.ndarray  # (X, Y, Z) distance (cells) to the nearest occupied cell
+    median_distance: float  # weighted median distance of the content to center
     origin: np.ndarray  # (3,) world position of the grid's corner
 
     def describe(self) -> str:
@@ -180,4 +182,5 @@ def analyse(scene: GaussianScene, *, grid: int = 32, occupied_mass: float = 1.0,
     cells = cells[order]
     return Shape("room" if median >= room_enclosure else "object", center, extent, radius, cell, median,
                  origin + (cells + 0.5) * cell, clearance[tuple(cells.T)] * cell, enc[order],
-                 origin + (peak_cell + 0.5) * cell, occupied, mass, subject, origin)
+                 origin + (peak_cell + 0.5) * cell, occupied, mass, subject, clearance,
+                 weighted_quantile(dist, w, 0.5), origin)
