@@ -142,7 +142,8 @@ def by_coverage(shape: Shape, *, views: int, fov_deg: float, resolution: int, se
     """The room rig with ``positions="coverage"`` (module docstring)."""
     where = coverage_candidates(shape, seed)
     starts = (where - shape.origin) / shape.cell
-    where = where[coverage.sees_subject(shape.occupied, shape.subject, starts, (shape.peak - shape.origin) / shape.cell)]
+    subject = (shape.peak - shape.origin) / shape.cell
+    where = where[coverage.sees_subject(shape.occupied, shape.subject, starts, subject)]
     if len(where) == 0:
         raise ValueError("inside-out virtual rig: no free-space position in sight of the subject")
     forwards = (shape.peak - where) / np.linalg.norm(shape.peak - where, axis=1, keepdims=True)
