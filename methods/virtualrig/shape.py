@@ -87,11 +87,14 @@ class Shape:
                 f"{len(self.probes)} free-space probes")
 
 
-def weighted_quantile(values: np.ndarray, weights: np.ndarray, q: float) -> float:
-    """The smallest value whose cumulative weight reaches ``q`` of the total (a weighted quantile)."""
-    order = np.argsort(values, kind="stable")
+def weighted_quantile(values: np.ndarray, weights: np.ndarray, q):
+    """The smallest value whose cumulative weight reaches ``q`` of the total (a weighted quantile);
+    ``q`` a number or a sequence (one sort for all). Ties may sort in any order: the value is the same."""
+    order = np.argsort(values)
     cum = np.cumsum(weights[order])
-    return float(values[order][min(np.searchsorted(cum, q * cum[-1]), len(cum) - 1)])
+    k = np.minimum(np.searchsorted(cum, np.asarray(q, np.float64) * cum[-1]), len(cum) - 1)
+    out = values[order][k]
+    return float(out) if np.ndim(out) == 0 else out.astype(np.float64)
 
 
 def _weights(scene: GaussianScene) -> tuple[np.ndarray, np.ndarray]:
@@ -163,9 +166,8 @@ def analyse(scene: GaussianScene, *, grid: int = 32, occupied_mass: float = 1.0,
     pts, w = _weights(scene)
     center = np.array([weighted_quantile(pts[:, k], w, 0.5) for k in range(3)])
     dist = np.linalg.norm(pts - center, axis=1)
-    radius = max(weighted_quantile(dist, w, 0.95), 1e-6)
-    extent = max(weighted_quantile(dist, w, 0.90), 1e-6)
-    central = weighted_quantile(dist, w, CENTRAL_QUANTILE)
+    radius, extent, central, half = weighted_quantile(dist, w, [0.95, 0.90, CENTRAL_QUANTILE, 0.5])
+    radius, extent = max(float(radius), 1e-6), max(float(extent), 1e-6)
     core = dist <= radius
     occupied, mass, origin, cell = occupancy(pts[core], w[core], grid, occupied_mass)
     clearance = distance_transform_edt(~occupied) if occupied.any() else np.full(occupied.shape, np.inf)
@@ -183,4 +185,4 @@ def analyse(scene: GaussianScene, *, grid: int = 32, occupied_mass: float = 1.0,
     return Shape("room" if median >= room_enclosure else "object", center, extent, radius, cell, median,
                  origin + (cells + 0.5) * cell, clearance[tuple(cells.T)] * cell, enc[order],
                  origin + (peak_cell + 0.5) * cell, occupied, mass, subject, clearance,
-                 weighted_quantile(dist, w, 0.5), origin)
+                 float(half), origin)
