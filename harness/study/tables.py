@@ -5,6 +5,9 @@ from __future__ import annotations
 
 from harness.report.tables import register_table
 from harness.study.claims import table_claims
+from harness.study.vrgoals import table_virtual_rig
 
 register_table("claims", build=table_claims,
                title="The paper's claims, each tested as the paper states it, with a verdict")
+register_table("virtual_rig", build=table_virtual_rig,
+               title="The virtual rig against its goals at 30 % (gap to LightGS and to opacity, met or not)")
