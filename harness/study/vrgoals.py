@@ -23,8 +23,8 @@ from __future__ import annotations
 
 import pandas as pd
 
-from harness.study.paired import compare
 from harness.report.tabledata import Missing, Table
+from harness.study.paired import compare
 
 RATIO = 0.3
 MARGIN_DB = 0.5

@@ -107,8 +107,16 @@ def confirm(args) -> int:
 
 def add_arguments(parser) -> None:
     add_stage_arguments(parser, "select the parameters, or confirm them",
-                        "ctc_configs/study/virtualrig.yaml for select, virtualrig_confirm.yaml for confirm")
+                        "ctc_configs/study/virtualrig.yaml for select, virtualrig_confirm.yaml for confirm; "
+                        "round 2: ctc_configs/study/virtualrig2.yaml, virtualrig2_confirm.yaml")
+    parser.add_argument("--round", type=int, choices=(1, 2), default=1,
+                        help="1: the rig's geometry and betadesc-vr's weight; 2: where the cameras stand")
 
 
 def run(args) -> int:
+    if args.round == 2:
+        from harness.study import virtualrig_round2 as r2
+
+        return run_stage(args, "virtualrig2.yaml", "virtualrig2_confirm.yaml",
+                         lambda a: r2.select(a, OUT_SUB), lambda a: r2.confirm(a, OUT_SUB))
     return run_stage(args, "virtualrig.yaml", "virtualrig_confirm.yaml", select, confirm)
