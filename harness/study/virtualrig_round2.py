@@ -13,6 +13,10 @@
   selected value that changes its cameras (:func:`axes_changing`: the rig with that one value
   changed differs from the start's). Writes ``confirmation2.md`` (every protocol and ratio against
   LightGS and opacity, the test, the decision) and ``adopted2.json``.
+* :func:`rho` (``harness bench virtualrig rho``): the goal "Spearman ρ with LightGS significance ≥
+  :data:`RHO_GOAL` on every scene", render-free, as ``harness diagnose`` computes it (LightGS over
+  the scene's default-rig training views, 16 at 512 px; the virtual rig with its defaults), for the
+  scenes of ``--scenes``: ``rho.md`` / ``.json``, each scene ``met`` or ``not met``.
 """
 
 from __future__ import annotations
@@ -33,6 +37,8 @@ from harness.study.selection import harness_run, run_selection, write_selection
 RULE_PROTOCOLS = ("shifted", "independent")
 RATIO = 0.3
 MARGIN_DB = 0.5
+RHO_GOAL = 0.9
+RHO_SCENES = "bonsai-7k,bonsai-7k-mini,luigi,grape-small,playbot,synth-room,synth-statue"
 PREFIX = "vr2"
 
 
@@ -141,3 +147,33 @@ def _report(raw, df, scenes, lines, start, selected, adopted, revoked) -> str:
                    rs.confirmation_markdown(sub, scenes, ratios, [("selected", sel), ("start", st)], ref, "t")]
     return "\n".join(md)
 
+
+
+def rho(args, out_sub: str) -> int:
+    """Spearman ρ of the virtual rig's score with LightGS significance per scene (module docstring)."""
+    from scipy.stats import spearmanr
+
+    from harness.io.scenes import load_scene
+    from harness.views.rigs import training_views
+    from methods import PruneContext, get_pruner
+    from methods.diagnose import lightgs_significance
+
+    out = out_dir(args, out_sub)
+    rows = []
+    for name in [s.strip() for s in args.scenes.split(",") if s.strip()]:
+        scene = load_scene(name, lod=0 if name == "playbot" else None)
+        sig = lightgs_significance(scene, training_views(name, scene), longest_side=512)
+        score = get_pruner("virtual-rig").score(scene, PruneContext())
+        r = float(spearmanr(score, sig)[0])
+        rows.append({"scene": name, "splats": len(scene), "rho": r, "met": r >= RHO_GOAL})
+        print(f"{name}: rho {r:+.3f}", flush=True)
+    md = ["Spearman ρ of the virtual rig's score (its defaults) with LightGS significance over each scene's "
+          f"default-rig training views (16, 512 px), as `harness diagnose`; goal ρ ≥ {RHO_GOAL:g} on every scene.", "",
+          "| scene | splats | ρ | goal |", "|---|---|---|---|"]
+    md += [f"| {r['scene']} | {r['splats']:,} | {r['rho']:+.3f} | {'met' if r['met'] else 'not met'} |" for r in rows]
+    md += ["", f"Every scene: {'met' if all(r['met'] for r in rows) else 'not met'}."]
+    atomic_write_text(out / "rho.md", "\n".join(md) + "\n")
+    atomic_write_text(out / "rho.json", json.dumps(rows, indent=2) + "\n")
+    print("\n".join(md))
+    print(f"wrote {out / 'rho.md'} and .json{tracked_note(out)}")
+    return 0
