@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.core.scene import GaussianScene
+from harness.core.scene import GaussianScene, quat_to_rotmat
 
 SH_C0 = 0.28209479177387814
 SEEDS = {"synth-room": 101, "synth-statue": 202}
@@ -131,11 +131,7 @@ def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def _rotate(q: np.ndarray, p: np.ndarray) -> np.ndarray:
-    w, x, y, z = q
-    r = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                  [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                  [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-    return p @ r.T
+    return p @ quat_to_rotmat(q[None])[0].T
 
 
 def _box(b: _Builder, lo, hi, density: float, colour, **kw) -> None:

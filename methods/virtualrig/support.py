@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import binary_dilation
 
-from harness.core.scene import GaussianScene, normalized_quats, opacities
+from harness.core.scene import GaussianScene, opacities, quat_to_rotmat
 from harness.core.sphere import fibonacci_sphere
 
 FLAT = 0.3
@@ -95,12 +95,7 @@ def flat_normals(scene: GaussianScene, core: np.ndarray, seed: int = 0):
     s = np.take_along_axis(scales, order, axis=1)
     flat = (s[:, 0] <= FLAT * np.sqrt(s[:, 1] * s[:, 2])) & (opacities(scene) >= OPAQUE) & core
     idx = _at_most(np.flatnonzero(flat), TEST_SAMPLE, np.random.default_rng(seed))
-    q = normalized_quats(scene.quats[idx]).astype(np.float64)
-    w, x, y, z = q.T
-    rot = np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], -2)
+    rot = quat_to_rotmat(scene.quats[idx].astype(np.float64))
     normals = rot[np.arange(len(idx)), :, order[idx, 0]]
     weights = opacities(scene)[idx].astype(np.float64) * s[idx, 1] * s[idx, 2]
     return normals, weights, scene.means[idx].astype(np.float64)
