@@ -141,7 +141,7 @@ def _room_with_table(seed=0):
 
 def test_room_cameras_see_the_subject_and_none_stands_under_the_table():
     scene = _room_with_table()
-    shape, cams = virtual_cameras(scene, VirtualRigParams(views=24, resolution=32, grid=32))
+    shape, cams = virtual_cameras(scene, VirtualRigParams(views=24, resolution=32, positions="coverage"))
     assert shape.kind == "room" and len(cams) == 24
     eyes = np.array([c.center for c in cams])
     under = (np.abs(eyes[:, 0]) < 1.5) & (np.abs(eyes[:, 1]) < 1.5) & (eyes[:, 2] < -1.0)

@@ -30,8 +30,8 @@ The accumulation is :func:`significance`, shared with the camera-free ``virtual-
 
 * ``sweep`` (the CPU's): :mod:`renderers.sweep`, one front-to-back pass over the depth-sorted splats
   with a transmittance per pixel, the projection in numba — bit for bit the ``pairs`` result (same
-  projection, same float operations in the same order per pixel and per splat), 8–13× faster on the
-  virtual rig's views (bonsai-7k, luigi at 384 px; ``harness bench methods``);
+  projection, same float operations in the same order per pixel and per splat), 4–11× faster on the
+  same views, projection included (``harness bench methods --backends``, ``results/virtualrig/bench/``);
 * ``pairs``: :mod:`renderers.pixel_pairs`, the reference rasterizer's projection and α tests
   compositing over enumerated (pixel, splat) pairs (numba, CPU; on CUDA only the projection runs on
   the GPU);

@@ -30,7 +30,7 @@ class VirtualRigParams(Params):
     rig: Literal["auto", "outside-in", "inside-out"] = param(
         "auto", doc="auto = outside-in for an object, inside-out for a room (the scene-shape analysis); "
         "or force one")
-    views: int = param(48, ge=1, le=1024, doc="virtual views (inside-out: cubes of 6, ⌈views/6⌉ positions)")
+    views: int = param(48, ge=1, le=1024, doc="virtual views (inside-out enclosed: cubes of 6, ⌈views/6⌉ positions)")
     shells: int = param(2, ge=1, le=16, doc="outside-in: concentric shells of cameras, equal shares of the views")
     radius_min: float = param(0.6, gt=0, le=10, doc="outside-in: distance of the closest shell, a multiple of "
                               "the fit distance R/sin(fov/2) (R: weighted P95 distance to the centre)")

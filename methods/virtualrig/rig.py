@@ -15,11 +15,11 @@ one occupancy cell above the plane (z_min = (plane + cell − up·center) / dist
 the full sphere of directions.
 
 **Inside-out** (``room``): the cameras stand inside the room, in its free space.
-``positions="coverage"`` (default): at free-space cells (:func:`coverage_candidates`) that see the
+``positions="coverage"``: at free-space cells (:func:`coverage_candidates`) that see the
 subject (the line of sight to the opacity peak reaches the subject's blob before any other occupied
 cell: not from under the table top it stands on), chosen by :mod:`.coverage` — the positions whose
 views of the subject see the most content, greedily with diminishing returns, :data:`SPACING` cells
-apart — looking at the subject with ``fov_deg``. ``"around"``: along each of
+apart — looking at the subject with ``fov_deg``. ``"around"`` (default): along each of
 ``views`` Fibonacci directions (seeded rotation) from the subject (the opacity peak of
 :mod:`.shape`), at :data:`REACH_SHARE` of the free run of that ray (how far it gets before an
 occupied cell that is not the subject's own; at least :data:`MIN_CELLS` cells out), looking back at
@@ -154,7 +154,7 @@ def by_coverage(shape: Shape, *, views: int, fov_deg: float, resolution: int, se
             for i, k in enumerate(pick)]
 
 
-def inside_out(shape: Shape, *, views: int, resolution: int, seed: int, positions: str = "coverage",
+def inside_out(shape: Shape, *, views: int, resolution: int, seed: int, positions: str = "around",
                room_enclosure: float = 0.8, fov_deg: float = 60.0) -> list[Camera]:
     """The room rig (module docstring)."""
     if positions == "coverage":
