@@ -39,16 +39,18 @@ class VirtualRigParams(Params):
     resolution: int = param(384, ge=16, le=4096, doc="side of the square virtual views (px; 384 by the "
                             "pre-registered selection, results/virtualrig/selection.md)")
     grid: int = param(32, ge=8, le=256, doc="occupancy-grid cells along the content's longest side")
-    positions: Literal["coverage", "around", "enclosed"] = param(
-        "coverage", doc="inside-out cameras: coverage = the central free-space positions whose views of the "
-        "subject (the opacity peak) see the most content, chosen greedily with diminishing returns "
-        "(methods/virtualrig/coverage.py); around = along every direction from the subject at 0.7 of its "
-        "free reach; enclosed = cubes of six 90° views from the enclosed central free space (the first, "
-        "pre-registered version: on bonsai-7k all below the table top)")
+    positions: Literal["around", "coverage", "enclosed"] = param(
+        "around", doc="inside-out cameras: around = along every direction from the subject (the opacity "
+        "peak) at 0.7 of its free reach, looking at it; coverage = free-space positions within the content's "
+        "median distance that see the subject, chosen greedily by the content their views add "
+        "(methods/virtualrig/coverage.py; not adopted by the round-two selection, "
+        "results/virtualrig/selection2.md); enclosed = cubes of six 90° views from the enclosed central free "
+        "space (the first, pre-registered version: on bonsai-7k all below the table top)")
     support: Literal["auto", "off"] = param(
         "auto", doc="outside-in: auto = find the plane the content stands on (a dominant one-sided plane "
         "under the content's footprint, from the flat splats' normals; methods/virtualrig/support.py) and put "
-        "no camera below it; off = the full sphere of directions")
+        "no camera below it (adopted by the round-two selection and confirmation, "
+        "results/virtualrig/confirmation2.md); off = the full sphere of directions")
     room_enclosure: float = param(0.8, gt=0, le=1, doc="median share of blocked rays from the central free "
                                   "space from which the scene is a room (inside-out)")
     rig_seed: int = param(0, ge=0, doc="seed of the rig's rotations and probe subsample (not the run's seed)")
