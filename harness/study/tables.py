@@ -1,6 +1,6 @@
-"""The study's tables — ``claims``, ``findings`` generated from it, and the virtual rig against its goals — registered as a third party
-registers one (:func:`harness.report.tables.register_table`; this module is named by the project's
-``harness.tables`` entry point)."""
+"""The study's tables — ``claims``, ``findings`` generated from it, and the virtual rig against its
+goals — registered as a third party registers one (:func:`harness.report.tables.register_table`; this
+module is named by the project's ``harness.tables`` entry point)."""
 
 from __future__ import annotations
 
