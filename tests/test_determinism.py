@@ -164,3 +164,19 @@ def test_the_miniature_keeps_every_method_protocol_table_and_plot_of_the_default
     assert [p.name for p in mini.protocols] == [p.name for p in default.protocols]
     assert (mini.tables, mini.plots, mini.protocol.metrics) == (default.tables, default.plots, default.protocol.metrics)
     assert len(mini.scenes) == 1 and mini.scenes[0].capture
+
+
+def test_a_record_names_the_cpu_it_was_measured_on():
+    """Float rounding may differ between CPUs (the GL renderer compiles its shaders for the one it runs
+    on), so a run record says which: model name and widest vector extension, as /proc/cpuinfo has them."""
+    from harness.report.machine import SIMD_LEVELS, describe_machine
+
+    machine = describe_machine()
+    assert isinstance(machine["cpu"], str) and machine["cpu"]
+    info = Path("/proc/cpuinfo")
+    if not info.is_file():
+        pytest.skip("no /proc/cpuinfo on this system")
+    text = info.read_text()
+    assert machine["cpu"] in text
+    flags = next((ln for ln in text.splitlines() if ln.startswith("flags")), "").split()
+    assert machine["simd"] == next((f for f in SIMD_LEVELS if f in flags), "")
