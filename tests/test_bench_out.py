@@ -7,14 +7,14 @@ import pytest
 
 from harness.benchmarks import _common
 from harness.cli import main
-from harness.commands import catalog
+from harness.commands.bench import benchmarks
 from harness.core.paths import results_dir
 from harness.io.scenes import write_scene
 from tests.scene_factory import random_scene
 
 
 def test_every_benchmark_takes_out(capsys):
-    for entry in catalog("harness.benchmarks"):
+    for entry in benchmarks():
         with pytest.raises(SystemExit):
             main(["bench", entry.name, "--help"])
         assert "--out DIR" in capsys.readouterr().out, entry.name

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from harness.core.scene import GaussianScene
-from methods.betadesc import directions as dirs
+from harness.study import directions as dirs
 from methods.betadesc.hsfh import compute_hsfh
 from methods.betadesc.statistics import ELL_READINGS, S_READINGS, U_READINGS
 

@@ -44,7 +44,7 @@ def test_registered_with_documented_params():
         assert {"preset", "view_weight"} <= set(spec.params.names())
         assert all(p.doc for p in spec.params.specs())
     full = get_pruner("betadesc").parse_params()
-    assert full.voxel == 0.2 and full.gamma == 0.25 and full.score == "ucb"  # round two's selection
+    assert full.voxel == 0.01 and full.gamma == 0.25 and full.score == "ucb"  # the paper's L313 and L315
     assert full.view_weight == 0.0  # camera-agnostic unless asked
     assert "score" not in get_pruner("betadesc-nobeta").params.names()
     assert "voxel" not in get_pruner("betadesc-nodesc").params.names()

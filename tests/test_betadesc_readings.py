@@ -196,7 +196,7 @@ def test_opacity_only_is_the_opacity_baselines_twin():
             np.testing.assert_array_equal(select_by_ratio(s, r).keep, select_by_ratio(opacity, r).keep)
 
 
-@pytest.mark.parametrize("read", [{"reading": "default"}, {"reading": "paper-literal"}, {"reading": "v1"},
+@pytest.mark.parametrize("read", [{"reading": "round-two"}, {"reading": "paper-literal"}, {"reading": "v1"},
                                   {"nodesc_def": "param-stats"}], ids=str)
 def test_the_no_descriptor_ablation_uses_more_than_opacity(read):
     scene = random_scene(500, sh_degree=2, seed=5)
@@ -255,7 +255,8 @@ def test_reading_bundles_and_explicit_overrides():
         "sigmoid", "dispersion", "nbhd-std", "nbhd-var", "clip-sum", "robust")
     mixed = BetaDescParams.parse({"reading": "paper-literal", "o_norm": "rank"})
     assert mixed.o_norm == "rank" and mixed.u_def == "std-hsfh"
-    assert BetaDescParams.parse({}).ell_def == "nbhd-std"  # the rule's selection
+    assert BetaDescParams.parse({}) == lit  # the default is the paper as written
+    assert BetaDescParams.parse({"reading": "round-two"}).ell_def == "nbhd-std"  # round one's selection, kept
     assert lit.replace(prior=2.0).o_norm == "minmax"
     nd = NoDescParams.parse({"reading": "v1"})
     assert nd.nodesc_def == "param-stats" and not hasattr(nd, "u_def")
@@ -271,7 +272,7 @@ def test_reading_bundles_and_explicit_overrides():
 
 
 @pytest.mark.parametrize("values, key, match", [
-    ({"reading": "literal"}, "reading", "is not one of default, paper-literal, paper-direction, round-one, v1"),
+    ({"reading": "literal"}, "reading", "is not one of paper-literal, paper-direction, round-one, round-two, v1"),
     ({"reading": ["paper-literal"]}, "reading", "expected a string"),
     ({"o_norm": "zscore"}, "o_norm", "is not one of sigmoid, minmax, robust, rank"),
     ({"u_def": "std"}, "u_def", "is not one of dispersion, std-geo, std-hsfh, spread-hsfh"),
@@ -369,7 +370,7 @@ def test_methods_command_shows_readings_and_labels_the_invented_presets(capsys):
     p = rows["betadesc"]["params"]
     assert "L240-242" in p["u_def"]["reading"] and "across dimensions" in p["u_def"]["reading"]
     assert "own invention" in p["preset"]["doc"] and "L468" in p["preset"]["reading"]
-    assert p["reading"]["default"] == "default" and "paper-literal" in p["reading"]["type"]
+    assert p["reading"]["default"] == "paper-literal" and "round-two" in p["reading"]["type"]
     assert main(["methods"]) == 0
     assert "own invention" in capsys.readouterr().out.replace("\n", " ").replace("│", " ")
 

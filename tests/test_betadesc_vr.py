@@ -26,11 +26,13 @@ def test_normalise_rank_and_log_minmax():
 
 @pytest.mark.parametrize("descriptors", [True, False])
 def test_zero_weight_is_betadesc_and_its_ablation(descriptors):
-    """vr_weight 0 adds nothing: the score is betadesc's (descriptors) or betadesc-nodesc's, same reading."""
+    """vr_weight 0 adds nothing: the score is betadesc's (descriptors) or betadesc-nodesc's, same reading
+    (betadesc-vr's own default reading, round-two: the one its selection was made on)."""
     scene = _small_object()
     got = get_pruner("betadesc-vr").score(scene, PruneContext(params={**RIG, "vr_weight": 0.0,
                                                                       "descriptors": descriptors}))
-    base = get_pruner("betadesc" if descriptors else "betadesc-nodesc").score(scene, PruneContext(params={}))
+    same = {"reading": "round-two"}
+    base = get_pruner("betadesc" if descriptors else "betadesc-nodesc").score(scene, PruneContext(params=same))
     np.testing.assert_allclose(got, base, rtol=1e-12)
 
 

@@ -83,3 +83,22 @@ def test_ratios_canonical_merge_and_errors():
     for bad in (-0.1, 1.5, float("nan"), float("inf")):
         with pytest.raises(ValueError):
             ratios.canonical(bad)
+
+
+def test_a_tuple_of_numbers_is_a_parameter_too():
+    from dataclasses import dataclass
+
+    from harness.core.params import ParamError, Params, param
+
+    @dataclass(frozen=True)
+    class Rings(Params):
+        above: tuple[float, ...] = param((15.0, 30.0), ge=-80, le=80, doc="degrees above")
+
+    spec = Rings.specs()[0]
+    assert spec.many and spec.describe() == "list of float >= -80, <= 80"
+    assert Rings.parse({"above": [40, 50.5]}).above == (40.0, 50.5) and Rings.parse({}).above == (15.0, 30.0)
+    assert Rings.parse_text({"above": "10, 20"}).above == (10.0, 20.0)
+    with pytest.raises(ParamError, match="above: 90.0 is not <= 80"):
+        Rings.parse({"above": [10, 90]})
+    with pytest.raises(ParamError, match="above: expected a list of float values"):
+        Rings.parse({"above": 10})

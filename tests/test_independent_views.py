@@ -81,6 +81,6 @@ def test_protocol_plugs_into_the_runner_like_shifted():
 
 def test_virtualrig_configs_are_valid():
     for name in ("virtualrig", "virtualrig_confirm"):
-        cfg = load_config(REPO / "ctc_configs" / f"{name}.yaml")
+        cfg = load_config(REPO / "ctc_configs" / "study" / f"{name}.yaml")
         assert [p.name for p in cfg.protocols] == ["rig", "shifted", "independent"]
         assert {"virtual-rig", "betadesc-vr", "lightgs"} <= {m.method for m in cfg.methods}

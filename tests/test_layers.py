@@ -6,7 +6,9 @@ inside functions: a lazy import is still a dependency), and checked against :dat
     commands/cli → api, benchmarks → run → report → methods → renderers, metrics → views, io → core
 
 ``methods`` and ``renderers`` never reach ``harness.run`` or ``harness.report``; ``harness.core``
-imports nothing of the project. A cycle between modules (A imports B, which imports A, directly or
+imports nothing of the project. The paper study (``harness.study``) stands beside the product: it
+may import everything but the commands, and nothing of the product imports it (it plugs in through
+entry points, as a third-party package does). A cycle between modules (A imports B, which imports A, directly or
 through others) fails too, lazily imported or not.
 """
 
@@ -31,11 +33,12 @@ RUN = REPORT | {"harness.run"}
 BENCHMARKS = RUN | {"harness.benchmarks"}
 API = RUN | {"harness.api"}
 COMMANDS = BENCHMARKS | API | {"harness.commands"}
+STUDY = BENCHMARKS | API | {"harness.study"}
 #: layer of a module (longest matching prefix) -> the layers it may import
 ALLOWED = {
     "harness.core": CORE, "harness.io": IO, "harness.views": VIEWS, "harness.metrics": METRICS,
     "renderers": RENDERERS, "methods": METHODS, "harness.report": REPORT, "harness.run": RUN,
-    "harness.benchmarks": BENCHMARKS, "harness.api": API, "harness.commands": COMMANDS,
+    "harness.benchmarks": BENCHMARKS, "harness.api": API, "harness.commands": COMMANDS, "harness.study": STUDY,
     "harness.cli": COMMANDS | {"harness.cli", "harness"}, "harness.__main__": {"harness.cli"},
     "harness": {"harness", "harness.api", "harness.core"},
 }
@@ -103,6 +106,13 @@ def test_methods_and_renderers_never_reach_run_or_report(graph):
     for name, deps in graph.items():
         if layer(name) in ("methods", "renderers"):
             assert not {d for d in deps if layer(d) in ("harness.run", "harness.report")}, name
+
+
+def test_the_product_never_imports_the_study(graph):
+    assert not any("harness.study" in allowed for name, allowed in ALLOWED.items() if name != "harness.study")
+    bad = sorted(f"{name} imports {dep}" for name, deps in graph.items() if layer(name) != "harness.study"
+                 for dep in deps if layer(dep) == "harness.study")
+    assert not bad, "the product imports the study:\n" + "\n".join(bad)
 
 
 def strongly_connected(graph: dict[str, set[str]]) -> list[list[str]]:

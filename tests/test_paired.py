@@ -9,8 +9,8 @@ import pandas as pd
 import pytest
 import yaml
 
-from harness.report import reading_search as rs
-from harness.report.paired import bootstrap_ci, compare, paired_difference
+from harness.study import reading_search as rs
+from harness.study.paired import bootstrap_ci, compare, paired_difference
 
 
 def test_bootstrap_ci_hand_cases():
@@ -119,7 +119,7 @@ def test_missing_lists_readings_without_rows():
 def test_round_two_config_encodes_the_registered_axes():
     from harness.core.paths import REPO_ROOT
 
-    raw = yaml.safe_load((REPO_ROOT / "ctc_configs" / "reading2.yaml").read_text())
+    raw = yaml.safe_load((REPO_ROOT / "ctc_configs" / "study" / "reading2.yaml").read_text())
     space = rs.search_space(raw, interval="t", searched=rs.SEARCHED)
     assert space.interval == "t" and space.scenes == ("bonsai-7k-mini", "luigi") and space.ratio == 0.3
     assert space.starts == {"betadesc": {"reading": "round-one"}, "betadesc-nodesc": {"reading": "paper-literal"}}
@@ -143,7 +143,7 @@ def test_round_two_walk_joint_axis_then_single_axes_then_the_ablation():
     scene only (kept), and param-stats beats splat-params for the ablation on both (adopted)."""
     from harness.core.paths import REPO_ROOT
 
-    raw = yaml.safe_load((REPO_ROOT / "ctc_configs" / "reading2.yaml").read_text())
+    raw = yaml.safe_load((REPO_ROOT / "ctc_configs" / "study" / "reading2.yaml").read_text())
     space = rs.search_space(raw, interval="t", searched=rs.SEARCHED, prefix="r1")
     rng = np.random.default_rng(0)
     noise = rng.normal(0, 0.05, 8)

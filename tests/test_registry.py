@@ -112,7 +112,7 @@ def test_methods_command_lists_json(capsys):
     assert by_name["random"]["params"] == {} and by_name["random"]["group"] == "baseline"
     assert by_name["opacity"]["needs"] == [] and by_name["lightgs"]["needs"] == ["cameras"]
     voxel = by_name["betadesc"]["params"]["voxel"]
-    assert voxel["type"] == "float > 0, <= 1" and voxel["default"] == 0.2
+    assert voxel["type"] == "float > 0, <= 1" and voxel["default"] == 0.01
     assert voxel["doc"].startswith("voxel edge as a fraction of the bounding-box diagonal")
     assert by_name["betadesc"]["ablation"] == {"descriptors": True, "beta": True}
 

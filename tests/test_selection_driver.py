@@ -1,4 +1,4 @@
-"""The selection driver (:mod:`harness.benchmarks._selection`) end to end through ``harness bench
+"""The selection driver (:mod:`harness.study.selection`) end to end through ``harness bench
 virtualrig select``, with ``harness run`` replaced by a fake that parses each config it is given (the
 real parser: the generated stage configs must be valid) and writes PSNRs from known effects. Checked:
 only the rule's protocols judge, an over-budget value is never run, an axis that does not apply to a
@@ -15,9 +15,10 @@ from types import SimpleNamespace
 import numpy as np
 import yaml
 
-from harness.benchmarks import _selection, virtualrig
 from harness.report.results import to_frame
 from harness.run.config import parse_config
+from harness.study import selection
+from harness.study.bench import virtualrig
 
 CONFIG = """
 name: t
@@ -70,8 +71,8 @@ def fake_run(root: Path, calls: list):
 
 def test_select_walks_the_rule_and_runs_only_what_it_needs(tmp_path, monkeypatch, capsys):
     calls = []
-    monkeypatch.setattr(_selection, "REPO", tmp_path)
-    monkeypatch.setattr(_selection, "harness_run", fake_run(tmp_path, calls))
+    monkeypatch.setattr(selection, "REPO", tmp_path)
+    monkeypatch.setattr(selection, "harness_run", fake_run(tmp_path, calls))
     (tmp_path / "t.yaml").write_text(CONFIG)
     args = SimpleNamespace(stage="select", config=str(tmp_path / "t.yaml"), workers=1, out=str(tmp_path / "out"))
     assert virtualrig.select(args) == 0

@@ -7,13 +7,13 @@ import json
 import numpy as np
 import pytest
 
-from harness.benchmarks._tradeoff_knobs import (
+from harness.study.bench.tradeoff import LIMITS, markdown, within
+from harness.study.tradeoff_knobs import (
     Row,
     downsample,
     pareto_front,
     removed_jaccard,
 )
-from harness.benchmarks.tradeoff import LIMITS, markdown, within
 
 
 def test_pareto_front_by_hand():

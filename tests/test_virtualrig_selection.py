@@ -1,4 +1,4 @@
-"""The pre-registered selection engine as the virtual rig's rule uses it (``ctc_configs/virtualrig.yaml``):
+"""The pre-registered selection engine as the virtual rig's rule uses it (``ctc_configs/study/virtualrig.yaml``):
 reference lightgs, two protocols pooled, an over-budget value ruled out, and an axis that does not
 apply to a scene judged on the scenes it changes."""
 
@@ -9,8 +9,8 @@ import pandas as pd
 import pytest
 import yaml
 
-from harness.benchmarks.virtualrig import in_budget, rule_space
-from harness.report import reading_search as rs
+from harness.study import reading_search as rs
+from harness.study.bench.virtualrig import in_budget, rule_space
 from tests.test_paired import _rows
 from tests.test_virtualrig import REPO
 
@@ -69,7 +69,7 @@ def test_a_loss_on_the_other_scene_blocks_adoption_and_unchanged_everywhere_is_n
 def test_budget_and_the_shipped_rule():
     assert in_budget({"views": 48, "resolution": 384}) and in_budget({"views": 96, "resolution": 256})
     assert not in_budget({"views": 96, "resolution": 384}) and not in_budget({"views": 48, "resolution": 512})
-    raw = yaml.safe_load((REPO / "ctc_configs" / "virtualrig.yaml").read_text())
+    raw = yaml.safe_load((REPO / "ctc_configs" / "study" / "virtualrig.yaml").read_text())
     space = rule_space(raw, "virtual-rig", "vr")
     assert [a.name for a in space.axes] == ["resolution", "views", "fov_deg", "radius_min", "early_stop"]
     # the defaults first: since the outcome, resolution 384 (the rule started from 256)

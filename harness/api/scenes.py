@@ -126,9 +126,10 @@ def methods() -> list[dict]:
             for s in list_pruners()]
 
 
-def pruner(method: str, params: dict):
+def pruner(method: str, params: dict, *, announce_advice: bool = True):
     """(the pruner's spec, its resolved :class:`harness.core.params.Params`); errors name
-    ``method`` or the parameter."""
+    ``method`` or the parameter; the parameters' advisories are printed once (``announce_advice``)."""
+    from harness.core.advice import announce
     from harness.core.params import ParamError
     from methods import get_pruner
 
@@ -137,9 +138,12 @@ def pruner(method: str, params: dict):
     except KeyError as err:
         raise InputError("method", str(err.args[0])) from None
     try:
-        return spec, spec.params.parse(params)
+        resolved = spec.params.parse(params)
     except ParamError as err:
         raise InputError(err.key or "params", f"method {spec.name!r}: {err.problem}") from None
+    if announce_advice:
+        announce(f"method {spec.name!r}", resolved)
+    return spec, resolved
 
 
 def _cameras(spec, params, cameras):

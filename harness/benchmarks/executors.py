@@ -18,7 +18,7 @@ interleaved over the repeats, so a drift in the machine's load hits every varian
 
 Every run's ``results.csv`` must equal the first run's except the wall-clock columns; the table
 says whether it did. Results: ``results/bench/executors.{json,md}`` for ci.yaml,
-``executors-<config stem>.{json,md}`` for another ``--config`` (e.g. ``ctc_configs/scaling.yaml`` ->
+``executors-<config stem>.{json,md}`` for another ``--config`` (e.g. ``ctc_configs/study/scaling.yaml`` ->
 ``executors-scaling``, a larger workload where the fixed costs matter less).
 """
 

@@ -9,15 +9,21 @@
    and betadesc (those registered and scored), PSNR of the pruned render against the unpruned render
    on the first ``--test-views`` held-out (test) views of the same rig, with the GL renderer (the
    reference rasterizer if GL cannot start).
-3. **Descriptor overhead** (``--overhead``; the paper's runtime claim, L474: "single CPU thread,
-   method timing only", 7.29 vs 6.78 s per scene, ≈ 8 %): per scene of ``--scenes`` (default the five
-   of ``default.yaml``), ``betadesc`` and ``betadesc-nodesc`` (default parameters: the faithful
-   no-descriptor ablation) score the scene once to warm up, then ``--repeats`` times interleaved,
-   with numba at one thread (the pipeline's only parallel kernels). Overhead per repeat =
-   100·(t_full − t_nodesc)/t_nodesc with t the process CPU seconds (one thread: the wall time of an
-   idle machine; on this shared machine wall times carry other jobs' load, so they are reported
-   beside it but not used); per scene its mean with the t interval over the repeats. Writes
-   ``results/bench/overhead.json`` / ``.md``, which the ``claims`` table reads.
+3. **Backends** (``--backends``): the significance sums of ``lightgs`` (the rig's training views at
+   its 512 px) and ``virtual-rig`` (its own rig, placed once and timed apart) computed by each exact
+   CPU backend of :func:`methods.lightgs.significance.significance` — ``sweep`` (the default) and
+   ``pairs`` (the pixel-pair compositing it replaced) — one after the other in this process, one
+   torch thread: CPU seconds of each, their ratio, and whether the sums are identical (max relative
+   difference, Spearman ρ). ``--stem`` names the result files (``methods-<scene>`` for the committed
+   per-scene reports under ``results/virtualrig/bench/``).
+4. **Descriptor overhead** (``--overhead``; the paper's runtime claim, L474): per scene of ``--scenes``
+   (default the five of ``default.yaml``), ``betadesc`` and ``betadesc-nodesc`` (default parameters:
+   the paper-literal reading, the faithful no-descriptor ablation) each prune the scene end to end
+   (read, score, select, write) in a child process with every thread pool pinned to one, warm-up
+   then ``--repeats`` interleaved rounds, process CPU seconds (:mod:`harness.benchmarks._overhead`).
+   Writes ``overhead.json`` / ``.md`` (``--out results/bench`` updates the file the ``claims`` table
+   reads): per scene the added seconds and the overhead %, each a mean with its t interval over
+   the rounds, and a note where our no-descriptor baseline differs from the paper's by more than 5×.
 """
 
 from __future__ import annotations
@@ -25,6 +31,7 @@ from __future__ import annotations
 import logging
 import os
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -40,15 +47,18 @@ OVERHEAD_PAIR = ("betadesc", "betadesc-nodesc")
 def add_arguments(parser) -> None:
     parser.add_argument("--scene", default="bonsai-7k-mini", help="scene name or path (default bonsai-7k-mini)")
     parser.add_argument("--overhead", action="store_true",
-                        help="time betadesc vs betadesc-nodesc single-threaded per scene (results/bench/overhead.*)")
+                        help="time betadesc vs betadesc-nodesc end to end on one thread per scene (overhead.*)")
     parser.add_argument("--scenes", default=OVERHEAD_SCENES, help="--overhead: comma-separated scenes")
     parser.add_argument("--repeats", type=int, default=5, help="--overhead: interleaved timings per method")
     parser.add_argument("--methods", default="", help="comma-separated pruners (default: every registered one)")
     parser.add_argument("--quality", action="store_true", help="also render pruned vs unpruned test views")
-    parser.add_argument("--ratio", type=float, default=0.3, help="pruning ratio of the quality study")
+    parser.add_argument("--ratio", type=float, default=0.3, help="pruning ratio of the quality study and of --overhead")
     parser.add_argument("--test-views", type=int, default=4, help="held-out views rendered (default 4)")
     parser.add_argument("--renderer", choices=("gl", "reference"), default="gl")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--backends", action="store_true",
+                        help="also time lightgs's and virtual-rig's significance with the sweep and the pairs backend")
+    parser.add_argument("--stem", default=NAME, help="result file name without suffix (default methods)")
 
 
 def _score_all(scene, rig, names: list[str], seed: int) -> tuple[dict, dict]:
@@ -103,6 +113,54 @@ def _quality(scene, rig, scores: dict, ratio: float, n_views: int, renderer_name
             "psnr": psnr, "mean_psnr": {m: float(np.mean(v)) for m, v in psnr.items()}}
 
 
+def _backends(scene, rig, names: list[str]) -> dict:
+    """Sweep vs pairs on the same views (module docstring, 3)."""
+    from scipy.stats import spearmanr
+
+    from methods.lightgs import LightGSParams
+    from methods.lightgs.significance import significance
+    from methods.virtualrig import VirtualRigParams, virtual_cameras
+    from renderers.pixel_pairs import torch_threads
+
+    jobs = {}
+    if "lightgs" in names:
+        jobs["lightgs"] = {"cameras": rig.train, "side": LightGSParams().train_longest_side, "rig_cpu_s": 0.0}
+    if "virtual-rig" in names:
+        c0 = time.process_time()
+        cams = virtual_cameras(scene, VirtualRigParams())[1]
+        jobs["virtual-rig"] = {"cameras": cams, "side": 0, "rig_cpu_s": time.process_time() - c0}
+    out = {}
+    for name, job in jobs.items():
+        sums, cpu = {}, {}
+        for backend in ("sweep", "pairs"):
+            with torch_threads(1):
+                c0 = time.process_time()
+                sums[backend] = significance(scene, job["cameras"], longest_side=job["side"], backend=backend)
+                cpu[backend] = time.process_time() - c0
+        a, b = sums["sweep"], sums["pairs"]
+        out[name] = {"views": len(job["cameras"]), "rig_cpu_s": job["rig_cpu_s"], "sweep_cpu_s": cpu["sweep"],
+                     "pairs_cpu_s": cpu["pairs"], "ratio": cpu["pairs"] / max(cpu["sweep"], 1e-9),
+                     "identical": bool(np.array_equal(a, b)),
+                     "max_rel_diff": float(np.abs(a - b).max() / max(np.abs(b).max(), 1e-300)),
+                     "spearman": float(spearmanr(a, b)[0]) if len(a) > 1 else 1.0}
+        r = out[name]
+        print(f"{name}: sweep {r['sweep_cpu_s']:.2f} CPU-s, pairs {r['pairs_cpu_s']:.2f} ({r['ratio']:.1f}x), "
+              f"identical {r['identical']}", flush=True)
+    return out
+
+
+def _backends_markdown(backends: dict) -> list[str]:
+    lines = ["", "Significance backends on the same views, one torch thread, in this process (CPU seconds; "
+             "the virtual rig's placement timed apart):", "",
+             "| pruner | views | rig CPU s | sweep CPU s | pairs CPU s | pairs / sweep | identical "
+             "| max rel. diff | ρ |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    lines += [f"| {m} | {b['views']} | {b['rig_cpu_s']:.2f} | {b['sweep_cpu_s']:.2f} | {b['pairs_cpu_s']:.2f} | "
+              f"{b['ratio']:.1f}× | {'yes' if b['identical'] else 'no'} | {b['max_rel_diff']:.1e} "
+              f"| {b['spearman']:.6f} |" for m, b in backends.items()]
+    return lines
+
+
 def _markdown(scene_name: str, n: int, n_train: int, timings: dict, quality: dict | None) -> str:
     lines = [f"# harness bench methods ({scene_name}, {n:,} splats, {n_train} training views)", "",
              "| method | needs | wall s | CPU s | load before |", "|---|---|---|---|---|"]
@@ -123,66 +181,57 @@ def _markdown(scene_name: str, n: int, n_train: int, timings: dict, quality: dic
     return "\n".join(lines)
 
 
-def _time(spec, scene, ctx) -> tuple[float, float]:
-    t0, c0 = time.perf_counter(), time.process_time()
-    spec.score(scene, ctx)
-    return time.perf_counter() - t0, time.process_time() - c0
+def overhead(scenes: list[str], repeats: int, ratio: float = 0.3) -> dict:
+    """End-to-end prune seconds of the full method and the no-descriptor variant, one thread (module doc)."""
+    import tempfile
 
+    from harness.benchmarks import _overhead as oh
 
-def overhead(scenes: list[str], repeats: int) -> dict:
-    """Single-thread scoring seconds of the full method and the no-descriptor variant (module doc)."""
-    import numba
-
-    from harness.io.scenes import load_scene
-    from harness.report.stats import mean_ci
-    from methods import PruneContext, get_pruner
-
-    before = numba.get_num_threads()
-    numba.set_num_threads(1)
-    full, nodesc = (get_pruner(m) for m in OVERHEAD_PAIR)
-    out = []
-    try:
-        for name in scenes:
-            scene = load_scene(name)
-            ctx = PruneContext()
-            _time(full, scene, ctx), _time(nodesc, scene, ctx)  # warm-up (numba, caches)
-            t = {m: [] for m in ("full_wall", "full_cpu", "nodesc_wall", "nodesc_cpu")}
-            for _ in range(repeats):
-                for key, spec in (("full", full), ("nodesc", nodesc)):
-                    wall, cpu = _time(spec, scene, ctx)
-                    t[f"{key}_wall"].append(wall)
-                    t[f"{key}_cpu"].append(cpu)
-            pct = [100.0 * (f - n) / n for f, n in zip(t["full_cpu"], t["nodesc_cpu"])]
-            lo, hi = mean_ci(pct)
-            out.append({"scene": name, "splats": len(scene), **t, "overhead_pct": pct,
-                        "overhead_mean": float(np.mean(pct)), "overhead_ci": [lo, hi],
-                        "added_s": float(np.mean(t["full_cpu"]) - np.mean(t["nodesc_cpu"])),
-                        "params": {m: get_pruner(m).parse_params().to_dict() for m in OVERHEAD_PAIR}})
-            print(f"{name}: full {np.mean(t['full_cpu']):.3f} s, no-desc {np.mean(t['nodesc_cpu']):.3f} s CPU, "
-                  f"overhead {np.mean(pct):+.0f} % [{lo:+.0f}, {hi:+.0f}]", flush=True)
-    finally:
-        numba.set_num_threads(before)
-    return {"threads": 1, "repeats": repeats, "methods": list(OVERHEAD_PAIR), "scenes": out,
+    with tempfile.TemporaryDirectory(prefix="harness-overhead-") as scratch:
+        child = oh.run_child(scenes, repeats, ratio, scratch)
+    rows = [oh.summarise(r) for r in child["rows"]]
+    for r in rows:
+        lo, hi = r["overhead_ci"]
+        print(f"{r['scene']}: full {np.mean(r['full_cpu']):.3f} s, no-desc {np.mean(r['nodesc_cpu']):.3f} s CPU, "
+              f"added {r['added_mean']:+.3f} s, overhead {r['overhead_mean']:+.0f} % [{lo:+.0f}, {hi:+.0f}]",
+              flush=True)
+    return {"threads": 1, "pools": child["pools"], "repeats": repeats, "ratio": ratio, "methods": list(oh.PAIR),
+            "timed": "end to end: read, score, select, write (process CPU seconds, one thread)",
+            "paper": oh.PAPER, "note": oh.baseline_note(rows), "scenes": rows,
             "load_average_after": os.getloadavg()}
 
 
+def _pools(pools: dict) -> str:
+    return "; ".join(f"{k}: {', '.join(v) if isinstance(v, list) else v}" for k, v in pools.items())
+
+
 def _overhead_markdown(payload: dict) -> str:
-    lines = ["# Descriptor overhead, single thread (`harness bench methods --overhead`)", "",
-             f"Scoring seconds (process CPU, mean of {payload['repeats']} interleaved repeats after a warm-up; "
-             "numba at 1 thread) of BetaDescPrune and its no-descriptor ablation, default parameters; wall "
-             "seconds beside them (the machine is shared). Overhead = 100·(full − no-desc)/no-desc per repeat "
-             "(CPU), mean [95 % t interval over the repeats]. The paper (L474): 7.29 vs 6.78 s per scene, "
-             "+0.5 s, ≈ 8 %.", "",
+    lines = ["# Descriptor overhead, end to end on one thread (`harness bench methods --overhead`)", "",
+             f"One prune = read, score, select ({100 * payload['ratio']:g} %), write the .ply, timed in a process "
+             f"whose thread pools are pinned to one ({_pools(payload['pools'])}); "
+             f"process CPU seconds, mean of {payload['repeats']} interleaved rounds after a warm-up; wall seconds "
+             "beside them (the machine may be shared: its other jobs show in the wall time, not in the CPU time; "
+             f"load average after the run: {payload['load_average_after'][0]:.1f}). "
+             "BetaDescPrune and its no-descriptor ablation, default parameters. Added = full − no-desc per round; "
+             "overhead = 100·added/no-desc; each a mean [95 % t interval over the rounds]. The paper (L474): "
+             "7.29 vs 6.78 s per scene, +0.5 s, ≈ 8 %.", "",
              "| scene | splats | full CPU (s) | no-desc CPU (s) | wall full / no-desc (s) | added (s) | overhead % |",
              "|---|---|---|---|---|---|---|"]
     for r in payload["scenes"]:
-        lo, hi = r["overhead_ci"]
+        (lo, hi), (alo, ahi) = r["overhead_ci"], r["added_ci"]
         lines.append(
             f"| {r['scene']} | {r['splats']:,} | {np.mean(r['full_cpu']):.3f} | {np.mean(r['nodesc_cpu']):.3f} "
-            f"| {np.mean(r['full_wall']):.3f} / {np.mean(r['nodesc_wall']):.3f} | {r['added_s']:+.3f} "
-            f"| {r['overhead_mean']:+.0f} [{lo:+.0f}, {hi:+.0f}] |"
+            f"| {np.mean(r['full_wall']):.3f} / {np.mean(r['nodesc_wall']):.3f} "
+            f"| {r['added_mean']:+.3f} [{alo:+.3f}, {ahi:+.3f}] | {r['overhead_mean']:+.0f} [{lo:+.0f}, {hi:+.0f}] |"
         )
-    return "\n".join(lines)
+    stages = ["", "CPU seconds per stage (mean over the rounds), full / no-desc:", "",
+              "| scene | read | score | select | write |", "|---|---|---|---|---|"]
+    for r in payload["scenes"]:
+        f, n = (r["stages_cpu_s"][m] for m in payload["methods"])
+        stages.append(f"| {r['scene']} | " + " | ".join(f"{f[s]:.3f} / {n[s]:.3f}" for s in
+                                                         ("read", "score", "select", "write")) + " |")
+    note = ["", f"Note: {payload['note']}."] if payload.get("note") else []
+    return "\n".join(lines + stages + note)
 
 
 def run(args) -> int:
@@ -193,12 +242,16 @@ def run(args) -> int:
     from harness.views.rigs import scene_rig
     from methods import list_pruners
 
+    if not args.stem or args.stem != Path(args.stem).name or args.stem.startswith("."):
+        raise InputError("--stem", f"a file name without folders, got {args.stem!r}")
     folder = out_dir(args)  # created and probed before any work
     if args.overhead:
         scenes = [s.strip() for s in args.scenes.split(",") if s.strip()]
+        if not 0.0 < args.ratio < 1.0:
+            raise InputError("--ratio", f"must be in (0, 1), got {args.ratio}")
         if args.repeats < 2:
             raise InputError("--repeats", f"needs at least 2 timings for an interval, got {args.repeats}")
-        payload = overhead(scenes, args.repeats)
+        payload = overhead(scenes, args.repeats, args.ratio)
         md = _overhead_markdown(payload)
         path = write_result("overhead", payload, md, out=folder)
         print(md)
@@ -217,10 +270,13 @@ def run(args) -> int:
     rig = scene_rig(identify(args.scene), scene, seed=args.seed)
     timings, scores = _score_all(scene, rig, names, args.seed)
     quality = _quality(scene, rig, scores, args.ratio, max(1, args.test_views), args.renderer) if args.quality else None
+    backends = _backends(scene, rig, names) if args.backends else None
     payload = {"scene": args.scene, "splats": len(scene), "rig": rig.rig, "train_views": len(rig.train),
                "train_resolution": [rig.train[0].width, rig.train[0].height], "scoring": timings,
-               "quality": quality, "load_average_after": os.getloadavg()}
-    path = write_result(NAME, payload, _markdown(args.scene, len(scene), len(rig.train), timings, quality), out=folder)
-    print(_markdown(args.scene, len(scene), len(rig.train), timings, quality))
+               "quality": quality, "backends": backends, "load_average_after": os.getloadavg()}
+    md = _markdown(args.scene, len(scene), len(rig.train), timings, quality)
+    md += "\n" + "\n".join(_backends_markdown(backends)) if backends else ""
+    path = write_result(args.stem, payload, md, out=folder)
+    print(md)
     print(f"\nwritten {path}")
     return 0

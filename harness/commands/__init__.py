@@ -4,7 +4,8 @@
 ``HELP`` read from the source, without running it: ``harness --help`` and ``harness bench --help``
 name every command, but import none of them (nor the libraries they import), and ``harness NAME``
 imports only that command's module, ``harness/commands/NAME.py`` (a module's ``NAME`` is its file
-name).
+name). :func:`plugin_catalog` lists the modules installed packages add through an entry-point group
+(``harness bench``'s: ``harness.benchmarks``), read the same way.
 """
 
 from __future__ import annotations
@@ -13,7 +14,9 @@ import ast
 import importlib
 import importlib.util
 import pkgutil
+import sys
 from dataclasses import dataclass
+from importlib.metadata import entry_points
 from pathlib import Path
 
 
@@ -35,19 +38,19 @@ class Entry:
         return importlib.import_module(self.module)
 
 
-def _declared(origin: str | None) -> tuple[str, str] | None:
-    """``(NAME, HELP)`` when both are module-level string constants in the source file ``origin``."""
+def _declared(origin: str | None, names=("NAME", "HELP")) -> tuple[str, ...] | None:
+    """The values of ``names`` when each is a module-level string constant in the source file ``origin``."""
     if not origin or not origin.endswith(".py"):
         return None
     found = {}
     for node in ast.parse(Path(origin).read_bytes(), origin).body:
         if isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name) \
-                and node.targets[0].id in ("NAME", "HELP"):
+                and node.targets[0].id in names:
             try:
                 found[node.targets[0].id] = ast.literal_eval(node.value)
             except ValueError:  # computed: the module is imported instead
                 return None
-    return (found["NAME"], found["HELP"]) if all(isinstance(found.get(k), str) for k in ("NAME", "HELP")) else None
+    return tuple(found[k] for k in names) if all(isinstance(found.get(k), str) for k in names) else None
 
 
 def catalog(package: str) -> list[Entry]:
@@ -65,3 +68,29 @@ def catalog(package: str) -> list[Entry]:
         entries.append(Entry(module, *declared))
     return entries
 
+
+
+def plugin_catalog(group: str, taken=()) -> list[Entry]:
+    """The modules installed packages add through entry-point group ``group``, sorted by name:
+    ``mybench = "mypkg.bench"`` under ``[project.entry-points."harness.benchmarks"]`` of a package's
+    ``pyproject.toml`` adds ``harness bench mybench``, whose module defines ``HELP``, ``add_arguments``
+    and ``run`` as a built-in's does (its ``HELP`` read from the source when it is a literal string).
+    The entry point's name is the sub-command's. A name a built-in (``taken``) or an earlier entry
+    point holds, and a module that cannot be found, are skipped with one warning line on stderr."""
+    entries, seen = [], set(taken)
+    for ep in sorted(entry_points(group=group), key=lambda e: (e.name, e.value)):
+        where = f"{ep.name} = {ep.value} ({group})"
+        if ep.name in seen:
+            print(f"harness: warning: entry point {where} skipped: the name is taken", file=sys.stderr)
+            continue
+        try:
+            spec = importlib.util.find_spec(ep.module)
+        except (ImportError, ValueError):
+            spec = None
+        if spec is None:
+            print(f"harness: warning: entry point {where} skipped: no module {ep.module}", file=sys.stderr)
+            continue
+        declared = _declared(spec.origin, ("HELP",))
+        entries.append(Entry(ep.module, ep.name, declared[0] if declared else importlib.import_module(ep.module).HELP))
+        seen.add(ep.name)
+    return entries

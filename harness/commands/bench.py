@@ -1,4 +1,5 @@
-"""`harness bench NAME`: run one benchmark (modules in :mod:`harness.benchmarks`).
+"""`harness bench NAME`: run one benchmark (modules in :mod:`harness.benchmarks`, and those installed
+packages add through the ``harness.benchmarks`` entry-point group: :func:`benchmarks`).
 
 Each benchmark module defines ``NAME``, ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``
 (and ``OUT_SUB`` when it writes into a sub-folder of the default ``--out``)
@@ -15,16 +16,24 @@ benchmark's imports.
 
 from __future__ import annotations
 
-from harness.commands import catalog, help_text
+from harness.commands import Entry, catalog, help_text, plugin_catalog
 
 NAME = "bench"
 HELP = "run a benchmark; results into --out (default runs/bench; --out results/bench updates the committed ones)"
 
 
+def benchmarks() -> list[Entry]:
+    """Every benchmark, sorted by name: the modules of :mod:`harness.benchmarks` and the entry points
+    of the ``harness.benchmarks`` group (:func:`harness.commands.plugin_catalog`; a built-in's name
+    stays the built-in's)."""
+    builtin = catalog("harness.benchmarks")
+    return sorted(builtin + plugin_catalog("harness.benchmarks", {e.name for e in builtin}), key=lambda e: e.name)
+
+
 def add_arguments(parser, argv=()) -> None:
     chosen = next((word for word in argv if not word.startswith("-")), None)
     sub = parser.add_subparsers(dest="benchmark", metavar="BENCHMARK", required=True)
-    for entry in catalog("harness.benchmarks"):
+    for entry in benchmarks():
         p = sub.add_parser(entry.name, help=help_text(entry.help), description=help_text(entry.help))
         if entry.name == chosen:
             _fill(p, entry.load())

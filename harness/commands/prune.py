@@ -156,7 +156,7 @@ def run(args) -> int:
     from harness.io.scenes import write_scene
 
     with naming(FLAGS):
-        spec, _ = api.scenes.pruner(args.method, {})  # an unknown --method before its parameters
+        spec, _ = api.scenes.pruner(args.method, {}, announce_advice=False)  # an unknown --method before its parameters
     params = resolve(args, spec).to_dict()  # text -> values, errors naming the flags
     _check_outputs(args)
     with naming(FLAGS):

@@ -8,7 +8,9 @@
 
 :meth:`Params.parse` checks a mapping (a YAML ``params:`` block) once, at load, and returns the
 instance every later stage uses; :meth:`Params.parse_text` does the same for command-line strings.
-A problem is a :class:`ParamError` naming the key (callers add the file or flag). Accepted types:
+A problem is a :class:`ParamError` naming the key (callers add the file or flag); values that are
+valid but a user should hear about (a descriptor radius that is no longer local) are
+:meth:`Params.advisories`. Accepted types:
 ``bool`` (YAML booleans; on the command line true/false/yes/no/1/0), ``int`` (integers only, never
 booleans), ``float`` (finite numbers; integers accepted), ``str`` and ``Literal[...]`` (one of the
 listed values), each optionally ``| None`` (YAML ``null``; ``none`` on the command line), and
@@ -156,6 +158,11 @@ class Params:
     def replace(self, **changes):
         return type(self).parse({**self.to_dict(), **changes})
 
+    def advisories(self) -> list[str]:
+        """Valid values whose combination a user should hear about (one sentence each); none by default.
+        Commands print each once as a ``warning:`` line (:func:`harness.core.advice.warn_once`)."""
+        return []
+
 
 def check_value(spec: ParamSpec, value):
     """``value`` if it is a valid value of ``spec`` (ints widened to float for float fields; a list
@@ -169,6 +176,18 @@ def check_value(spec: ParamSpec, value):
             raise ParamError(spec.name, f"expected a list of {spec.kind} values, got {value!r}")
         one = dataclasses.replace(spec, many=False, optional=False)
         return tuple(check_value(one, v) for v in value)
+    value = _typed(spec, value)
+    if spec.choices is not None and value not in spec.choices:
+        raise ParamError(spec.name, f"{value!r} is not one of {', '.join(map(str, spec.choices))}")
+    for op, bound in spec.bounds:
+        test = next(fn for o, fn in _OPS.values() if o == op)
+        if not test(value, bound):
+            raise ParamError(spec.name, f"{value!r} is not {op} {bound:g}")
+    return value
+
+
+def _typed(spec: ParamSpec, value):
+    """``value`` if it is of ``spec``'s kind (an int widened to float for a float field)."""
     kind = spec.kind
     if kind == "bool":
         if not isinstance(value, bool):
@@ -184,12 +203,6 @@ def check_value(spec: ParamSpec, value):
             raise ParamError(spec.name, f"expected a finite number, got {value!r}")
     elif not isinstance(value, str):
         raise ParamError(spec.name, f"expected a string, got {value!r}")
-    if spec.choices is not None and value not in spec.choices:
-        raise ParamError(spec.name, f"{value!r} is not one of {', '.join(map(str, spec.choices))}")
-    for op, bound in spec.bounds:
-        test = next(fn for o, fn in _OPS.values() if o == op)
-        if not test(value, bound):
-            raise ParamError(spec.name, f"{value!r} is not {op} {bound:g}")
     return value
 
 

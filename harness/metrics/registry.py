@@ -176,18 +176,33 @@ def _checked_fields(name, compute, higher_is_better, cost, valid_range, family, 
     the valid range as floats."""
     where = f"metric {name!r}"
     if not isinstance(name, str) or not _NAME.fullmatch(name):
-        raise RegistrationError(f"metric {name!r}", "the name must be letters, digits and _ . + - (it becomes a "
-                                                    "results column and a word of --metrics)")
-    if not isinstance(higher_is_better, bool):
-        raise RegistrationError(where, f"higher_is_better must be True or False, got {higher_is_better!r}")
-    if cost not in PASS_KINDS:
-        raise RegistrationError(where, f"cost must be one of {', '.join(PASS_KINDS)}, got {cost!r}")
+        raise RegistrationError(where, "the name must be letters, digits and _ . + - (it becomes a results column "
+                                       "and a word of --metrics)")
+    _check_values(where, higher_is_better, cost, digits, tolerance)
+    _check_texts(where, name, family, label, unit, masks, with_metric)
+    _check_functions(where, compute, family, prepare, check)
     try:
         lo, hi = (float(x) for x in valid_range)
     except (TypeError, ValueError):
         raise RegistrationError(where, f"valid_range must be two numbers (low, high), got {valid_range!r}") from None
     if not lo <= hi:
         raise RegistrationError(where, f"valid_range {valid_range!r} is empty")
+    return lo, hi
+
+
+def _check_values(where: str, higher_is_better, cost, digits, tolerance) -> None:
+    if not isinstance(higher_is_better, bool):
+        raise RegistrationError(where, f"higher_is_better must be True or False, got {higher_is_better!r}")
+    if cost not in PASS_KINDS:
+        raise RegistrationError(where, f"cost must be one of {', '.join(PASS_KINDS)}, got {cost!r}")
+    if isinstance(digits, bool) or not isinstance(digits, int) or not 0 <= digits <= 12:
+        raise RegistrationError(where, f"digits must be a whole number of decimals from 0 to 12, got {digits!r}")
+    number = not isinstance(tolerance, bool) and isinstance(tolerance, (int, float))
+    if tolerance is not None and not (number and math.isfinite(tolerance) and tolerance >= 0):
+        raise RegistrationError(where, f"tolerance must be a finite number >= 0 or None, got {tolerance!r}")
+
+
+def _check_texts(where: str, name: str, family, label, unit, masks, with_metric) -> None:
     for field_name, value in (("family", family), ("label", label), ("unit", unit)):
         if not isinstance(value, str):
             raise RegistrationError(where, f"{field_name} must be text, got {value!r}")
@@ -196,21 +211,19 @@ def _checked_fields(name, compute, higher_is_better, cost, valid_range, family, 
     if name.startswith(GT_PREFIX) != (family == GT_FAMILY):
         raise RegistrationError(where, f"a name starting with {GT_PREFIX!r} is a metric against the photo: it and "
                                        f"only it has family {GT_FAMILY!r}")
-    if isinstance(digits, bool) or not isinstance(digits, int) or not 0 <= digits <= 12:
-        raise RegistrationError(where, f"digits must be a whole number of decimals from 0 to 12, got {digits!r}")
     for field_name, value in (("masks", masks), ("with_metric", with_metric)):
         if value is not None and not isinstance(value, str):
             raise RegistrationError(where, f"{field_name} must be a metric name or None, got {value!r}")
-    if tolerance is not None and (isinstance(tolerance, bool) or not isinstance(tolerance, (int, float))
-                                  or not math.isfinite(tolerance) or tolerance < 0):
-        raise RegistrationError(where, f"tolerance must be a finite number >= 0 or None, got {tolerance!r}")
+
+
+def _check_functions(where: str, compute, family: str, prepare, check) -> None:
     _callable(where, "prepare", prepare)
     _callable(where, "check", check)
     if compute is None:
         if family not in FAMILIES and family != GT_FAMILY:
             raise RegistrationError(where, f"compute is missing: give compute=, or register family {family!r}'s "
                                            "joint computer first (register_family)")
-        return lo, hi
+        return
     _callable(where, "compute", compute, optional=False)
     try:
         inspect.signature(compute).bind(None, None)
@@ -218,7 +231,6 @@ def _checked_fields(name, compute, higher_is_better, cost, valid_range, family, 
         raise RegistrationError(where, "compute must take two images: compute(reference, test)") from None
     except ValueError:  # a builtin without a signature: taken as it is
         pass
-    return lo, hi
 
 
 def register_metric(name: str, compute: Callable | None = None, *, higher_is_better: bool, cost: str = "psnr",

@@ -122,18 +122,10 @@ def bd_rows(s: pd.DataFrame, anchor: str = DEFAULT_ANCHOR) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=["scene", "method", "metric", "bd_rate", "bd_quality", "points", "interp"])
 
 
-def table_bd(s: pd.DataFrame, anchor: str | None = None):
-    """The bd table: rows (scene | average, method), columns (metric, BD-rate % | BD-PSNR/SSIM)."""
+def _scene_rows(long: pd.DataFrame, metrics: list[str], methods: list[str]) -> tuple[list, list]:
+    """(index, values) of the per-scene rows: BD-rate and BD-quality per metric, points, interp."""
     from harness.report import catalog
 
-    anchor = anchor or DEFAULT_ANCHOR
-    long = bd_rows(s, anchor)
-    if long.empty:
-        return None
-    metrics = [name for _, name in BD_METRICS if name in set(long["metric"])]
-    methods = catalog.method_order(long["method"])
-    cols = pd.MultiIndex.from_tuples([(m, k) for m in metrics for k in ("BD-rate (%)", "BD-" + m.split("-")[1])]
-                                     + [("", "points"), ("", "interp")])
     idx, num = [], []
     for scene in dict.fromkeys(long["scene"]):
         for method in methods:
@@ -146,8 +138,16 @@ def table_bd(s: pd.DataFrame, anchor: str | None = None):
                 vals += [r["bd_rate"].iloc[0], r["bd_quality"].iloc[0]] if len(r) else [np.nan, np.nan]
             idx.append((scene, catalog.method_label(method)))
             num.append(vals + [cell["points"].iloc[0], cell["interp"].iloc[0]])
-    std = [[np.nan] * len(cols) for _ in num]
-    for method in methods:  # mean over the scenes that have a value (std over them beside it in the .csv)
+    return idx, num
+
+
+def _average_rows(long: pd.DataFrame, metrics: list[str], methods: list[str]) -> tuple[list, list, list]:
+    """(index, means, stds) of the average rows: per method, the mean over the scenes that have a
+    value (the std over them beside it in the .csv)."""
+    from harness.report import catalog
+
+    idx, num, std = [], [], []
+    for method in methods:
         vals, sds = [], []
         for m in metrics:
             r = long[(long["method"] == method) & (long["metric"] == m)]
@@ -157,7 +157,25 @@ def table_bd(s: pd.DataFrame, anchor: str | None = None):
         idx.append(("average", catalog.method_label(method)))
         num.append(vals + [f"{n} scenes", ""])
         std.append(sds + [np.nan, np.nan])
-    numdf = pd.DataFrame(num, pd.MultiIndex.from_tuples(idx, names=["Sequence", "Method"]), cols)
+    return idx, num, std
+
+
+def table_bd(s: pd.DataFrame, anchor: str | None = None):
+    """The bd table: rows (scene | average, method), columns (metric, BD-rate % | BD-PSNR/SSIM)."""
+    from harness.report import catalog
+
+    anchor = anchor or DEFAULT_ANCHOR
+    long = bd_rows(s, anchor)
+    if long.empty:
+        return None
+    metrics = [name for _, name in BD_METRICS if name in set(long["metric"])]
+    methods = catalog.method_order(long["method"])
+    cols = pd.MultiIndex.from_tuples([(m, k) for m in metrics for k in ("BD-rate (%)", "BD-" + m.split("-")[1])]
+                                     + [("", "points"), ("", "interp")])
+    idx, num = _scene_rows(long, metrics, methods)
+    avg_idx, avg_num, avg_std = _average_rows(long, metrics, methods)
+    std = [[np.nan] * len(cols) for _ in num] + avg_std
+    numdf = pd.DataFrame(num + avg_num, pd.MultiIndex.from_tuples(idx + avg_idx, names=["Sequence", "Method"]), cols)
     disp = numdf.copy().astype(object)
     for j, (m, k) in enumerate(cols[:-2]):
         d = 2 if "rate" in k or "PSNR" in k else 4
@@ -172,6 +190,19 @@ def table_bd(s: pd.DataFrame, anchor: str | None = None):
                          "interval (the .csv has the std over scenes beside each average)")
 
 
+def _ctc_digits(column: str) -> int:
+    """Digits of a CTC column: counts whole, SSIM-like and LPIPS 4, the others 2."""
+    if column in ("splats", "bytes"):
+        return 0
+    return 4 if "SSIM" in column or column == "LPIPS" else 2
+
+
+def _ctc_text(v, digits: int) -> str:
+    if pd.isna(v):
+        return "–"
+    return f"{int(v)}" if digits == 0 else f"{float(v):.{digits}f}"
+
+
 def table_ctc(s: pd.DataFrame):
     """The CTC per-sequence layout: one row per (sequence, method, rate point), default variants."""
     d = rate_points(s)
@@ -183,11 +214,8 @@ def table_ctc(s: pd.DataFrame):
                         "level": d["level"], **{h: d[c] for c, h in cols}, "seconds": d["seconds"]})
     out = out.set_index(["Sequence", "Method", "RP"])
     disp = out.copy().astype(object)
-    for c in disp.columns:
-        if c in ("level",):
-            continue
-        digits = 0 if c in ("splats", "bytes") else (4 if "SSIM" in c or c == "LPIPS" else 2 if c != "ratio" else 2)
-        disp[c] = ["–" if pd.isna(v) else (f"{int(v)}" if digits == 0 else f"{float(v):.{digits}f}") for v in out[c]]
+    for c in disp.columns.drop("level"):
+        disp[c] = [_ctc_text(v, _ctc_digits(c)) for v in out[c]]
     std = pd.DataFrame({h: d[f"{c}_std"].to_numpy() if f"{c}_std" in d else np.nan for c, h in cols},
                        index=out.index)
     n = d["n"].astype(int)

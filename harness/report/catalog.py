@@ -9,6 +9,7 @@ from __future__ import annotations
 import contextvars
 import json
 from contextlib import contextmanager
+from dataclasses import dataclass
 
 import pandas as pd
 
@@ -87,11 +88,30 @@ def comparison_methods(present) -> list[tuple[str, str]]:
     return out
 
 
-def ablation_cells() -> list[tuple[str, str, str]]:
-    """(descriptors label, Beta label, method) of the ablation grid, the full method last."""
+@dataclass(frozen=True)
+class AblationCell:
+    """One cell of the paper's ablation grid: its descriptors and Beta labels, and the method there."""
+
+    descriptors: str
+    beta: str
+    method: str
+
+    @property
+    def column(self) -> tuple[str, str]:
+        """Its column in the wide table: (descriptors, Beta)."""
+        return (self.descriptors, self.beta)
+
+    @property
+    def heading(self) -> str:
+        """Its column in the per-metric sections: ``descriptors · Beta``."""
+        return f"{self.descriptors} · {self.beta}"
+
+
+def ablation_cells() -> list[AblationCell]:
+    """The cells of the ablation grid, the full method last."""
     grid = ablation_grid()
     order = [(False, False), (False, True), (True, False), (True, True)]
-    return [(*grid[k].ablation.labels, grid[k].name) for k in order if k in grid]
+    return [AblationCell(*grid[k].ablation.labels, grid[k].name) for k in order if k in grid]
 
 
 def _pair(without: tuple[bool, bool]) -> tuple[str, str] | None:

@@ -1,22 +1,11 @@
-"""Tables whose cells compare a method with a reference row, view by view (:mod:`harness.report.stats`).
+"""Cells that compare a method with a reference row, view by view (:mod:`harness.report.stats`), and
+the declared tables made of them (:class:`CellTable`; the tables: :mod:`harness.report.cell_tables`).
 
 Every cell is computed from the per-view results (``status == ok``) of one (scene, method, variant,
 ratio): the mean over its views (frames pooled), the median, the number of views and of
 near-identical views, and — against its reference row, the same scene and views — the mean paired
 difference Δ = cell − reference with its 95 % interval (:func:`harness.report.stats.mean_ci`). The metrics are every
 registered metric the results carry (:func:`harness.report.catalog.display_metrics`: OM variants beside full-frame).
-
-* ``comparison`` (paper Table 1): each comparison-group method's default variant at Low/Mid/High =
-  10/20/30 % pruning; reference: ``random`` (:data:`catalog.DEFAULT_REFERENCE`, or ``--reference``)
-  at the same ratio.
-* ``ablation`` (paper Table 2): the descriptors × Beta grid at 20 %; reference: the full method
-  (``betadesc``) at 20 %, so Δ < 0 in the higher-is-better sense means the removed part helped.
-  Bold: the best mean of a row.
-* ``versus``: every measured (method, variant, ratio) against the reference method at the same
-  ratio, per scene and pooled over scenes (all pairs of all scenes, near-identical ones left out),
-  with a verdict per row: on how many scenes the CI lies above / below 0.
-* ``per_scene``: the descriptor gain betadesc − betadesc-nodesc at keep 0.7/0.5/0.3 per scene
-  (positive = descriptors help; the paper's "+4.04 dB" sense), paired per view.
 
 Tidy columns (one row per scene × method × variant × ratio × metric): ``table, scene, label, method,
 method_label, variant, ratio, level, metric, mean, std, median, n, n_near_identical, splats, bytes,
@@ -32,15 +21,15 @@ over how many scenes — and the interval method.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
 import numpy as np
 import pandas as pd
 
 from harness.core import ratios
 from harness.report import catalog, stats
-from harness.report.tabledata import Missing, Table
 
-LEVELS = (("Low", 0.1), ("Mid", 0.2), ("High", 0.3))
-ABLATION_RATIO = 0.2
 KEEPS = (0.7, 0.5, 0.3)
 NEAR = "‡"
 POOLED = "*"
@@ -59,58 +48,77 @@ def _key(method, variant, ratio):
     return method, variant, ratios.key(ratio)
 
 
+class _Groups:
+    """The measured rows of every (scene, method, variant, ratio), and their metric columns converted
+    once for every cell that reads them (:func:`harness.report.stats.columns`)."""
+
+    def __init__(self, ok: pd.DataFrame, mets):
+        self.rows = {k: g for k, g in ok.groupby(["scene", "method", "variant", "rkey"], sort=False)}
+        self.mets, self._columns = mets, {}
+
+    def columns(self, key) -> dict:
+        if key not in self._columns:
+            self._columns[key] = {mk: stats.columns(self.rows[key], mk) for mk, *_ in self.mets}
+        return self._columns[key]
+
+
+class _Pool:
+    """One cell's values and paired differences over its scenes, per metric: its pooled row."""
+
+    def __init__(self, mets):
+        self.values = {mk: [] for mk, *_ in mets}
+        self.diffs = {mk: [] for mk, *_ in mets}
+
+    def rows(self, base: dict, ref: str) -> list[dict]:
+        if not any(self.diffs.values()):
+            return []
+        out = []
+        for mk, values in self.values.items():
+            if not self.diffs[mk]:
+                continue
+            vals, near = np.concatenate([x for x, _ in values]), np.concatenate([n for _, n in values])
+            out.append({**base, "scene": POOLED, "label": "all scenes", "metric": mk, **stats.summary(vals, near, mk),
+                        "reference": ref, **_pooled_delta(self.diffs[mk], mk)})
+        return out
+
+
+def _scene_rows(groups: _Groups, scene: str, key, rk, base: dict, pool: _Pool) -> list[dict]:
+    """The rows of cell ``key`` at one scene, one per metric, Δ against ``rk`` where it was measured."""
+    g = groups.rows.get((scene, *key))
+    if g is None:
+        return []
+    gr = groups.rows.get((scene, *rk)) if rk and rk != key else None
+    pairs = stats.pair_index(g, gr) if gr is not None else None
+    here, there = groups.columns((scene, *key)), (groups.columns((scene, *rk)) if gr is not None else None)
+    size, out = _size(g), []
+    for mk, _, _ in groups.mets:
+        row = {**base, "scene": scene, "metric": mk, **stats.summary(*here[mk], mk), **size}
+        pool.values[mk].append(here[mk])
+        if gr is not None:
+            d, excl = stats.paired_diffs_at(here[mk], there[mk], mk, pairs)
+            pool.diffs[mk].append((d, excl))
+            row.update(_delta(d, excl, mk))
+        out.append(row)
+    return out
+
+
 def cell_rows(ok, mets, cells, reference_of, table: str, pooled: bool = False, levels=None) -> pd.DataFrame:
     """Tidy rows of ``cells`` [(method, variant, ratio)] per scene (and pooled), each against
     ``reference_of(cell)`` (a cell, or None)."""
-    groups = {k: g for k, g in ok.groupby(["scene", "method", "variant", "rkey"], sort=False)}
-    arrays: dict = {}  # group key -> {metric: (values, near)}, converted once for every cell that reads it
-
-    def cols(key):
-        if key not in arrays:
-            arrays[key] = {mk: stats.columns(groups[key], mk) for mk, *_ in mets}
-        return arrays[key]
-
+    groups = _Groups(ok, mets)
     labels = dict(zip(ok["scene"], ok["label"]))
-    levels = levels or {}
     out = []
     for cell in cells:
-        m, v, r = _key(*cell)
-        ref = reference_of(cell)
+        key, ref = _key(*cell), reference_of(cell)
         rk = _key(*ref) if ref is not None else None
-        diffs = {mk: [] for mk, *_ in mets}
-        pooled_vals = {mk: [] for mk, *_ in mets}
-        for scene in labels:
-            g = groups.get((scene, m, v, r))
-            if g is None:
-                continue
-            gr = groups.get((scene, *rk)) if rk and rk != (m, v, r) else None
-            pairs = stats.pair_index(g, gr) if gr is not None else None
-            size = _size(g)
-            here, there = cols((scene, m, v, r)), (cols((scene, *rk)) if gr is not None else None)
-            for mk, _, _ in mets:
-                row = {"table": table, "scene": scene, "label": labels[scene], "method": m,
-                       "method_label": catalog.method_label(m), "variant": v, "ratio": r,
-                       "level": levels.get(r, ""), "metric": mk,
-                       **stats.summary(*here[mk], mk), **size,
-                       "reference": "" if rk is None else f"{rk[0]}[{rk[1]}]"}
-                pooled_vals[mk].append(here[mk])
-                if gr is not None:
-                    d, excl = stats.paired_diffs_at(here[mk], there[mk], mk, pairs)
-                    diffs[mk].append((d, excl))
-                    row.update(_delta(d, excl, mk))
-                out.append(row)
-        if pooled and any(diffs.values()):
-            for mk, _, _ in mets:
-                if not diffs[mk]:
-                    continue
-                vals = np.concatenate([x for x, _ in pooled_vals[mk]])
-                near = np.concatenate([n for _, n in pooled_vals[mk]])
-                d = np.concatenate([x for x, _ in diffs[mk]])
-                out.append({"table": table, "scene": POOLED, "label": "all scenes", "method": m,
-                            "method_label": catalog.method_label(m), "variant": v, "ratio": r,
-                            "level": levels.get(r, ""), "metric": mk, **stats.summary(vals, near, mk),
-                            "reference": f"{rk[0]}[{rk[1]}]",
-                            **_delta(d, sum(e for _, e in diffs[mk]), mk)})
+        base = {"table": table, "method": key[0], "method_label": catalog.method_label(key[0]), "variant": key[1],
+                "ratio": key[2], "level": (levels or {}).get(key[2], ""),
+                "reference": "" if rk is None else f"{rk[0]}[{rk[1]}]"}
+        pool = _Pool(mets)
+        for scene, label in labels.items():
+            out += [{**row, "label": label} for row in _scene_rows(groups, scene, key, rk, base, pool)]
+        if pooled:
+            out += pool.rows(base, base["reference"])
     tidy = pd.DataFrame(out, columns=TIDY)
     rank = {s: i for i, s in enumerate([*labels, POOLED])}  # scenes in results order, pooled last; cells as given
     return tidy.iloc[np.argsort(tidy["scene"].map(rank).to_numpy(), kind="stable")].reset_index(drop=True)
@@ -144,11 +152,25 @@ def caption(tidy: pd.DataFrame, interval: bool = True) -> str:
     if len(pooled):
         k = per["scene"].nunique()
         lo, hi = int(pooled["n_pairs"].min()), int(pooled["n_pairs"].max())
-        parts.append(f"all scenes: n = {lo if lo == hi else f'{lo}–{hi}'} pairs pooled over {k} scene(s) — the "
-                     "interval is over views, so it does not generalise to scenes outside this run")
+        parts.append(f"all scenes: n = {lo if lo == hi else f'{lo}–{hi}'} pairs over {k} scene(s); Δ pooled over "
+                     "the scenes (random effects, HKSJ 95 % interval over the scene means)")
     if interval:
         parts.append(f"Δ: {stats.INTERVAL_DESCRIPTION}")
     return "; ".join(parts)
+
+
+def _pooled_delta(per_scene: list[tuple[np.ndarray, int]], metric: str) -> dict:
+    """Δ over scenes: the random-effects mean of the per-scene mean differences with its HKSJ 95 %
+    interval (:func:`harness.report.meta.pooled`; one scene: its own t interval) — never the views
+    of different scenes pooled as one sample."""
+    from harness.report import meta
+
+    e = meta.pooled([meta.of_values(d) for d, _ in per_scene])
+    lo, hi = e.interval() if e.n else (np.nan, np.nan)
+    d = np.concatenate([x for x, _ in per_scene])
+    return {"delta": e.mean, "ci_low": lo, "ci_high": hi, "delta_median": float(np.median(d)) if d.size else np.nan,
+            "n_pairs": int(d.size), "n_pairs_excluded": int(sum(x for _, x in per_scene)),
+            "verdict": stats.verdict(lo, hi, catalog.higher_is_better(metric))}
 
 
 def _delta(d: np.ndarray, excluded: int, metric: str) -> dict:
@@ -243,143 +265,51 @@ def _size_section(tidy, row_keys, col_key, col_order) -> list[tuple[str, pd.Data
                      lambda r, _: size_text(r))
 
 
-# --------------------------------------------------------------------------- tables
-def table_comparison(df: pd.DataFrame, reference: str | None = None):
-    reference = reference or catalog.DEFAULT_REFERENCE
-    ok, mets = prepare(df)
-    cols = [(grp, m, lvl, r) for grp, m in catalog.comparison_methods(ok["method"]) for lvl, r in LEVELS
-            if not ok[(ok["method"] == m) & (ok["variant"] == "default") & (ok["rkey"] == ratios.key(r))].empty]
-    if not cols:
-        return Missing("no method of the comparison groups was measured at 10/20/30 % pruning")
-    levels = {ratios.key(r): f"{lvl} ({ratios.percent(r)})" for lvl, r in LEVELS}
-    tidy = cell_rows(ok, mets, [(m, "default", r) for *_, m, _, r in cols], lambda c: (reference, "default", c[2]),
-                     "comparison", levels=levels)
-    layout = ((["Dataset", "Method"], ["label", "method_label"]), lambda r: r["level"],
-              [levels[ratios.key(r)] for _, r in LEVELS if ratios.key(r) in set(tidy["ratio"])])
-    secs = _sections(tidy, mets, *layout, lambda r, dg: cell_text(r, dg, r["method"] == reference))
-    secs += _size_section(tidy, *layout)
-    wide_cols = pd.MultiIndex.from_tuples([(g, catalog.method_label(m), lvl) for g, m, lvl, _ in cols],
-                                          names=["group", "method", "level"])
-    sizes = [("splats", "splats", 0), ("bytes", "bytes", 0)] if secs[-1][0] == SIZE_HEADING else []
+# --------------------------------------------------------------------------- declared tables
+@dataclass(frozen=True)
+class CellTable:
+    """A table of cells, declared: its ``name``; its ``cells`` (method, variant, ratio), each against
+    ``reference(cell)`` (a cell, or None), with pooled rows over scenes when ``pooled``; where a cell
+    goes in the per-metric sections — rows (index names, the tidy columns that key a row), the column
+    of a tidy row, the columns' order (of the tidy rows) — and display columns ``extra`` derived from
+    the tidy rows (dropped from the tidy ``.csv``); ``levels``: a ratio's level name (Low/Mid/High)."""
+
+    name: str
+    cells: list
+    reference: Callable
+    rows: tuple[list[str], list[str]]
+    column: Callable
+    order: Callable
+    pooled: bool = False
+    levels: dict = field(default_factory=dict)
+    extra: dict = field(default_factory=dict)
+
+    def tidy(self, ok: pd.DataFrame, mets) -> pd.DataFrame:
+        tidy = cell_rows(ok, mets, self.cells, self.reference, self.name, self.pooled, self.levels)
+        for name, of in self.extra.items():
+            tidy[name] = of(tidy)
+        return tidy
+
+    def sections(self, tidy: pd.DataFrame, mets, text) -> list[tuple[str, pd.DataFrame]]:
+        """One section per metric, each cell's ``text(row, digits)``."""
+        return _sections(tidy, mets, self.rows, self.column, self.order(tidy), text)
+
+    def size_section(self, tidy: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
+        return _size_section(tidy, self.rows, self.column, self.order(tidy))
+
+    def csv(self, tidy: pd.DataFrame) -> pd.DataFrame:
+        return tidy.drop(columns=list(self.extra))
+
+
+def wide(tidy, mets, columns: pd.MultiIndex, column_of, text, sizes=()) -> pd.DataFrame:
+    """The paper's wide layout: a row per (dataset, metric) and per size row, a column per cell
+    (``column_of(row)``), each cell's ``text(row, digits)``; sizes come with the first metric's rows."""
     rows = [(lab, h) for lab in dict.fromkeys(tidy["label"]) for _, h, _ in [*mets, *sizes]]
-    disp = pd.DataFrame("–", pd.MultiIndex.from_tuples(rows, names=["Dataset", "Metric"]), wide_cols)
-    for (mk, h, dg) in mets:
-        for _, r in tidy[tidy["metric"] == mk].iterrows():
-            col = next(
-                c for c, (_, m, _, rr) in zip(wide_cols, cols) if m == r["method"] and ratios.key(rr) == r["ratio"]
-            )
-            disp.loc[(r["label"], h), col] = mean_text(r, dg)
-            if mk == mets[0][0]:
-                for key, h2, _ in sizes:
-                    disp.loc[(r["label"], h2), col] = fmt(r[key], 0) if pd.notna(r[key]) else "–"
-    warn = [] if reference in set(ok["method"]) else \
-        [f"comparison: reference method {reference} not measured; cells show means without Δ"]
-    return Table(disp, notes_for(tidy, catalog.method_label(reference)), tidy, secs, warn, caption(tidy),
-                 heading=comparison_heading([r for *_, r in cols]))
-
-
-def comparison_heading(measured) -> str:
-    """The comparison's title naming the levels it shows: "Comparison at low (10 %) and high (30 %)
-    pruning (paper Table 1)" for a run of 10 % and 30 % — never a level that was not measured."""
-    keys = {ratios.key(r) for r in measured}
-    shown = [f"{lvl.lower()} ({round(100 * r)} %)" for lvl, r in LEVELS if ratios.key(r) in keys]
-    words = shown[0] if len(shown) == 1 else ", ".join(shown[:-1]) + " and " + shown[-1]
-    return f"Comparison at {words} pruning (paper Table 1)"
-
-
-def table_ablation(df: pd.DataFrame, ratio: float = ABLATION_RATIO):
-    ok, mets = prepare(df)
-    grid = catalog.ablation_cells()
-    at = ok[ok["rkey"] == ratios.key(ratio)]
-    present = [a for a in grid if not at[at["method"] == a[2]].empty]
-    missing = [a[2] for a in grid if a not in present]
-    variants = [a[2] for a in grid if a[2] != catalog.proposed_method()]
-    if not [a for a in present if a[2] in variants]:  # the full method alone is no ablation
-        seen = sorted(set(ok.loc[ok["method"].isin(variants), "ratio"]))
-        return Missing(f"no ablation variant measured at {ratios.percent(ratio)} pruning: missing "
-                       f"{', '.join(m for m in missing if m in variants)} at {ratios.percent(ratio)}"
-                       + (f" (they ran at {', '.join(ratios.percent(r) for r in seen)})" if seen else ""))
-    full = catalog.proposed_method()
-    ref = full if full in [a[2] for a in present] else None
-    tidy = cell_rows(ok, mets, [(a[2], "default", ratio) for a in present],
-                     lambda c: (ref, "default", ratio) if ref else None, "ablation")
-    heads = {a[2]: f"{a[0]} · {a[1]}" for a in present}
-    best = {}
-    for (lab, mk), t in tidy.groupby(["label", "metric"]):
-        vals = t["mean"].dropna()
-        if len(vals):
-            best[(lab, mk)] = vals.max() if catalog.higher_is_better(mk) else vals.min()
-
-    def text(r, dg, wide=False):
-        s = mean_text(r, dg)
-        if best.get((r["label"], r["metric"])) == r["mean"]:
-            s = f"**{s}**"
-        return s if wide else (f"{s} (ref.)" if r["method"] == ref else s + (f" ({delta_text(r, dg)})" if ref else ""))
-
-    secs = _sections(tidy, mets, (["Dataset"], ["label"]), lambda r: heads[r["method"]],
-                     [heads[a[2]] for a in present], text)
-    wide_cols = pd.MultiIndex.from_tuples([a[:2] for a in present], names=["descriptors", "beta"])
-    rows = [(lab, h) for lab in dict.fromkeys(tidy["label"]) for _, h, _ in mets]
-    disp = pd.DataFrame("–", pd.MultiIndex.from_tuples(rows, names=["Dataset", "Metric"]), wide_cols)
+    disp = pd.DataFrame("–", pd.MultiIndex.from_tuples(rows, names=["Dataset", "Metric"]), columns)
     for mk, h, dg in mets:
         for _, r in tidy[tidy["metric"] == mk].iterrows():
-            a = next(a for a in present if a[2] == r["method"])
-            disp.loc[(r["label"], h), a[:2]] = text(r, dg, wide=True)
-    notes = notes_for(tidy, catalog.method_label(ref) if ref else "–")
-    warn = [f"ablation: missing {', '.join(missing)} at {ratios.percent(ratio)}"] if missing else []
-    return Table(disp, notes + [f"not measured: {', '.join(missing)}"] * bool(missing), tidy, secs, warn,
-                 caption(tidy, interval=ref is not None))
-
-
-def table_versus(df: pd.DataFrame, reference: str | None = None):
-    reference = reference or catalog.DEFAULT_REFERENCE
-    ok, mets = prepare(df)
-    refs = set(ok.loc[(ok["method"] == reference) & (ok["variant"] == "default"), "rkey"])
-    if not refs:
-        return Missing(f"reference method {reference} (default variant) was not measured")
-    cells = [(m, v, r) for m in catalog.method_order(ok["method"]) if m != reference
-             for v in dict.fromkeys(ok.loc[ok["method"] == m, "variant"])
-             for r in sorted(set(ok.loc[(ok["method"] == m) & (ok["variant"] == v), "rkey"]) & refs)]
-    if not cells:
-        return Missing(f"no method was measured at a ratio where {reference} was")
-    tidy = cell_rows(ok, mets, cells, lambda c: (reference, "default", c[2]), "versus", pooled=True)
-    scenes = [*dict.fromkeys(tidy.loc[tidy["scene"] != POOLED, "label"]), "all scenes"]
-    tidy["row"] = [
-        f"{lab}{'' if v == 'default' else f' [{v}]'}" for lab, v in zip(tidy["method_label"], tidy["variant"])
-    ]
-    tidy["prune"] = [ratios.percent(r) for r in tidy["ratio"]]
-    verdicts = {}
-    for (row, pr, mk), t in tidy[tidy["scene"] != POOLED].groupby(["row", "prune", "metric"]):
-        c = t["verdict"].value_counts()
-        verdicts[(row, pr, mk)] = f"{c.get('better', 0)} / {c.get('worse', 0)} / {c.get('unclear', 0)}"
-    secs = _sections(tidy, mets, (["Method", "Prune"], ["row", "prune"]), lambda r: r["label"], scenes,
-                     lambda r, dg: delta_text(r, dg).removeprefix("Δ ") + (NEAR if r["n_pairs_excluded"] else ""))
-    for (h, t), (mk, *_) in zip(secs, mets):
-        t["better / worse / unclear"] = [verdicts.get((*k, mk), "") for k in t.index]
-    disp = pd.concat({h: t for h, t in secs}, names=["Metric"])
-    notes = [f"Δ = mean paired per-view difference against {catalog.method_label(reference)} at the same ratio "
-             f"[CI]; all scenes = every pair of every scene; better/worse = scenes whose CI "
-             f"excludes 0 in the metric's good/bad direction",
-             f"{NEAR}: some pairs left out as near-identical (PSNR ≥ {stats.NEAR_IDENTICAL_DB:g} dB or inf)"]
-    return Table(disp, notes, tidy.drop(columns=["row", "prune"]), secs, caption=caption(tidy))
-
-
-def table_per_scene(df: pd.DataFrame):
-    pair = catalog.descriptor_pair()
-    if pair is None:
-        return Missing("no registered pair of betadesc with and without descriptors")
-    without, full = pair
-    ok, mets = prepare(df)
-    cells = [(full, "default", ratios.from_keep(k)) for k in KEEPS]
-    have = [c for c in cells if not ok[(ok["method"] == full) & (ok["rkey"] == ratios.key(c[2]))].empty
-            and not ok[(ok["method"] == without) & (ok["rkey"] == ratios.key(c[2]))].empty]
-    if not have:
-        return Missing(f"needs {full} and {without} at the same keep fraction (0.7 / 0.5 / 0.3)")
-    tidy = cell_rows(ok, mets, have, lambda c: (without, "default", c[2]), "per_scene", pooled=True)
-    tidy["prune"] = ["prune " + ratios.percent(r) for r in tidy["ratio"]]
-    cols = list(dict.fromkeys(tidy["prune"]))
-    secs = _sections(tidy, mets, (["scene"], ["label"]), lambda r: r["prune"], cols,
-                     lambda r, dg: delta_text(r, dg).removeprefix("Δ ") + (NEAR if r["n_pairs_excluded"] else ""))
-    disp = pd.concat({h: t for h, t in secs}, names=["Metric"])
-    return Table(disp, [f"descriptor gain {full} − {without}, paired per view [CI]; positive "
-                        "= descriptors raise the metric"], tidy.drop(columns=["prune"]), secs, caption=caption(tidy))
+            col = column_of(r)
+            disp.loc[(r["label"], h), col] = text(r, dg)
+            for key, h2, _ in sizes if mk == mets[0][0] else ():
+                disp.loc[(r["label"], h2), col] = fmt(r[key], 0) if pd.notna(r[key]) else "–"
+    return disp

@@ -35,48 +35,54 @@ def _first_frame_dir(images: Path, scene: str) -> Path | None:
     return subs[0] if subs else None
 
 
-def _grid(df: pd.DataFrame, images: Path, columns, title: str, path: Path, caption=None) -> list[Path]:
-    """Rows = scenes with at least two images; ``columns`` = [(header, method, variant, ratio)];
-    ``caption(scene, column)`` -> text under an image (or "")."""
-    from harness.io.safe import open_image
-
-    plt = drawing.pyplot()
+def _grid_rows(df: pd.DataFrame, images: Path, columns) -> tuple[list, list]:
+    """(the columns some scene has, [(label, scene, files)] of the scenes with at least two images)."""
     scenes = [(label, name) for name, label in dict.fromkeys(zip(df["scene"], df["label"]))]
     rows = []
     for label, name in scenes:
         d = _first_frame_dir(images, name)
-        if d is None:
-            continue
-        files = [d / image_name(m, v, r) for _, m, v, r in columns]
+        files = [] if d is None else [d / image_name(m, v, r) for _, m, v, r in columns]
         if sum(f.exists() for f in files) > 1:
             rows.append((label, name, files))
     present = [j for j in range(len(columns)) if any(files[j].exists() for _, _, files in rows)]
-    columns = [columns[j] for j in present]
-    rows = [(label, name, [files[j] for j in present]) for label, name, files in rows]
+    return [columns[j] for j in present], [(label, name, [files[j] for j in present]) for label, name, files in rows]
+
+
+def _grid(df: pd.DataFrame, images: Path, columns, title: str, path: Path, caption=None) -> list[Path]:
+    """Rows = scenes with at least two images; ``columns`` = [(header, method, variant, ratio)];
+    ``caption(scene, column)`` -> text under an image (or "")."""
+    plt = drawing.pyplot()
+    columns, rows = _grid_rows(df, images, columns)
     if not rows:
         return []
     fig, axes = plt.subplots(len(rows), len(columns), figsize=(2.6 * len(columns), 2.35 * len(rows)), squeeze=False)
     for i, (label, name, files) in enumerate(rows):
         for j, f in enumerate(files):
-            ax = axes[i, j]
-            ax.set_xticks([])
-            ax.set_yticks([])
-            if f.exists():
-                ax.imshow(np.asarray(open_image(f, "run image")))  # bounded read (harness.io.safe)
-            else:  # this scene lacks the cell: a blank panel, no frame
-                ax.set_frame_on(False)
-            if i == 0:
-                ax.set_title(columns[j][0], fontsize=9)
-            if j == 0:
-                ax.set_ylabel(label, fontsize=9)
-            text = caption(name, columns[j]) if caption else ""
-            if text:
-                ax.set_xlabel(text, fontsize=8)
+            _panel(axes[i, j], f, columns[j][0] if i == 0 else "", label if j == 0 else "",
+                   caption(name, columns[j]) if caption else "")
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     out = drawing.save(fig, path)
     plt.close(fig)
     return [out]
+
+
+def _panel(ax, image: Path, title: str, ylabel: str, xlabel: str) -> None:
+    """One cell of a grid: the image (a blank panel without a frame where the scene lacks it) and its texts."""
+    from harness.io.safe import open_image
+
+    ax.set_xticks([])
+    ax.set_yticks([])
+    if image.exists():
+        ax.imshow(np.asarray(open_image(image, "run image")))  # bounded read (harness.io.safe)
+    else:
+        ax.set_frame_on(False)
+    if title:
+        ax.set_title(title, fontsize=9)
+    if ylabel:
+        ax.set_ylabel(ylabel, fontsize=9)
+    if xlabel:
+        ax.set_xlabel(xlabel, fontsize=8)
 
 
 def _taus(df: pd.DataFrame, method: str) -> dict:

@@ -37,23 +37,23 @@ def _md_row(cells) -> str:
     return "| " + " | ".join(md_escape(c) for c in cells) + " |"
 
 
+def _md_header(disp: pd.DataFrame, cols: list[tuple], n_idx: int) -> list[str]:
+    """The header line and rule; column levels beyond the first as a bold first row."""
+    depth = len(cols[0]) if cols else 1
+    top = [c[0] if depth == 1 or i == 0 or cols[i - 1][0] != c[0] else "" for i, c in enumerate(cols)]
+    lines = [_md_row(_names(disp.index) + top), "|" + "---|" * (n_idx + len(cols))]
+    if depth > 1:
+        lines.append(_md_row([""] * n_idx + [f"**{' · '.join(str(x) for x in c[1:] if str(x))}**" for c in cols]))
+    return lines
+
+
 def _md_table(disp: pd.DataFrame) -> list[str]:
     """One markdown table; column levels beyond the first give a second header line, written as a
     bold first row (GitHub has one header row), and a parent label is written once per span."""
-    rows = _levels(disp.index)
     cols = _levels(disp.columns)
-    n_idx = len(_names(disp.index))
-    depth = len(cols[0]) if cols else 1
-    if depth == 1:
-        lines = [_md_row(_names(disp.index) + [c[0] for c in cols])]
-    else:
-        top = [c[0] if i == 0 or cols[i - 1][0] != c[0] else "" for i, c in enumerate(cols)]
-        lines = [_md_row(_names(disp.index) + top)]
-    lines.append("|" + "---|" * (n_idx + len(cols)))
-    if depth > 1:
-        lines.append(_md_row([""] * n_idx + [f"**{' · '.join(str(x) for x in c[1:] if str(x))}**" for c in cols]))
+    lines = _md_header(disp, cols, len(_names(disp.index)))
     prev = None
-    for r, vals in zip(rows, disp.itertuples(index=False)):
+    for r, vals in zip(_levels(disp.index), disp.itertuples(index=False)):
         shown = [("" if prev is not None and i < len(r) - 1 and r[: i + 1] == prev[: i + 1] else str(x))
                  for i, x in enumerate(r)]
         lines.append(_md_row(shown + [str(v) for v in vals]))
@@ -109,34 +109,40 @@ def _spans(values: list) -> list[tuple[str, int]]:
     return [(v, n) for v, n in out]
 
 
-def to_latex(disp: pd.DataFrame, title: str, notes=(), label: str = "") -> str:
-    rows = _levels(disp.index)
-    cols = _levels(disp.columns)
-    n_idx, n_col = len(rows[0]) if rows else 1, len(cols)
-    inner = [c[:-1] if len(c) > 1 else c for c in cols]  # one column block per method (paper style)
-    spec = "|" + "c" * n_idx + "|" + "|".join("c" * n for _, n in _spans(inner)) + "|"
-    out = [r"\begin{table}[t]", r"\centering", r"\resizebox{\linewidth}{!}{%", rf"\begin{{tabular}}{{{spec}}}",
-           r"\hline"]
-    depth = len(cols[0]) if cols else 1
+def _tex_header(disp: pd.DataFrame, cols: list[tuple], n_idx: int) -> list[str]:
+    """One line per column level, a label spanning its columns; spans break where any higher level
+    changes, so groups never straddle a parent boundary."""
+    out, depth = [], len(cols[0]) if cols else 1
     for lvl in range(depth):
         lead = [_tex(n) for n in _names(disp.index)] if lvl == 0 else [""] * n_idx
-        parts = []
-        # spans break where any higher level changes, so groups never straddle a parent boundary
-        keys = [c[: lvl + 1] for c in cols]
-        for key, n in _spans(keys):
-            parts.append(rf"\multicolumn{{{n}}}{{c|}}{{{_tex(key[-1])}}}" if n > 1 else _tex(key[-1]))
+        parts = [rf"\multicolumn{{{n}}}{{c|}}{{{_tex(key[-1])}}}" if n > 1 else _tex(key[-1])
+                 for key, n in _spans([c[: lvl + 1] for c in cols])]
         out.append(" & ".join(lead + parts) + r" \\")
-        out.append(rf"\cline{{{n_idx + 1}-{n_idx + n_col}}}" if lvl < depth - 1 else r"\hline")
-    groups = _spans([r[0] for r in rows])
-    i = 0
-    for first, n in groups:
+        out.append(rf"\cline{{{n_idx + 1}-{n_idx + len(cols)}}}" if lvl < depth - 1 else r"\hline")
+    return out
+
+
+def _tex_body(disp: pd.DataFrame, rows: list[tuple]) -> list[str]:
+    """The rows, grouped by their first index level (one ``\\multirow`` label and a rule per group)."""
+    out, i = [], 0
+    for first, n in _spans([r[0] for r in rows]):
         for j in range(n):
-            r = rows[i + j]
             lead = [(rf"\multirow{{{n}}}{{*}}{{{_tex(first)}}}" if n > 1 else _tex(first)) if j == 0 else ""]
-            lead += [_tex(x) for x in r[1:]]
+            lead += [_tex(x) for x in rows[i + j][1:]]
             out.append(" & ".join(lead + [_tex(v) for v in disp.iloc[i + j]]) + r" \\")
         out.append(r"\hline")
         i += n
+    return out
+
+
+def to_latex(disp: pd.DataFrame, title: str, notes=(), label: str = "") -> str:
+    rows = _levels(disp.index)
+    cols = _levels(disp.columns)
+    n_idx = len(rows[0]) if rows else 1
+    inner = [c[:-1] if len(c) > 1 else c for c in cols]  # one column block per method (paper style)
+    spec = "|" + "c" * n_idx + "|" + "|".join("c" * n for _, n in _spans(inner)) + "|"
+    out = [r"\begin{table}[t]", r"\centering", r"\resizebox{\linewidth}{!}{%", rf"\begin{{tabular}}{{{spec}}}",
+           r"\hline", *_tex_header(disp, cols, n_idx), *_tex_body(disp, rows)]
     out += [r"\end{tabular}}", rf"\caption{{{_tex(title)}." + "".join(f" {_tex(n)}" for n in notes) + "}"]
     if label:
         out.append(rf"\label{{{re.sub(r'[^A-Za-z0-9:_.-]', '-', label)}}}")

@@ -1,8 +1,9 @@
 """One path from a run's stored results to everything it shows: tables, plots, then the report page.
 
 ``harness run`` (once its results and run record are written), ``harness tables`` and ``harness
-report`` all end in :func:`publish`, so the three write the same ``tables/``, ``plots/`` and
-``report.html`` from the same results: the page is drawn from the tables just written (per
+report`` all end in :func:`publish`, so the three write the same ``tables/``, ``plots/``,
+``views.csv.gz`` (the per-view measurements, :mod:`harness.report.views_csv`) and ``report.html``
+from the same results: the page is drawn from the tables just written (per
 held-out view protocol, each labelled with it), never rebuilt another way.
 
 Which tables and plots: the run record's (``run.json``: the config's ``tables``/``plots``), else
@@ -25,6 +26,7 @@ from harness.report import catalog
 from harness.report.plots import PLOTS, write_plots
 from harness.report.tabledata import Written
 from harness.report.tables import TABLES, write_tables
+from harness.report.views_csv import write_views
 
 
 @dataclass
@@ -64,6 +66,7 @@ def publish(run_dir: str | Path, df: pd.DataFrame, meta: dict, *, tables=None, p
             memo.forget(run_dir)
             drawn = write_plots(df, run_dir, plots)
             written = write_tables(df, run_dir, tables, reference=reference, anchor=anchor) + drawn
+            written.paths.append(write_views(df, run_dir))
             memo.save(run_dir, digest, written, drawn)
         page = write_report(run_dir, df, meta, written.built, written.missing, plots=drawn.paths)
     return Published(written, page)

@@ -312,12 +312,7 @@ def write_report(run_dir: str | Path, df: pd.DataFrame, meta: dict, built: dict[
     from harness.io.files import atomic_write_text
 
     run_dir = Path(run_dir)
-    made = made_elsewhere(built)
-    absent = [b for b in built.values() if isinstance(b.table, Missing)]
-    warnings = [f"{b.key}: {b.table.reason}" for b in absent if b.name not in made]
-    notes = [f"{b.key}: not measured under the {b.protocol} views ({b.table.reason})" for b in absent if b.name in made]
-    warnings += [w for b in built.values() if isinstance(b.table, Table) for w in b.table.warnings]
-    warnings += [m for m in missing if not m.startswith("table ")]  # tables: said above, from ``built``
+    warnings, notes = _problems(built, missing)
     scenes = list(dict.fromkeys(zip(df["scene"], df["label"])))
     known = {slug(m): m for m in df["method"].unique()}
     protocols = list(dict.fromkeys(b.protocol for b in built.values() if b.protocol))  # the primary first
@@ -334,3 +329,15 @@ def write_report(run_dir: str | Path, df: pd.DataFrame, meta: dict, built: dict[
     path = run_dir / "report.html"
     atomic_write_text(path, page)
     return path
+
+
+def _problems(built: dict[str, Built], missing) -> tuple[list[str], list[str]]:
+    """(warnings, notes) of the page: a table no protocol could make, a table's own warnings and a plot
+    not drawn are warnings; a table made for other protocols than this one is a note."""
+    made = made_elsewhere(built)
+    absent = [b for b in built.values() if isinstance(b.table, Missing)]
+    warnings = [f"{b.key}: {b.table.reason}" for b in absent if b.name not in made]
+    notes = [f"{b.key}: not measured under the {b.protocol} views ({b.table.reason})" for b in absent if b.name in made]
+    warnings += [w for b in built.values() if isinstance(b.table, Table) for w in b.table.warnings]
+    warnings += [m for m in missing if not m.startswith("table ")]  # tables: said above, from ``built``
+    return warnings, notes

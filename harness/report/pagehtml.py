@@ -64,16 +64,22 @@ def html_table(disp: pd.DataFrame, heading: str = "", caption: str = "", cls: st
     prev = None
     for key, vals in zip(disp.index, disp.itertuples(index=False)):
         key = key if isinstance(key, tuple) else (key,)
-        out.append("<tr>")
-        for i, k in enumerate(key):
-            same = prev is not None and key[: i + 1] == prev[: i + 1] and i < len(key) - 1
-            out.append(f"<td class='k'>{'' if same else esc(k)}</td>")
-        for v in vals:
-            cls = tint(str(v), heading or str(key[0]))
-            out.append(f"<td class='{cls}'>{cell_html(str(v))}</td>" if cls else f"<td>{cell_html(str(v))}</td>")
-        out.append("</tr>")
+        out.append(_row_html(key, vals, prev, heading))
         prev = key
     out.append("</tbody></table></div>")
+    return "".join(out)
+
+
+def _row_html(key: tuple, vals, prev: tuple | None, heading: str) -> str:
+    """One row: its key cells (blank where they repeat the previous row's, but the last) and its values."""
+    out = ["<tr>"]
+    for i, k in enumerate(key):
+        same = prev is not None and key[: i + 1] == prev[: i + 1] and i < len(key) - 1
+        out.append(f"<td class='k'>{'' if same else esc(k)}</td>")
+    for v in vals:
+        cls = tint(str(v), heading or str(key[0]))
+        out.append(f"<td class='{cls}'>{cell_html(str(v))}</td>" if cls else f"<td>{cell_html(str(v))}</td>")
+    out.append("</tr>")
     return "".join(out)
 
 

@@ -101,27 +101,8 @@ def read_results(run_dir: str | Path) -> pd.DataFrame:
     bounded size, the :data:`REQUIRED` columns present, numeric columns numeric (a PSNR stored as
     text is an error, not a crash later)."""
     from harness.core.errors import InputError
-    from harness.io.safe import check_regular
 
-    run_dir = Path(run_dir)
-    pq, csv = run_dir / "results.parquet", run_dir / "results.csv"
-    if pq.exists():
-        check_regular(pq, "results", "results file")
-        try:
-            df = pd.read_parquet(pq)
-        except Exception as err:  # noqa: BLE001  pyarrow raises many types for a damaged file
-            raise InputError(pq, f"not a readable parquet file ({type(err).__name__}: "
-                                 f"{str(err).splitlines()[0][:120] if str(err) else ''})") from None
-        source = pq
-    elif csv.exists():
-        check_regular(csv, "results", "results file")
-        try:
-            df = to_frame(pd.read_csv(csv, keep_default_na=False, na_values=[""]).to_dict("records"))
-        except (ValueError, UnicodeDecodeError, pd.errors.ParserError) as err:
-            raise InputError(csv, f"not a readable results CSV ({str(err)[:120]})") from None
-        source = csv
-    else:
-        raise InputError(run_dir, "no results.parquet or results.csv here (is it a `harness run` output folder?)")
+    df, source = _read_table(Path(run_dir))
     missing = [c for c in REQUIRED if c not in df.columns]
     if missing:
         raise InputError(source, f"results lack the column(s) {', '.join(missing)}")
@@ -130,3 +111,25 @@ def read_results(run_dir: str | Path) -> pd.DataFrame:
             bad = next((v for v in df[c] if not isinstance(v, (int, float, np.number)) and v is not None), None)
             raise InputError(source, f"column {c!r} holds non-numbers (e.g. {str(bad)[:40]!r})")
     return df
+
+
+def _read_table(run_dir: Path) -> tuple[pd.DataFrame, Path]:
+    """(the stored results, the file they came from): ``results.parquet``, else ``results.csv``."""
+    from harness.core.errors import InputError
+    from harness.io.safe import check_regular
+
+    pq, csv = run_dir / "results.parquet", run_dir / "results.csv"
+    if pq.exists():
+        check_regular(pq, "results", "results file")
+        try:
+            return pd.read_parquet(pq), pq
+        except Exception as err:  # noqa: BLE001  pyarrow raises many types for a damaged file
+            raise InputError(pq, f"not a readable parquet file ({type(err).__name__}: "
+                                 f"{str(err).splitlines()[0][:120] if str(err) else ''})") from None
+    if csv.exists():
+        check_regular(csv, "results", "results file")
+        try:
+            return to_frame(pd.read_csv(csv, keep_default_na=False, na_values=[""]).to_dict("records")), csv
+        except (ValueError, UnicodeDecodeError, pd.errors.ParserError) as err:
+            raise InputError(csv, f"not a readable results CSV ({str(err)[:120]})") from None
+    raise InputError(run_dir, "no results.parquet or results.csv here (is it a `harness run` output folder?)")

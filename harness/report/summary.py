@@ -35,10 +35,25 @@ def summarise(df: pd.DataFrame) -> pd.DataFrame:
     if ok.empty:
         return pd.DataFrame(columns=CELL + ["n", "n_inf", "frames"] + [c for m in head for c in (m, f"{m}_std")]
                             + ["score_s", "score_s_std", "splats_in"])
-    counted = next((m for m in head if _inf_metric(m) and m in ok), None)
     keys = [ok[k] for k in CELL]
+    out = _counts_and_headline(ok, keys, head).reset_index()
+    others = [c for c in metric_columns() if c not in head]
+    for c in (c for c in others + ["splats_out", "bytes"] if c in ok):
+        vals = _means(pd.to_numeric(ok[c], errors="coerce"), keys, _inf_metric(c))
+        out[c] = vals.mean().to_numpy()
+        if c in others:
+            out[f"{c}_std"] = vals.std(ddof=1).to_numpy()
+    for m in (m for m in metric_columns() if m in out and _inf_metric(m)):  # every view +inf: the mean is
+        out.loc[_infinite(ok, m, keys).all().to_numpy(), m] = np.inf
+    return out
+
+
+def _counts_and_headline(ok: pd.DataFrame, keys, head: list[str]) -> pd.DataFrame:
+    """The first columns of :func:`summarise`, indexed by the cell: counts, the headline metrics,
+    the scoring time and the splats."""
     g = ok.groupby(CELL, sort=False, dropna=False)
     per_frame = ok.groupby(CELL + ["frame"], sort=False, dropna=False)["score_s"].first().groupby(CELL, sort=False)
+    counted = next((m for m in head if _inf_metric(m) and m in ok), None)
     out = pd.DataFrame({"n": g.size(), "frames": g["frame"].nunique()})
     out.insert(1, "n_inf", _infinite(ok, counted, keys).sum().astype(int) if counted else 0)
     for m in (m for m in head if m in ok):
@@ -46,16 +61,6 @@ def summarise(df: pd.DataFrame) -> pd.DataFrame:
         out[m], out[f"{m}_std"] = means.mean(), means.std(ddof=1)
     out["score_s"], out["score_s_std"] = per_frame.mean(), per_frame.std(ddof=1)
     out["splats_in"] = g["splats_in"].max()
-    out = out.reset_index()
-    others = [c for c in metric_columns() if c not in head]
-    for c in others + ["splats_out", "bytes"]:
-        if c in ok:
-            vals = _means(pd.to_numeric(ok[c], errors="coerce"), keys, _inf_metric(c))
-            out[c] = vals.mean().to_numpy()
-            if c in others:
-                out[f"{c}_std"] = vals.std(ddof=1).to_numpy()
-    for m in (m for m in metric_columns() if m in out and _inf_metric(m)):  # every view +inf: the mean is
-        out.loc[_infinite(ok, m, keys).all().to_numpy(), m] = np.inf
     return out
 
 

@@ -11,14 +11,12 @@ comparison groups, each method's cell of the paper's ablation grid; which metric
 registry (every registered metric the results carry).
 
 * ``comparison``, ``ablation``, ``versus``, ``per_scene``: cells with per-view paired differences and
-  bootstrap CIs, :mod:`harness.report.cells`.
+  t intervals, :mod:`harness.report.cell_tables`.
 * ``keep`` (Table 3) and ``sensitivity`` (presets, voxel sizes at keep 0.7): per scene and pooled,
   with paired intervals against the reference cell (:mod:`harness.report.sensitivity`).
 * ``runtime``: scoring seconds per scene of every method's default variant, with the descriptor
   overhead betadesc − betadesc-nodesc in seconds and in % of betadesc-nodesc's time — "–" when that
   time is under :data:`MIN_BASE_S` (a percentage of timer noise means nothing).
-* ``claims``: one row per claim of the paper with its number, ours per scene and pooled with 95 %
-  intervals, and a verdict (:mod:`harness.report.claims`).
 * ``bd`` and ``ctc``: rate points, BD-rate / BD-PSNR against the config's anchor, and the CTC's
   per-sequence CSV layout (:mod:`harness.report.bd`).
 """
@@ -36,7 +34,7 @@ import pandas as pd
 
 from harness.core.registry import Registry
 from harness.io.files import atomic_write_text
-from harness.report import bd, catalog, cells, claims, photos, sensitivity
+from harness.report import bd, catalog, cell_tables, photos, sensitivity
 from harness.report.summary import protocol_subsets, summarise
 from harness.report.tabledata import Built, Missing, Table, Written, as_table
 
@@ -116,23 +114,21 @@ def register_table(name: str, *, build: Callable, title: str, reads: str = "resu
     return spec
 
 
-register_table("comparison", build=cells.table_comparison,
+register_table("comparison", build=cell_tables.table_comparison,
                title="Comparison at low (10 %), mid (20 %) and high (30 %) pruning (paper Table 1)")
 register_table(
-    "ablation", build=cells.table_ablation, title="Ablation: descriptors × Beta at 20 % pruning (paper Table 2)"
+    "ablation", build=cell_tables.table_ablation, title="Ablation: descriptors × Beta at 20 % pruning (paper Table 2)"
 )
 register_table("keep", build=sensitivity.table_keep,
                title="Keep fractions 0.7 / 0.5 / 0.3 with and without descriptors (paper Table 3)")
 register_table("sensitivity", build=sensitivity.table_sensitivity,
                title="Sensitivity: coefficient presets and voxel sizes at keep 0.7")
 register_table("runtime", build=table_runtime, title="Scoring runtime per scene", reads="summary")
-register_table("per_scene", build=cells.table_per_scene, title="Per-scene descriptor gains")
-register_table("versus", build=cells.table_versus, title="Every method against the reference, per view")
+register_table("per_scene", build=cell_tables.table_per_scene, title="Per-scene descriptor gains")
+register_table("versus", build=cell_tables.table_versus, title="Every method against the reference, per view")
 register_table("bd", build=bd.table_bd, reads="summary",
                title="Bjøntegaard deltas against the anchor (BD-rate on .ply bytes; RGB-PSNR, YUV-PSNR, YUV-SSIM)")
 register_table("ctc", build=bd.table_ctc, title="Per sequence and rate point (MPEG CTC layout)", reads="summary")
-register_table("claims", build=claims.table_claims,
-               title="The paper's claims, each tested as the paper states it, with a verdict")
 register_table("photos", build=photos.table_photos, with_photos=True,
                title="Against the captured photos: pruned and unpruned renders, per held-out view")
 
@@ -194,6 +190,43 @@ def with_caption(t: Table | Missing) -> Table | Missing:
     return dataclasses.replace(t, caption="; ".join(parts))
 
 
+def _belongs(name: str, proto: str, with_photos: set[str]) -> bool:
+    """A table of the photos belongs to the protocols whose views have photos (when any has)."""
+    return not TABLE_SPECS.get(name).with_photos or not with_photos or proto in with_photos
+
+
+def _remove_stale(out_dir: Path, key: str) -> str:
+    """Remove the files an earlier build wrote for table ``key``; `` (removed its earlier ...)`` or ``""``."""
+    stale = [f for ext in ("md", "csv", "tex") if (f := out_dir / f"{key}.{ext}").exists()]
+    for f in stale:
+        f.unlink()
+    return f" (removed its earlier {', '.join(f.name for f in stale)})" if stale else ""
+
+
+def _write_table(out_dir: Path, b: Built) -> list[Path]:
+    """``<key>.md``, ``.csv`` (its tidy rows, with their protocol) and ``.tex`` of one built table."""
+    from harness.report.formats import to_latex, to_markdown
+
+    t = b.table
+    paths = []
+    for ext, text in (("md", to_markdown(t, b.title)), ("csv", t.tidy.assign(protocol=b.protocol).to_csv(index=False)),
+                      ("tex", to_latex(t.disp, b.title, [t.caption, *t.notes], label=f"table:{b.key}"))):
+        path = out_dir / f"{b.key}.{ext}"
+        atomic_write_text(path, text)
+        paths.append(path)
+    return paths
+
+
+def _sort_absent(out: Written, absent: list[tuple[str, str, str]]) -> None:
+    """A table made for none of the protocols is missing; one made for some is a note for the others."""
+    made = {b.name for b in out.built.values() if not isinstance(b.table, Missing)}
+    for name, proto, line in absent:
+        if name in made:
+            out.notes.append(line.replace(" not written: ", f" not made for the {proto} views: ", 1))
+        else:
+            out.missing.append(line)
+
+
 def write_tables(df: pd.DataFrame, out_dir: str | Path, names, **opts) -> Written:
     """Write ``tables/<name>.md|csv|tex`` for each table that can be made, plus ``tables/summary.csv``,
     per held-out view protocol (:func:`harness.report.summary.protocol_subsets`): the primary
@@ -201,8 +234,6 @@ def write_tables(df: pd.DataFrame, out_dir: str | Path, names, **opts) -> Writte
     and tidy row names its protocol. Tables these results cannot make are listed in ``missing``;
     their files from an earlier build are removed, since they describe other results than the
     ``results.parquet`` beside them (``missing`` says so)."""
-    from harness.report.formats import to_latex, to_markdown
-
     out_dir = Path(out_dir) / "tables"
     out_dir.mkdir(parents=True, exist_ok=True)
     subsets = protocol_subsets(df)
@@ -212,31 +243,15 @@ def write_tables(df: pd.DataFrame, out_dir: str | Path, names, **opts) -> Writte
     atomic_write_text(out.paths[0], pd.concat(summaries, ignore_index=True).to_csv(index=False))
     absent = []  # (table, protocol, line): missing, or a note when the table was made for another protocol
     for proto, suffix, sub in subsets:
-        # a table of the photos belongs to the protocols whose views have photos (when any has)
-        here = [n for n in names if not TABLE_SPECS.get(n).with_photos or not with_photos or proto in with_photos]
+        here = [n for n in names if _belongs(n, proto, with_photos)]
         for name, t in build_tables(sub, here, **opts).items():
             t = with_caption(t)
-            key = name + suffix
-            out.built[key] = Built(key, name, proto, title(name, proto, t), t)
-            if isinstance(t, Missing):
-                stale = [f for ext in ("md", "csv", "tex") if (f := out_dir / f"{key}.{ext}").exists()]
-                for f in stale:
-                    f.unlink()
-                absent.append((name, proto, f"table {key} not written: {t.reason}"
-                               + (f" (removed its earlier {', '.join(f.name for f in stale)})" if stale else "")))
+            b = out.built[name + suffix] = Built(name + suffix, name, proto, title(name, proto, t), t)
+            if isinstance(b.table, Missing):
+                absent.append((name, proto, f"table {b.key} not written: {b.table.reason}"
+                               + _remove_stale(out_dir, b.key)))
                 continue
-            out.warnings += t.warnings
-            tidy = t.tidy.assign(protocol=proto)
-            for ext, text in (("md", to_markdown(t, out.built[key].title)), ("csv", tidy.to_csv(index=False)),
-                              ("tex", to_latex(t.disp, out.built[key].title, [t.caption, *t.notes],
-                                               label=f"table:{key}"))):
-                path = out_dir / f"{key}.{ext}"
-                atomic_write_text(path, text)
-                out.paths.append(path)
-    made = {b.name for b in out.built.values() if not isinstance(b.table, Missing)}
-    for name, proto, line in absent:
-        if name in made:
-            out.notes.append(line.replace(" not written: ", f" not made for the {proto} views: ", 1))
-        else:
-            out.missing.append(line)
+            out.warnings += b.table.warnings
+            out.paths += _write_table(out_dir, b)
+    _sort_absent(out, absent)
     return out

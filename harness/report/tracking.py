@@ -140,24 +140,26 @@ def _metric_summary(values: pd.Series, m, where: str) -> dict:
 
 def summarize_stages(df: pd.DataFrame, run_json: dict) -> dict[str, float]:
     """Stage seconds (see the module docstring for the keys)."""
-    stages: dict[str, float] = {}
-    counts = run_json.get("cache_counts") or {}
-    cached = sum(int(c.get("hits", 0)) for c in counts.values()) if isinstance(counts, dict) else 0
-    if cached == 0:
-        for k, v in (run_json.get("stage_seconds") or {}).items():
-            if k in _RUN_STAGES and v is not None and np.isfinite(v):
-                stages[f"run:{k}"] = float(v)
+    stages = _run_stages(run_json)
     ok = df[df["status"] == "ok"]
     if len(ok):
         per = ok.groupby(["scene", "method", "variant"], sort=True)["score_s"].first()
-        for (scene, method, variant), v in per.items():
-            if pd.notna(v):
-                stages[f"score:{scene}|{method}[{variant}]"] = float(v)
+        stages.update({f"score:{scene}|{method}[{variant}]": float(v)
+                       for (scene, method, variant), v in per.items() if pd.notna(v)})
         for col, name in (("render_s", "render"), ("metrics_s", "metrics")):
-            for scene, v in ok.groupby("scene", sort=True)[col].mean().items():
-                if pd.notna(v):
-                    stages[f"{name}:{scene}"] = float(v)
+            stages.update({f"{name}:{scene}": float(v)
+                           for scene, v in ok.groupby("scene", sort=True)[col].mean().items() if pd.notna(v)})
     return stages
+
+
+def _run_stages(run_json: dict) -> dict[str, float]:
+    """``run:<stage>`` seconds of run.json — only when the run computed everything (no cache hit)."""
+    counts = run_json.get("cache_counts") or {}
+    cached = sum(int(c.get("hits", 0)) for c in counts.values()) if isinstance(counts, dict) else 0
+    if cached:
+        return {}
+    return {f"run:{k}": float(v) for k, v in (run_json.get("stage_seconds") or {}).items()
+            if k in _RUN_STAGES and v is not None and np.isfinite(v)}
 
 
 def _commit(run_json: dict) -> str:
@@ -200,14 +202,18 @@ def read_run_json(path: Path) -> dict:
     cal = meta.get("calibration_s")
     if cal is not None and not (math.isfinite(cal) and cal > 0):
         raise InputError(path, f"'calibration_s' must be a positive number, got {cal!r}")
-    for key in ("stage_seconds",):
-        for k, v in (meta.get(key) or {}).items():
-            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):
-                raise InputError(path, f"'{key}.{k}' is not a number")
+    _check_entries(path, meta)
+    return meta
+
+
+def _check_entries(path: Path, meta: dict) -> None:
+    """Every ``stage_seconds`` entry a number (or null), every ``cache_counts`` entry an object."""
+    for k, v in (meta.get("stage_seconds") or {}).items():
+        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):
+            raise InputError(path, f"'stage_seconds.{k}' is not a number")
     for k, v in (meta.get("cache_counts") or {}).items():
         if not isinstance(v, dict):
             raise InputError(path, f"'cache_counts.{k}' is not an object")
-    return meta
 
 
 def build_summary(df: pd.DataFrame, run_json: dict, calibration_s: float | None = None) -> dict:
@@ -338,7 +344,24 @@ def load_baseline(path: str | Path) -> dict:
             or not isinstance(data["summary"].get("groups"), dict) or "calibration_s" not in data["summary"]:
         raise InputError(path, "not a tracking baseline (expected {'tolerances': ..., 'summary': {...}} as "
                                "written by `harness track --update-baseline`)")
-    tol = data.get("tolerances") or {}
+    _check_tolerances(path, data.get("tolerances") or {})
+    cal = data["summary"]["calibration_s"]
+    if not _number(cal) or cal <= 0:
+        raise InputError(path, f"summary.calibration_s must be a positive number, got {cal!r}")
+    if not isinstance(data["summary"].get("stages", {}), dict):
+        raise InputError(path, "summary.stages must be an object")
+    _check_groups(path, data["summary"]["groups"])
+    return data
+
+
+def _number(v) -> bool:
+    """Is ``v`` a finite number (never a bool)?"""
+    return not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v)
+
+
+def _check_tolerances(path: Path, tol) -> None:
+    """Known names (the tracked metrics' and the stages'), each a finite number >= 0: a NaN tolerance
+    would make every comparison pass."""
     if not isinstance(tol, dict):
         raise InputError(path, "'tolerances' must be an object")
     known = default_tolerances()
@@ -346,21 +369,19 @@ def load_baseline(path: str | Path) -> dict:
     if unknown:
         raise InputError(path, f"unknown tolerance(s) {', '.join(unknown)}; known: {', '.join(known)}")
     for k, v in tol.items():
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+        if not _number(v) or v < 0:
             raise InputError(path, f"tolerance {k!r} must be a finite number >= 0, got {v!r}")
-    cal = data["summary"]["calibration_s"]
-    if isinstance(cal, bool) or not isinstance(cal, (int, float)) or not math.isfinite(cal) or cal <= 0:
-        raise InputError(path, f"summary.calibration_s must be a positive number, got {cal!r}")
-    if not isinstance(data["summary"].get("stages", {}), dict):
-        raise InputError(path, "summary.stages must be an object")
-    for key, g in data["summary"]["groups"].items():
+
+
+def _check_groups(path: Path, groups: dict) -> None:
+    """Every group an object whose tracked metrics are finite numbers or null."""
+    for key, g in groups.items():
         if not isinstance(g, dict):
             raise InputError(path, f"group {key!r} is not an object")
         for m in (m.name for m in registry.tracked()):
             v = g.get(m)
-            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)):
+            if v is not None and not _number(v):
                 raise InputError(path, f"group {key!r}: {m} must be a finite number or null, got {v!r}")
-    return data
 
 
 def write_baseline(path: str | Path, summary: dict, tolerances: dict | None = None) -> Path:

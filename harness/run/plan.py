@@ -1,13 +1,14 @@
 """The plan of a run: which (scene, frame), cameras, method variants, ratios and views to evaluate.
 
-Stages and their cache keys (every key also holds the code digest of what computes it):
+Stages and their cache keys (every key also holds the code digest of what computes it, and the
+config values whose fields declare it: :mod:`harness.run.config.keys`):
 
 * **load**  — per (scene, frame): file digest (+ LOD) -> splat count, SH degree, size model of its .ply.
 * **views** — per scene: rig (or camera file digest) + counts, resolution, aspect, seed -> train/test
   cameras. Multi-frame sequences use the rig of their first frame for every frame, so all frames
   are seen from the same held-out views.
 * **score** — per (scene, frame, method, resolved params): scores (N,), computed once for all ratios.
-  Camera-aware pruners also key on the train cameras and the renderer.
+  Camera-aware pruners also key on the train cameras and the device.
 * **prune** — per (score key, ratio): keep mask (stored by its own digest), τ, counts.
 * **render_ref** — per (scene, frame, test view): the unpruned render.
 * **metrics** — per (reference render, keep-mask digest): PSNR/SSIM/LPIPS of the pruned render.
@@ -38,6 +39,8 @@ from harness.core.cameras import Camera
 from harness.run.cache import StageCache, digest_json
 from harness.run.cache.versions import Versions
 from harness.run.config import MethodVariant, RunConfig, SceneSpec
+from harness.run.config.keys import key_inputs
+from harness.run.scene_views import scene_views
 from harness.run.toolkit import Toolkit
 from harness.views.protocols import HeldOut
 
@@ -183,94 +186,6 @@ def cameras_missing(spec: SceneSpec, base: Path) -> str | None:
     return None if (p if p.is_absolute() else base / p).exists() else f"cameras not found: {spec.cameras.path}"
 
 
-def select_test(cams: list[Camera], spec) -> tuple[list[Camera], list[Camera]]:
-    """Split cameras from a file: named test views, else every ``test_every``-th (LLFF convention)."""
-    if spec.test:
-        test = [c for c in cams if c.name in spec.test or Path(c.name).stem in spec.test]
-    else:
-        test = [c for i, c in enumerate(cams) if i % spec.test_every == 0]
-    ids = {id(c) for c in test}
-    return [c for c in cams if id(c) not in ids], test
-
-
-def scene_views(item_spec: SceneSpec, scene, path: Path, protocol, cache: StageCache, toolkit: Toolkit,
-                versions: Versions, scene_digest: str, base: Path):
-    """(rig name, train, test) for a scene, cached by its inputs."""
-    p = protocol
-    if item_spec.sequence is not None:
-        return _sequence_views(item_spec, cache, versions, base)
-    if item_spec.cameras is not None:
-        cpath = Path(item_spec.cameras.path)
-        cpath = cpath if cpath.is_absolute() else base / cpath
-        source = {"cameras": cache.files.digest(cpath), "test": list(item_spec.cameras.test),
-                  "test_every": item_spec.cameras.test_every}
-    else:
-        dataset = item_spec.source if item_spec.source and toolkit.resolve_dataset(item_spec.source) else None
-        source = {"rig": item_spec.rig, "scene": scene_digest, "dataset": dataset, "kind": item_spec.kind,
-                  "n_train": item_spec.n_train, "n_test": item_spec.n_test, "aspect": p.aspect, "seed": p.seed}
-    from harness.run.verify import views_check
-
-    key = cache.key("views", source=source, longest_side=p.longest_side, code=versions.rigs)
-    hit = cache.get_json("views", key, check=views_check())
-    if hit is not None:
-        return hit["rig"], [Camera.from_dict(c) for c in hit["train"]], [Camera.from_dict(c) for c in hit["test"]]
-    if item_spec.cameras is not None:
-        cams = [c.resized(p.longest_side) for c in toolkit.load_cameras(str(cpath))]
-        train, test = select_test(cams, item_spec.cameras)
-        if not test:
-            from harness.core.errors import InputError
-
-            raise InputError(cpath, f"none of the held-out views {list(item_spec.cameras.test)} is among its "
-                                    f"{len(cams)} cameras ({', '.join(c.name for c in cams[:6])}, ...)")
-        rig = "file"
-    else:
-        rig, train, test = toolkit.make_rig(item_spec.rig, scene(), kind=item_spec.kind, dataset=dataset,
-                                            n_train=item_spec.n_train, n_test=item_spec.n_test,
-                                            longest_side=p.longest_side, aspect=p.aspect, seed=p.seed)
-    cache.put_json("views", key, {"rig": rig, "train": [c.to_dict() for c in train],
-                                  "test": [c.to_dict() for c in test]})
-    return rig, train, test
-
-
-def _sequence_views(spec: SceneSpec, cache: StageCache, versions: Versions, base: Path):
-    """("sequence", train, test) of an MPEG content folder: every camera at its native size, framed
-    as the metric tool frames them; named views (``test``/``test_every``) are held out, else every
-    camera is measured and also handed to camera-aware pruners (MPEG scores the capture views)."""
-    from harness.io.sequences import find_sequence, sequence_cameras
-
-    root = Path(spec.sequence) if Path(spec.sequence).is_absolute() else base / spec.sequence
-    seq, reason = find_sequence(root)
-    if seq is None:
-        from harness.core.errors import InputError
-
-        raise InputError(root, reason)
-    src = seq.cameras if seq.cameras is not None and seq.cameras.is_file() else None
-    digest = {"cameras": cache.files.digest(src) if src else str(seq.cameras),
-              "frame0": cache.files.digest(seq.frames[0]) if seq.cameras is None else None}
-    if seq.cameras is not None and seq.cameras.is_dir():
-        digest["cameras"] = [cache.files.digest(f) for f in sorted(seq.cameras.iterdir()) if f.is_file()]
-    from harness.run.cache.versions import module_versions
-
-    code = [versions.rigs, module_versions(("harness.io.sequences", "harness.io.gscameras", "harness.io.colmap"))]
-    key = cache.key("views", source={"sequence": digest, "test": list(spec.test), "test_every": spec.test_every,
-                                     "size": [spec.width, spec.height]}, code=code)
-    hit = cache.get_json("views", key)
-    if hit is not None:
-        return hit["rig"], [Camera.from_dict(c) for c in hit["train"]], [Camera.from_dict(c) for c in hit["test"]]
-    cams = sequence_cameras(seq, spec.width, spec.height)
-    if spec.test or spec.test_every:
-        train, test = select_test(cams, spec)
-        if not test:
-            from harness.core.errors import InputError
-
-            raise InputError(seq.camera_source, f"none of the views {list(spec.test)} is among its {len(cams)} cameras")
-    else:
-        train, test = cams, cams
-    cache.put_json("views", key, {"rig": "sequence", "train": [c.to_dict() for c in train],
-                                  "test": [c.to_dict() for c in test]})
-    return "sequence", train, test
-
-
 class _LazyScene:
     """Loads the scene file on first call only (a fully cached rerun never reads it)."""
 
@@ -330,7 +245,7 @@ def _scene_items(spec, frames, config, cache, toolkit, versions, base, on_note=N
 
     items, views, held = [], None, None
     for frame, path in frames:
-        digest = digest_json({"file": cache.files.scene(path), "lod": spec.lod})
+        digest = digest_json({"file": cache.files.scene(path), **key_inputs("load", spec)})
         scene = _LazyScene(toolkit, str(path), spec.lod)
         key = cache.key("load", scene=digest, code=versions.reader)
         info = cache.get_json("load", key, check=load_check())
@@ -364,9 +279,9 @@ def protocol_views(spec: SceneSpec, scene, views, config: RunConfig, cache: Stag
     req = pv.request(spec, config, toolkit, base, scene=scene, held_out=lambda: list(test),
                      digest=cache.files.digest)
     req.synthetic = req.synthetic and rig not in ("file", "sequence")
-    held, why = {}, {}
+    held, why, inputs = {}, {}, key_inputs("protocol_views", config.protocol, spec)
     for proto in config.protocols:
-        got, reason = pv.held_out(proto, req, cache, versions.protocol(proto.spec.name), scene_digest)
+        got, reason = pv.held_out(proto, req, cache, versions.protocol(proto.spec.name), scene_digest, inputs)
         if got is not None:
             held[proto.name] = got
             if on_note and got.source:

@@ -6,9 +6,10 @@ made them — and
 
 * names every view ``<protocol>/<camera>``, but for the scene's own held-out views, which keep
   their names wherever they are measured (the photos of a view follow its name);
-* keeps the views of a ``cached`` protocol in the ``views`` stage, keyed on the scene's digest,
-  every field of the request, its own held-out views, the protocol's parameters and the code the
-  protocol's views function runs (:meth:`harness.run.cache.versions.Versions.protocol`);
+* keeps the views of a ``cached`` protocol in the ``views`` stage, keyed on the scene's digest, the
+  config values that declare ``protocol_views`` (:mod:`harness.run.config.keys`), its name and
+  dataset, its own held-out views, the protocol's parameters and the code the protocol's views
+  function runs (:meth:`harness.run.cache.versions.Versions.protocol`);
 * hears why a protocol does not apply to a scene (:class:`~harness.views.protocols.NoViews`).
 
 :func:`check_protocols` asks every protocol's ``check`` for every scene before any output is
@@ -72,14 +73,16 @@ def check_protocols(config: RunConfig, base: Path, toolkit: Toolkit | None = Non
             proto.check(request(spec, config, toolkit, base))
 
 
-def held_out(proto: Protocol, req: ViewRequest, cache: StageCache, code: str, scene_digest: str
+def held_out(proto: Protocol, req: ViewRequest, cache: StageCache, code: str, scene_digest: str, inputs: dict
              ) -> tuple[HeldOut | None, str | None]:
-    """(the scene's views under ``proto``, None) or (None, why not; None when silently not)."""
+    """(the scene's views under ``proto``, None) or (None, why not; None when silently not);
+    ``inputs``: what the config puts in the key of cached views
+    (:func:`harness.run.config.keys.key_inputs` of ``protocol_views``)."""
     try:
         if not proto.spec.cached:
             got = proto.views(req)
         else:
-            got = _cached(proto, req, cache, code, scene_digest)
+            got = _cached(proto, req, cache, code, scene_digest, inputs)
     except NoViews as why:
         return None, str(why)
     if got is None or not got.test:
@@ -87,12 +90,12 @@ def held_out(proto: Protocol, req: ViewRequest, cache: StageCache, code: str, sc
     return _named(proto.name, got, req.held_out()), None
 
 
-def _cached(proto: Protocol, req: ViewRequest, cache: StageCache, code: str, scene_digest: str) -> HeldOut | None:
+def _cached(proto: Protocol, req: ViewRequest, cache: StageCache, code: str, scene_digest: str,
+            inputs: dict) -> HeldOut | None:
     own = digest_json([c.to_dict() for c in req.held_out()])
-    source = {"scene": scene_digest, "held_out": own, "protocol": proto.key(),
-              **{k: getattr(req, k) for k in ("name", "dataset", "rig", "kind", "n_train", "n_test", "aspect",
-                                              "seed", "synthetic")}}
-    key = cache.key("views", source=source, longest_side=req.longest_side, code=code)
+    source = {**inputs["source"], "scene": scene_digest, "held_out": own, "protocol": proto.key(),
+              "name": req.name, "dataset": req.dataset, "synthetic": req.synthetic}
+    key = cache.key("views", code=code, **{**inputs, "source": source})
     hit = cache.get_json("views", key)
     if hit is not None and "held_out" in hit:
         return None if hit["held_out"] is None else _from_json(hit["held_out"])

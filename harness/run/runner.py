@@ -28,6 +28,7 @@ from harness.metrics.registry import gt_names
 from harness.run.cache import StageCache, digest_json, digest_mask
 from harness.run.cache.versions import module_versions
 from harness.run.config import RunConfig
+from harness.run.config.keys import key_inputs
 from harness.run.executors import Bars, Executor, LocalExecutor, Stage
 from harness.run.plan import SceneItem, Skip, Versions, load_items, training_sets_for, variants_for
 from harness.run.tasks import (
@@ -163,11 +164,11 @@ class Runner:
         """Camera-aware pruners key on their training cameras (``train``: the item's rig views)."""
         aware = spec.wants_cameras(mv.params)
         cams = item.train_digest if train is None else digest_json([c.to_dict() for c in train])
+        p = self.config.protocol
         return self.cache.key(
             "score", scene=item.digest, method=mv.method, params=mv.params.to_dict(),
-            seed=self.config.protocol.seed, code=self.versions.pruner(mv.method),
-            cameras=cams if aware else None,
-            device=self.config.protocol.device if aware else None,
+            code=self.versions.pruner(mv.method), cameras=cams if aware else None,
+            **key_inputs("score", p), **key_inputs("aware_score", p, unset=not aware),
         )
 
     def _score_stage(self, items, get_pruner):
@@ -276,20 +277,19 @@ class Runner:
         return out
 
     def ref_key(self, item: SceneItem, cam) -> str:
-        p = self.config.protocol
-        return self.cache.key("render_ref", scene=item.digest, camera=cam.to_dict(), renderer=p.renderer,
-                              code=self.versions.renderer, background=list(p.background))
+        return self.cache.key("render_ref", scene=item.digest, camera=cam.to_dict(), code=self.versions.renderer,
+                              **key_inputs("render_ref", self.config.protocol))
 
     def metrics_key(self, ref_key: str, mask: str, photo: str | None = None) -> str:
         """A view with a photo keys on its sha256 too (its entry holds the ``gt_`` metrics)."""
         extra = {"photo": photo} if photo else {}  # keys of views without a photo are unchanged
-        return self.cache.key("metrics", ref=ref_key, mask=mask, metrics=list(self.config.protocol.metrics),
-                              code=self.versions.metrics, **extra)
+        return self.cache.key("metrics", ref=ref_key, mask=mask, code=self.versions.metrics,
+                              **key_inputs("metrics", self.config.protocol), **extra)
 
     def gt_key(self, ref_key: str, photo: str) -> str:
         """The unpruned render of a view against its photo (and the photo's PNG at the render size)."""
-        return self.cache.key("gt", ref=ref_key, photo=photo, metrics=list(self.config.protocol.metrics),
-                              code=self.versions.metrics)
+        return self.cache.key("gt", ref=ref_key, photo=photo, code=self.versions.metrics,
+                              **key_inputs("gt", self.config.protocol))
 
     def measured_names(self, photo) -> tuple[str, ...]:
         p = self.config.protocol
@@ -321,22 +321,9 @@ class Runner:
         for i, item in enumerate(items):
             masks = self._masks(i, item, prunes)
             for proto, v, cam in item.views():
-                ref_key = self.ref_key(item, cam)
-                views[ref_key] = f"{_where(item)} {proto} view {cam.name or f'view{v:02d}'}"
-                photo = item.photo(proto, cam.name)
-                # the first view of the primary protocol and of one with photos keep their renders as images
-                first = v == 0 and (proto == self.primary or photo is not None)
-                jobs = self._view_jobs(ref_key, masks.get(proto, {}), photo, first, users)
-                gt_key = self._gt_to_measure(ref_key, photo, v)
-                task = functools.partial(self._view_task, ref_key, item, cam, photo, views[ref_key])
-                ref_png = not self.cache.has("images", ref_key, "png")  # contact sheets and figures
-                have_ref = self.cache.get_json("render_ref", ref_key,
-                                               check=render_ref_record_check(cam.width, cam.height)) is not None
-                if not have_ref or ref_png:
-                    refs.append(task([], render_ref=not have_ref, ref_png=ref_png))
-                if jobs or gt_key:  # LPIPS pass + render (N); a photo adds its comparisons
-                    cost = max(len(jobs) * (1.0 + item.n_splats / 5e5) * (1.6 if photo else 1.0), 1.0)
-                    chunks.append((cost, jobs, task, gt_key))
+                view_refs, view_chunks = self._view_work(item, proto, v, cam, masks.get(proto, {}), views, users)
+                refs += view_refs
+                chunks += view_chunks
         chunks = self._split_views(chunks)
         if self.executor.parallel:  # longest first; in-process order keeps a view's chunks together
             refs.sort(key=lambda t: -t.n_splats)
@@ -350,6 +337,24 @@ class Runner:
                 what = views.get(res["ref_key"], res["ref_key"][:12])
                 self.errors.append(f"render {what}" + ("" if key is None else f" pruned by {users.get(key) or '?'} "
                                                        f"[{key[:12]}]") + f": {err}")
+
+    def _view_work(self, item: SceneItem, proto: str, v: int, cam, kept_by: dict, views: dict, users: dict):
+        """What is still to compute of one held-out view (its label into ``views``): ([its reference
+        task] or [], [(cost, jobs, task, gt key) of its pruned sets] or [])."""
+        ref_key = self.ref_key(item, cam)
+        views[ref_key] = f"{_where(item)} {proto} view {cam.name or f'view{v:02d}'}"
+        photo = item.photo(proto, cam.name)
+        # the first view of the primary protocol and of one with photos keep their renders as images
+        first = v == 0 and (proto == self.primary or photo is not None)
+        jobs = self._view_jobs(ref_key, kept_by, photo, first, users)
+        gt_key = self._gt_to_measure(ref_key, photo, v)
+        task = functools.partial(self._view_task, ref_key, item, cam, photo, views[ref_key])
+        ref_png = not self.cache.has("images", ref_key, "png")  # contact sheets and figures
+        have_ref = self.cache.get_json("render_ref", ref_key,
+                                       check=render_ref_record_check(cam.width, cam.height)) is not None
+        refs = [task([], render_ref=not have_ref, ref_png=ref_png)] if not have_ref or ref_png else []
+        cost = max(len(jobs) * (1.0 + item.n_splats / 5e5) * (1.6 if photo else 1.0), 1.0)  # LPIPS pass + render (N)
+        return refs, [(cost, jobs, task, gt_key)] if jobs or gt_key else []
 
     def _view_jobs(self, ref_key: str, kept_by: dict, photo, first: bool, users: dict) -> list[MaskJob]:
         """The pruned sets of a view still to measure (or whose image the figures still need)."""

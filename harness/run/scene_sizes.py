@@ -122,7 +122,7 @@ def _sizes(cams) -> list[tuple[int, int]]:
 def _own_views(spec, config, toolkit, base, dataset) -> tuple[list, list]:
     """(held-out, training) sizes of the scene's own views: its MPEG content's, its camera file's,
     or ``n_test`` and ``n_train`` views of its rig."""
-    from harness.run.plan import select_test
+    from harness.run.scene_views import select_test
 
     if spec.sequence is not None:
         from harness.io.sequences import find_sequence, sequence_cameras

@@ -333,16 +333,12 @@ def _register_reference(task: ViewTask, cache: StageCache, cam: Camera, ref, ref
     return suite, feat_s
 
 
-def _measure_sets(task: ViewTask, cache: StageCache, suite, renders: ViewRenders, jobs: list[MaskJob],
-                  feat_s: float, om: bool) -> list[tuple[MaskJob, str | None]]:
-    """Render pruned sets of the view (their splats filtered from the view's packing), score them
-    against the reference (and the photo) in one batch, store each one's metrics entry (and its PNG
-    when asked). Returns each job with its error (None: stored); a job whose mask or render fails
-    is left out of the batch, a batch whose scoring fails fails all of its jobs.
-    ``metrics_s`` of an entry is its share of the batch's scoring."""
+def _render_sets(task: ViewTask, cache: StageCache, renders: ViewRenders, jobs: list[MaskJob]) -> tuple[list, dict]:
+    """([(job, image, alpha, render seconds)] of the pruned sets rendered, {id(job): error} of the
+    others: a mask missing or failing verification, or a render that raised)."""
     from harness.run.verify import mask_check
 
-    done, result = [], {}  # result: id(job) -> its error (None: stored)
+    done, failed = [], {}
     for job in jobs:
         try:
             packed = cache.get_array("masks", job.mask_key, count=False,
@@ -354,7 +350,18 @@ def _measure_sets(task: ViewTask, cache: StageCache, suite, renders: ViewRenders
             img, img_alpha = renders(keep)
             done.append((job, img, img_alpha, time.perf_counter() - t0))
         except Exception as err:
-            result[id(job)] = f"{type(err).__name__}: {err}"
+            failed[id(job)] = f"{type(err).__name__}: {err}"
+    return done, failed
+
+
+def _measure_sets(task: ViewTask, cache: StageCache, suite, renders: ViewRenders, jobs: list[MaskJob],
+                  feat_s: float, om: bool) -> list[tuple[MaskJob, str | None]]:
+    """Render pruned sets of the view (their splats filtered from the view's packing), score them
+    against the reference (and the photo) in one batch, store each one's metrics entry (and its PNG
+    when asked). Returns each job with its error (None: stored); a job whose mask or render fails
+    is left out of the batch, a batch whose scoring fails fails all of its jobs.
+    ``metrics_s`` of an entry is its share of the batch's scoring."""
+    done, result = _render_sets(task, cache, renders, jobs)  # result: id(job) -> its error (None: stored)
     in_order = lambda: [(job, result[id(job)]) for job in jobs]  # noqa: E731
     if not done:
         return in_order()

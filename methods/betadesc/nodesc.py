@@ -32,7 +32,7 @@ Definitions (norm = ``stat_norm`` over the splats; o is the same normalised opac
   round-one reading rule, 70c2edb, was registered, and outside that rule) until issue 21.
 
 Which of ``splat-params`` and ``param-stats`` is the default is decided by the pre-registered round
-two (``ctc_configs/reading2.yaml``). Both are invariant to splat order and translation; scaling the
+two (``ctc_configs/study/reading2.yaml``). Both are invariant to splat order and translation; scaling the
 scene shifts every log-scale by one constant, which ``norm`` removes (up to float rounding).
 """
 

@@ -18,7 +18,7 @@ Each reading is a raw quantity and an orientation: ``inverse`` maps it to 1 − 
 ``direct`` to norm(raw). After each reading: whether it *preserves* or *reverses* the direction the
 paper's words give (ℓ, s rise with neighbourhood homogeneity; u, "structurally distinctive", falls
 with it), with Spearman ρ against homogeneity on luigi / grape-small / bonsai-7k-mini
-(:mod:`methods.betadesc.directions`; all five scenes in ``results/reading/directions.md``).
+(:mod:`harness.study.directions`; all five scenes in ``results/reading/directions.md``).
 
 * ``ℓ`` low geometric contrast [``ell_def``] (against geometric homogeneity H_geo):
   ``nbhd-std`` (v1) 1 − norm(σ_g), σ_g² = ⅓ mean_{k∈N(j)} ‖g_k − ḡ_j‖², the spread of the geometric

@@ -25,7 +25,7 @@ from typing import Literal
 import numpy as np
 
 from harness.core.params import Params, param
-from methods.betadesc.params import BetaDescParams, NoDescStatisticsParams
+from methods.betadesc.params import READING_DOC, READINGS, BetaDescParams, NoDescStatisticsParams
 from methods.registry import PruneContext, register_pruner
 from methods.virtualrig import VirtualRigParams
 
@@ -43,7 +43,24 @@ class VREvidenceParams(Params):
 
 @dataclass(frozen=True)
 class BetaDescVRParams(BetaDescParams, NoDescStatisticsParams, VirtualRigParams, VREvidenceParams):
-    """BetaDescPrune's reading, the virtual rig's geometry and the weight joining them."""
+    """BetaDescPrune's reading, the virtual rig's geometry and the weight joining them.
+
+    The reading defaults to ``round-two``, not BetaDescPrune's paper-literal default: the
+    pre-registered selection of ``vr_weight`` and of the rig (``ctc_configs/study/virtualrig.yaml``: "fixed,
+    not searched: … betadesc-vr: the default reading of betadesc") was made and measured when
+    BetaDescPrune's default was round two's reading, so that is the reading the selected values
+    belong to. Changing it is a change of this pruner's default and follows docs/reading.md. Its FPFH
+    radius (5 × 0.2 of the diagonal) is not local: the descriptors summarise the whole scene, which this
+    pruner's selection measured and kept; the non-local warning is therefore printed only for a voxel or
+    radius a user sets, not for these defaults (:func:`harness.core.advice.announce`)."""
+
+    reading: Literal["paper-literal", "paper-direction", "round-one", "round-two", "v1"] = param(
+        "round-two", doc="base bundle of reading choices (methods/betadesc/params.py); round-two: the reading "
+        "the virtual-rig selection was made on", reading=READING_DOC)
+    voxel: float = param(READINGS["round-two"]["voxel"], gt=0, le=1,
+                         doc="voxel edge as a fraction of the bounding-box diagonal (round-two's)")
+    ell_def: Literal["nbhd-std", "dims-std", "dims-peak"] = param(
+        READINGS["round-two"]["ell_def"], doc="ℓ (methods/betadesc/params.py; round-two's)")
 
 
 def normalise(significance: np.ndarray, how: str) -> np.ndarray:

@@ -2,7 +2,7 @@
 
 * :mod:`~harness.run.config.run_config`: :class:`RunConfig`, :func:`load_config` / :func:`parse_config`
   (validation and sweep expansion);
-* :mod:`~harness.run.config.sections`: the sections as dataclasses of typed ``param(...)`` fields,
+* :mod:`~harness.run.config.sections`: the sections as dataclasses of typed ``config_param(...)`` fields,
   read by :mod:`~harness.run.config.schema` with the checks of :mod:`~harness.run.config.checks`;
 * :mod:`~harness.run.config.views`: the ``protocols:`` list and a scene's ``capture:``;
 * :mod:`~harness.run.config.executor`: the ``executor:`` section;

@@ -5,9 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from harness.core.errors import InputError
-from harness.core.params import param
 from harness.run.config.checks import expand_env, mapping, string
-from harness.run.config.schema import read_section
+from harness.run.config.schema import config_param, read_section
 
 EXECUTORS = ("local", "ray")
 
@@ -20,17 +19,19 @@ def _address(v, key, src):
 class ExecutorSpec:
     """Where the work units run (:mod:`harness.run.executors`)."""
 
-    name: str = param("local", choices=EXECUTORS, doc="local (a process pool) or ray")
-    address: str | None = param(None, parse=_address,
-                                doc="ray: none = start a local cluster; auto, HOST:PORT or ray://HOST:10001")
-    cpus_per_task: int | None = param(None, ge=1, le=1024,
-                                      doc="ray: CPUs (= threads) per task; default cores // workers locally, 1 on a "
-                                          "cluster")
-    gpus_per_task: float = param(
-        1.0, ge=0.01, le=64, doc="ray: GPU share of a render/metrics/camera-aware task when protocol.device is CUDA"
+    name: str = config_param("local", changes=(), choices=EXECUTORS, doc="local (a process pool) or ray")
+    address: str | None = config_param(None, parse=_address, changes=(),
+                                       doc="ray: none = start a local cluster; auto, HOST:PORT or ray://HOST:10001")
+    cpus_per_task: int | None = config_param(
+        None, ge=1, le=1024, changes=(),
+        doc="ray: CPUs (= threads) per task; default cores // workers locally, 1 on a cluster")
+    gpus_per_task: float = config_param(
+        1.0, ge=0.01, le=64, changes=(),
+        doc="ray: GPU share of a render/metrics/camera-aware task when protocol.device is CUDA"
     )
-    max_retries: int = param(2, ge=0, le=100,
-                             doc="ray: re-runs of a task whose worker process died (never of a task that raised)")
+    max_retries: int = config_param(
+        2, ge=0, le=100, changes=(),
+        doc="ray: re-runs of a task whose worker process died (never of a task that raised)")
 
 
 def parse_executor(v, src) -> ExecutorSpec:

@@ -53,14 +53,9 @@ def _take(base_origins: dict, over_origins: dict, path: tuple) -> None:
     base_origins.update({p: o for p, o in over_origins.items() if p[: len(path)] == path})
 
 
-def resolve(doc, source: str, origins: dict | None = None, chain: tuple = ()) -> tuple:
-    """``(document, origins)`` of a parsed config with its ``extends`` chain resolved."""
-    from harness.io.safe import load_yaml
-
-    origins = {} if origins is None else origins
-    if not isinstance(doc, dict) or "extends" not in doc:
-        return doc, origins
-    base_name = doc["extends"]
+def _extended(base_name, source: str, chain: tuple) -> Path:
+    """The file ``extends: base_name`` names (relative to the extending file), checked: a path, no
+    cycle, at most :data:`MAX_DEPTH` files, a file that exists."""
     if not isinstance(base_name, str) or not base_name.strip():
         raise InputError(source, f"extends: expected the path of a config file, got {base_name!r}")
     base_path = (Path(source).parent / base_name) if not Path(base_name).is_absolute() else Path(base_name)
@@ -70,6 +65,18 @@ def resolve(doc, source: str, origins: dict | None = None, chain: tuple = ()) ->
                          else f"extends: more than {MAX_DEPTH} files in the chain")
     if not base_path.is_file():
         raise InputError(source, f"extends: no such config file {base_path}")
+    return base_path
+
+
+def resolve(doc, source: str, origins: dict | None = None, chain: tuple = ()) -> tuple:
+    """``(document, origins)`` of a parsed config with its ``extends`` chain resolved."""
+    from harness.io.safe_yaml import load_yaml
+
+    origins = {} if origins is None else origins
+    if not isinstance(doc, dict) or "extends" not in doc:
+        return doc, origins
+    base_path = _extended(doc["extends"], source, chain)
+    key = str(base_path.resolve())
     base, node = load_yaml(base_path, with_node=True)
     base_origins: dict = {}
     if node is not None:
@@ -84,7 +91,7 @@ def resolve(doc, source: str, origins: dict | None = None, chain: tuple = ()) ->
 
 def read_config_file(path: Path) -> tuple:
     """``(document, origins)`` of a config file, ``extends`` resolved (module docstring)."""
-    from harness.io.safe import load_yaml
+    from harness.io.safe_yaml import load_yaml
 
     doc, node = load_yaml(path, with_node=True)
     origins: dict = {}

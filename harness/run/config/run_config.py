@@ -1,72 +1,17 @@
-"""Run configuration for ``harness run CONFIG.yaml``: schema, validation and sweep expansion.
+"""Run configuration for ``harness run CONFIG.yaml``: validation and sweep expansion.
 
-A config is a YAML mapping::
-
-    name: default                 # run name (default: the file's stem)
-    output: runs/default          # results directory (relative to the working directory)
-    workers: 2                    # local process pool size (--workers overrides)
-    executor: local               # or ray (--executor / --address override); as a mapping:
-                                  # {name: ray, address: auto, cpus_per_task: 2, gpus_per_task: 0.5,
-                                  #  max_retries: 2}; address: absent = a local Ray cluster of
-                                  # `workers` workers, auto, HOST:PORT or ray://HOST:10001
-    protocol:                     # how every scene is evaluated
-      longest_side: 512           # render resolution (px, longest image side; default 1024)
-      aspect: 1.3333              # width / height of rig views (default: the rig's own — a named
-                                  # dataset's table entry, else 4/3)
-      background: [0, 0, 0]
-      renderer: gl                # gl | reference
-      device: cpu                 # torch device for metrics / camera-aware pruners
-      metrics: [psnr, ssim, lpips]
-      seed: 0
-      n_train: 48                 # rig views handed to camera-aware pruners (default 48)
-      n_test: 8                   # held-out rig views that are measured (default 8)
-    anchor: lightgs               # BD-rate / BD-PSNR anchor of the bd table (default lightgs)
-    ratios: [0.1, 0.2, 0.3]       # default pruning ratios of every method
-    keep: [0.7, 0.5, 0.3]         # default keep fractions (ratio = 1 - keep), merged with ratios
-    scenes:
-      - name: luigi               # row label; also the dataset name or path when `source` is absent
-        source: luigi             # dataset name (harness.io.datasets) or a path; ${VAR:-default} expanded
-        frames: "dir/*.ply"       # instead of source: a glob of per-frame files (one sequence)
-        sequence: dir             # instead of source/frames/cameras: an MPEG content folder
-                                  # (track/ or plys/ per-frame PLYs, COLMAP or header cameras;
-                                  # harness.io.sequences), rendered at its native size with all
-                                  # its cameras; optional test: [names] / test_every: k,
-                                  # width/height for header cameras without a size
-        kind: object-centric      # or forward-facing (picks the `forward` rig for rig: default)
-        rig: default              # `default` (a named dataset's own rig, else auto), or orbit, room,
-                                  # forward, auto (harness.views.rigs; same meaning as `harness render --rig`)
-        cameras: {path: cams.json, test: [v08, v10], test_every: 8}   # instead of a rig
-        capture: {cameras: cams.json, images: photos/, split: split.json, transform: t.json}
-                                  # the real capture (harness.io.capture): views and photos of the
-                                  # `real` protocol; named scenes carry theirs (bonsai-7k, bonsai-7k-mini),
-                                  # `capture: false` drops it; split | test: [names] | test_every: k
-        lod: 0                    # SOG level of detail
-        n_test: 3                 # per-scene override of protocol.n_test / n_train
-        label: "plant"            # display name in tables (default: name)
-        suites: [paper-table1]    # free tags
-        optional: true            # skip the scene when its files are absent (default false: a scene
-                                  # that cannot be found stops the run before any work)
-    methods:
-      - name: betadesc            # a registered pruner
-        variant: default          # row label of this entry (default: "default" or the sweep values)
-        params: {gamma: 0.25}
-        sweep: {preset: [baseline, flat]}   # cartesian product -> one variant per combination
-        ratios: [0.3]             # overrides the default ratios (keep: likewise)
-        scenes: [luigi]           # restrict to these scene names
-        protocols: [rig]          # measured only under these of the config's protocols (default: all)
-    protocols: [rig, shifted, real]   # held-out view protocols (the first: the primary one);
-                                  # {name: real, n_test: 8}: the first 8 captured views by name
-    tables: [comparison, ablation, keep, sensitivity, runtime, per_scene]
-    plots: [curves, figure1, figure3]
-
+A config is a YAML mapping of sections (:data:`SECTIONS`, plus the top level's own keys), each a
+dataclass of typed ``config_param(...)`` fields (:mod:`harness.run.config.sections`: one default, range,
+doc and what the value changes each); the reference of every key, ``docs/config.md``, is generated
+from those declarations (:mod:`harness.run.config.reference`, ``harness config schema``).
 ``extends: default.yaml`` makes a config another one with its own keys over it (mappings merge key
 by key, lists and values replace: :mod:`harness.run.config.files`); ``harness config show CONFIG``
 prints the resolved config with the file and line of every value.
 
-Every section is a dataclass of typed ``param(...)`` fields (:mod:`harness.run.config.schema`: one
-default, range and doc each). Every problem is an :class:`InputError` naming the key path
-(``methods[2].sweep.voxel``) and what is wrong. Variant names are stable: ``<variant or 'default'>`` for plain
-entries, and ``k1=v1,k2=v2`` (keys in the order written) for sweep combinations, prefixed by ``variant`` when given.
+Every problem is an :class:`InputError` naming the key path (``methods[2].sweep.voxel``) and what
+is wrong. Variant names are stable: ``<variant or 'default'>`` for plain entries, and
+``k1=v1,k2=v2`` (keys in the order written) for sweep combinations, prefixed by ``variant`` when
+given.
 """
 
 from __future__ import annotations
@@ -223,6 +168,7 @@ def _check_sweep(sweep: dict, params: dict, where: str, src) -> None:
 
 def _variants(spec, e: dict, where: str, src):
     """(variant name, resolved parameters) of every combination of the entry's sweep (one without)."""
+    from harness.core.advice import announce
     from harness.core.params import ParamError
 
     params, sweep = e["params"] or {}, e["sweep"] or {}
@@ -235,7 +181,9 @@ def _variants(spec, e: dict, where: str, src):
             section = "sweep" if err.key in sweep else "params"
             key = f".{section}.{err.key}" if err.key is not None else f".{section}"
             raise InputError(src, f"{where}{key}: method {e['name']!r}: {err.problem}") from None
-        yield ":".join(x for x in (e["variant"], label) if x) or "default", resolved
+        variant = ":".join(x for x in (e["variant"], label) if x) or "default"
+        announce(f"{src}: {where} ({e['name']}, variant {variant})", resolved)
+        yield variant, resolved
 
 
 def _method(d, i, default_ratios, config_scenes: list[SceneSpec], src, protocol_names=()) -> list[MethodVariant]:
@@ -310,9 +258,9 @@ def parse_config(data: Any, source: str = "<config>") -> RunConfig:
 def load_config(path: str | Path) -> RunConfig:
     """Read and validate a YAML run config; any problem is an InputError naming the file and key.
 
-    Read through :func:`harness.io.safe.load_yaml`: a regular file of at most 1 MiB of UTF-8,
+    Read through :func:`harness.io.safe_yaml.load_yaml`: a regular file of at most 1 MiB of UTF-8,
     duplicate keys refused, aliases bounded (no "billion laughs")."""
-    from harness.io.safe import load_yaml
+    from harness.io.safe_yaml import load_yaml
 
     path = Path(path)
     if not path.exists():

@@ -1,9 +1,11 @@
-"""Run-config sections as dataclasses of typed ``param(...)`` fields, read by one function.
+"""Run-config sections as dataclasses of typed ``config_param(...)`` fields, read by one function.
 
 A section (``protocol:``, a scene, a ``methods[]`` entry, the top level) is a frozen dataclass whose
-fields are declared with :func:`harness.core.params.param` — the same declaration as a pruner's
-parameters: one default, a doc, bounds (``ge``/``le``), ``choices`` (a tuple, or a function returning
-registered names) or, for a value that is no scalar, ``parse(value, key, source)``. :func:`read_section`
+fields are declared with :func:`config_param` — a pruner parameter's declaration
+(:func:`harness.core.params.param`: one default, a doc, bounds (``ge``/``le``), ``choices`` (a tuple,
+or a function returning registered names) or, for a value that is no scalar, ``parse(value, key,
+source)``) and what the value changes (``changes``: the cache keys that hold it,
+:mod:`harness.run.config.keys`). :func:`read_section`
 checks a YAML mapping against it: unknown keys (with "did you mean"), then every given key by its
 declaration. Every problem is one :class:`~harness.core.errors.InputError` naming the config file
 and the key path (``protocol.longest_side: 99999 is outside [8, 8192]``).
@@ -15,7 +17,17 @@ import dataclasses
 import types
 import typing
 
+from harness.core.params import param
 from harness.run.config.checks import boolean, choice, num, only, string
+
+
+def config_param(default, *, changes, doc: str, **checks) -> dataclasses.Field:
+    """A run-config field: :func:`~harness.core.params.param` (``doc`` and ``checks``: ``ge``, ``le``,
+    ``choices``, ``parse`` ...) and what its value ``changes`` — ``()`` no result, ``"content"`` the
+    files it names, or the cache keys that hold it (:data:`harness.run.config.keys.KEYS`). Required:
+    a field cannot leave the question open."""
+    f = param(default, doc=doc, **checks)
+    return dataclasses.field(default=f.default, metadata={**f.metadata, "changes": changes})
 
 
 def declared(cls) -> list[dataclasses.Field]:

@@ -1,6 +1,7 @@
-"""The sections of a run config, each a dataclass of typed ``param(...)`` fields (one default, range
-and doc each; read by :func:`harness.run.config.schema.read_section`), with the readers of the values that
-are no scalars. :mod:`harness.run.config.run_config` reads a whole config with them.
+"""The sections of a run config, each a dataclass of typed ``config_param(...)`` fields (one default,
+range, doc and what the value changes each; read by :func:`harness.run.config.schema.read_section`),
+with the readers of the values that are no scalars. :mod:`harness.run.config.run_config` reads a
+whole config with them.
 """
 
 from __future__ import annotations
@@ -9,7 +10,7 @@ from dataclasses import dataclass
 
 from harness.core.cameras import MAX_SIDE
 from harness.core.errors import InputError
-from harness.core.params import Params, param
+from harness.core.params import Params
 from harness.core.suggest import unknown
 from harness.io.capture import CaptureSpec
 from harness.metrics.registry import expand, requestable
@@ -21,7 +22,7 @@ from harness.run.config.checks import mapping as _mapping
 from harness.run.config.checks import names as _names
 from harness.run.config.checks import num as _num
 from harness.run.config.checks import string as _str
-from harness.run.config.schema import read_section
+from harness.run.config.schema import config_param, read_section
 from harness.run.config.views import capture as _capture
 from harness.views import rigs
 from renderers import RENDERERS
@@ -80,6 +81,7 @@ def _registered(kind: str, names):
     """A list of registered ``kind`` names: ``[]`` is none of them, ``null`` every one (the default)."""
     def read(v, key, src) -> tuple[str, ...]:
         return tuple(names) if v is None else _names(v, names, key, src, kind)
+    read.registered = kind  # the default is every registered one (docs/config.md says so)
     return read
 
 
@@ -94,19 +96,29 @@ def pruner_name(v, key, src) -> str:
 class Protocol:
     """How every scene is evaluated (``protocol:``)."""
 
-    longest_side: int = param(rigs.LONGEST_SIDE, ge=MIN_SIDE, le=MAX_SIDE,
-                              doc="render resolution: the longest image side (px)")
-    aspect: float | None = param(None, ge=0.1, le=10,
-                                 doc="width / height of rig views (none: the rig's own, a named dataset's, else 4/3)")
-    background: tuple[float, float, float] = param((0.0, 0.0, 0.0), parse=_background,
-                                                   doc="background colour (R, G, B in [0, 1])")
-    renderer: str = param("gl", choices=lambda: RENDERERS.names(), doc="renderer (renderers registry)")
-    device: str = param("cpu", doc="torch device for metrics and camera-aware pruners")
-    metrics: tuple[str, ...] = param(("psnr", "ssim", "lpips"), parse=_metrics,
-                                     doc="metrics or metric families (harness.metrics registry)")
-    seed: int = param(0, ge=0, doc="seed of rigs and random pruners")
-    n_train: int = param(rigs.N_TRAIN, ge=0, le=rigs.MAX_VIEWS, doc="rig views handed to camera-aware pruners")
-    n_test: int = param(rigs.N_TEST, ge=1, le=rigs.MAX_VIEWS, doc="held-out rig views that are measured")
+    longest_side: int = config_param(rigs.LONGEST_SIDE, ge=MIN_SIDE, le=MAX_SIDE,
+                                     changes=("rig_views", "file_views", "protocol_views"),
+                                     doc="render resolution: the longest image side (px)")
+    aspect: float | None = config_param(
+        None, ge=0.1, le=10, changes=("rig_views", "protocol_views"),
+        doc="width / height of rig views (none: the rig's own, a named dataset's, else 4/3)")
+    background: tuple[float, float, float] = config_param(
+        (0.0, 0.0, 0.0), parse=_background, changes=("render_ref",), doc="background colour (R, G, B in [0, 1])")
+    renderer: str = config_param("gl", choices=lambda: RENDERERS.names(), changes=("render_ref",),
+                                 doc="renderer (renderers registry)")
+    #: in the score keys of camera-aware pruners only (what it may change); the metrics keys never
+    #: held it, and deriving them keeps them as they were
+    device: str = config_param("cpu", changes=("aware_score",),
+                               doc="torch device for metrics and camera-aware pruners")
+    metrics: tuple[str, ...] = config_param(("psnr", "ssim", "lpips"), parse=_metrics, changes=("metrics", "gt"),
+                                            doc="metrics or metric families (harness.metrics registry)")
+    seed: int = config_param(0, ge=0, changes=("score", "rig_views", "protocol_views"),
+                             doc="seed of rigs and random pruners")
+    #: the defaults of each scene's own n_train / n_test, which are what the view keys hold
+    n_train: int = config_param(rigs.N_TRAIN, ge=0, le=rigs.MAX_VIEWS, changes=(),
+                                doc="rig views handed to camera-aware pruners (each scene's default)")
+    n_test: int = config_param(rigs.N_TEST, ge=1, le=rigs.MAX_VIEWS, changes=(),
+                               doc="held-out rig views that are measured (each scene's default)")
 
 
 def _cameras(v, key, src) -> CameraSpec:
@@ -123,38 +135,52 @@ def _cameras(v, key, src) -> CameraSpec:
 class CameraSpec:
     """Cameras from a file; held-out views by name (``test``) or every k-th view (``test_every``)."""
 
-    path: str = param(None, parse=_path, doc="the cameras file")
-    test: tuple[str, ...] = param((), parse=_text_list("view names"), doc="held-out views by name")
-    test_every: int = param(0, ge=0, doc="every k-th view is held out")
+    path: str = config_param(None, parse=_path, changes="content", doc="the cameras file")
+    test: tuple[str, ...] = config_param((), parse=_text_list("view names"), changes=("file_views",),
+                                         doc="held-out views by name")
+    test_every: int = config_param(0, ge=0, changes=("file_views",), doc="every k-th view is held out")
 
 
 @dataclass(frozen=True)
 class SceneSpec:
     name: str
     label: str
-    source: str | None = param(None, parse=_path,
-                               doc="dataset name (harness.io.datasets) or a path; default: the name")
-    frames: str | None = param(None, parse=_path, doc="instead of source: a glob of per-frame files (one sequence)")
-    kind: str = param("object-centric", choices=KINDS, doc="forward-facing picks the `forward` rig for rig: default")
-    rig: str = param("default", choices=rigs.RIG_CHOICES, doc="synthetic rig (harness.views.rigs)")
-    cameras: CameraSpec | None = param(None, parse=_cameras, doc="cameras from a file, instead of a rig")
-    lod: int | None = param(None, ge=0, doc="SOG level of detail")
-    n_train: int = param(rigs.N_TRAIN, ge=0, le=rigs.MAX_VIEWS, doc="this scene's protocol.n_train")
-    n_test: int = param(rigs.N_TEST, ge=1, le=rigs.MAX_VIEWS, doc="this scene's protocol.n_test")
-    suites: tuple[str, ...] = param((), parse=_text_list("tags"), doc="free tags")
+    #: by content (the scene's files); a named dataset's name is in the view keys too, beside them
+    source: str | None = config_param(None, parse=_path, changes="content",
+                                      doc="dataset name (harness.io.datasets) or a path; default: the name")
+    frames: str | None = config_param(None, parse=_path, changes="content",
+                                      doc="instead of source: a glob of per-frame files (one sequence)")
+    kind: str = config_param("object-centric", choices=KINDS, changes=("rig_views", "protocol_views"),
+                             doc="forward-facing picks the `forward` rig for rig: default")
+    rig: str = config_param("default", choices=rigs.RIG_CHOICES, changes=("rig_views", "protocol_views"),
+                            doc="synthetic rig (harness.views.rigs)")
+    cameras: CameraSpec | None = config_param(None, parse=_cameras, changes="content",
+                                              doc="cameras from a file, instead of a rig")
+    lod: int | None = config_param(None, ge=0, changes=("load",), doc="SOG level of detail")
+    n_train: int = config_param(rigs.N_TRAIN, ge=0, le=rigs.MAX_VIEWS, changes=("rig_views", "protocol_views"),
+                                doc="this scene's protocol.n_train")
+    n_test: int = config_param(rigs.N_TEST, ge=1, le=rigs.MAX_VIEWS, changes=("rig_views", "protocol_views"),
+                               doc="this scene's protocol.n_test")
+    suites: tuple[str, ...] = config_param((), parse=_text_list("tags"), changes=(), doc="free tags")
     #: an MPEG content folder (harness.io.sequences): per-frame PLYs + cameras, native resolution,
     #: every camera measured unless ``test`` / ``test_every`` name the views
-    sequence: str | None = param(None, parse=_path, doc="an MPEG content folder (harness.io.sequences)")
-    test: tuple[str, ...] = param((), parse=_text_list("view names"), doc="sequence: held-out views by name")
-    test_every: int = param(0, ge=0, doc="sequence: every k-th camera is held out")
-    width: int | None = param(None, ge=1, le=MAX_SIDE, doc="sequence: image width for header cameras without one")
-    height: int | None = param(None, ge=1, le=MAX_SIDE, doc="sequence: image height for header cameras without one")
+    sequence: str | None = config_param(None, parse=_path, changes="content",
+                                        doc="an MPEG content folder (harness.io.sequences)")
+    test: tuple[str, ...] = config_param((), parse=_text_list("view names"), changes=("sequence_views",),
+                                         doc="sequence: held-out views by name")
+    test_every: int = config_param(0, ge=0, changes=("sequence_views",),
+                                   doc="sequence: every k-th camera is held out")
+    width: int | None = config_param(None, ge=1, le=MAX_SIDE, changes=("sequence_views",),
+                                     doc="sequence: image width for header cameras without one")
+    height: int | None = config_param(None, ge=1, le=MAX_SIDE, changes=("sequence_views",),
+                                      doc="sequence: image height for header cameras without one")
     #: absent files are skipped with a message (MPEG content not everyone has); otherwise a scene
     #: that cannot be found is an error before any work (:func:`harness.run.plan.check_sources`)
-    optional: bool = param(False, doc="skip the scene when its files are absent")
+    optional: bool = config_param(False, changes=(), doc="skip the scene when its files are absent")
     #: the scene's capture (real cameras, split, photos; harness.io.capture) for the `real` protocol;
     #: None: a named scene's own (SCENE_CAPTURES), if any; False: none (`capture: false`)
-    capture: CaptureSpec | bool | None = param(None, parse=_capture, doc="the real capture (harness.io.capture)")
+    capture: CaptureSpec | bool | None = config_param(None, parse=_capture, changes="content",
+                                                      doc="the real capture (harness.io.capture)")
 
 
 @dataclass(frozen=True)
@@ -182,28 +208,35 @@ class MethodVariant:
 class MethodEntry:
     """One ``methods[]`` entry as written, before its sweep is expanded into variants."""
 
-    name: str = param(None, parse=pruner_name, doc="a registered pruner")
-    variant: str | None = param(None, doc="row label of this entry (default: default, or the sweep values)")
-    params: dict = param(None, parse=_mapping_value, doc="the pruner's parameters")
-    sweep: dict = param(None, parse=_mapping_value, doc="lists of values: one variant per combination")
-    ratios: tuple[float, ...] | None = param(
-        None, parse=_fraction_list, doc="pruning ratios (default: the top level's)"
-    )
-    keep: tuple[float, ...] | None = param(None, parse=_fraction_list, doc="keep fractions (ratio = 1 - keep)")
-    scenes: tuple[str, ...] | None = param(None, parse=_text_list("scene names"), doc="restrict to these scenes")
-    protocols: tuple[str, ...] | None = param(None, parse=_text_list("protocol names"),
-                                              doc="measure only under these of the config's view protocols")
+    name: str = config_param(None, parse=pruner_name, changes=("score",), doc="a registered pruner")
+    variant: str | None = config_param(None, changes=(),
+                                       doc="row label of this entry (default: default, or the sweep values)")
+    params: dict = config_param(None, parse=_mapping_value, changes=("score",), doc="the pruner's parameters")
+    sweep: dict = config_param(None, parse=_mapping_value, changes=("score",),
+                               doc="lists of values: one variant per combination")
+    ratios: tuple[float, ...] | None = config_param(None, parse=_fraction_list, changes=("prune",),
+                                                    doc="pruning ratios (default: the top level's)")
+    keep: tuple[float, ...] | None = config_param(None, parse=_fraction_list, changes=("prune",),
+                                                  doc="keep fractions (ratio = 1 - keep)")
+    scenes: tuple[str, ...] | None = config_param(None, parse=_text_list("scene names"), changes=(),
+                                                  doc="restrict to these scenes")
+    protocols: tuple[str, ...] | None = config_param(None, parse=_text_list("protocol names"), changes=(),
+                                                     doc="measure only under these of the config's view protocols")
 
 
 @dataclass(frozen=True)
 class Settings:
     """The top level's own values (the sections have theirs)."""
 
-    name: str | None = param(None, doc="run name (default: the file's stem)")
-    output: str | None = param(None, parse=_path, doc="results folder (default: runs/<name>)")
-    workers: int = param(1, ge=1, le=256, doc="local process pool size (--workers overrides)")
-    anchor: str = param("lightgs", parse=pruner_name, doc="BD-rate / BD-PSNR anchor of the bd table")
-    ratios: tuple[float, ...] = param((), parse=_fraction_list, doc="default pruning ratios of every method")
-    keep: tuple[float, ...] = param((), parse=_fraction_list, doc="default keep fractions, merged with ratios")
-    tables: tuple[str, ...] = param(TABLES, parse=_registered("table", TABLES), doc="tables to write")
-    plots: tuple[str, ...] = param(PLOTS, parse=_registered("plot", PLOTS), doc="plots to draw")
+    name: str | None = config_param(None, changes=(), doc="run name (default: the file's stem)")
+    output: str | None = config_param(None, parse=_path, changes=(), doc="results folder (default: runs/<name>)")
+    workers: int = config_param(1, ge=1, le=256, changes=(), doc="local process pool size (--workers overrides)")
+    anchor: str = config_param("lightgs", parse=pruner_name, changes=(),
+                               doc="BD-rate / BD-PSNR anchor of the bd table")
+    ratios: tuple[float, ...] = config_param((), parse=_fraction_list, changes=("prune",),
+                                             doc="default pruning ratios of every method")
+    keep: tuple[float, ...] = config_param((), parse=_fraction_list, changes=("prune",),
+                                           doc="default keep fractions, merged with ratios")
+    tables: tuple[str, ...] = config_param(TABLES, parse=_registered("table", TABLES), changes=(),
+                                           doc="tables to write")
+    plots: tuple[str, ...] = config_param(PLOTS, parse=_registered("plot", PLOTS), changes=(), doc="plots to draw")

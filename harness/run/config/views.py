@@ -45,34 +45,11 @@ def protocols(v, src) -> tuple:
     own. A mapping naming no registered protocol and giving no ``protocol:`` is a shifted one that
     changes only what it names (:data:`harness.views.heldout.SHIFT_BLANK`). The first must be one that
     may lead a run (``rig``, ``real``)."""
-    from harness.core.params import ParamError
-    from harness.views.heldout import SHIFT_BLANK
-    from harness.views.protocols import PROTOCOL_SPECS, protocol
+    from harness.views.protocols import PROTOCOL_SPECS
 
     if not isinstance(v, list) or not v:
         raise InputError(src, "protocols: expected a non-empty list of view protocols (e.g. [rig, shifted])")
-    out = []
-    for i, e in enumerate(v):
-        where = f"protocols[{i}]"
-        e = {"name": e} if isinstance(e, str) else dict(_mapping(e, where, src))
-        name = _str(e.pop("name", None), f"{where}.name", src)
-        kind = e.pop("protocol", None)
-        if kind is None and e and name not in PROTOCOL_SPECS:
-            kind, blank = "shifted", SHIFT_BLANK
-        else:
-            blank = {}
-        kind = name if kind is None else _str(kind, f"{where}.protocol", src)
-        if kind not in PROTOCOL_SPECS:
-            from harness.core.suggest import unknown
-
-            raise InputError(src, f"{where}{'.protocol' if kind != name else ''}: "
-                                  f"{unknown('view protocol', kind, PROTOCOL_SPECS.names())} (or give a mapping)")
-        if "/" in name:
-            raise InputError(src, f"{where}.name: {name!r} has a '/' (it names views and table files)")
-        try:
-            out.append(protocol(name, kind, e, blank=blank))
-        except ParamError as err:
-            raise InputError(src, f"{where}.{err}" if err.key else f"{where}: {err}") from None
+    out = tuple(_protocol(e, f"protocols[{i}]", src) for i, e in enumerate(v))
     names = [p.name for p in out]
     if len(set(names)) != len(names):
         raise InputError(src, f"protocols: duplicate names in {names}")
@@ -80,4 +57,27 @@ def protocols(v, src) -> tuple:
         leads = ", ".join(f"`{s.name}`" for s in PROTOCOL_SPECS if s.primary)
         raise InputError(src, f"protocols[0]: the first protocol must be the training rig's own views or one with "
                               f"training views of its own ({leads})")
-    return tuple(out)
+    return out
+
+
+def _protocol(e, where: str, src):
+    """One entry of ``protocols:`` (:func:`protocols`) as a :class:`harness.views.protocols.Protocol`."""
+    from harness.core.params import ParamError
+    from harness.core.suggest import unknown
+    from harness.views.heldout import SHIFT_BLANK
+    from harness.views.protocols import PROTOCOL_SPECS, protocol
+
+    e = {"name": e} if isinstance(e, str) else dict(_mapping(e, where, src))
+    name = _str(e.pop("name", None), f"{where}.name", src)
+    kind = e.pop("protocol", None)
+    blank = SHIFT_BLANK if kind is None and e and name not in PROTOCOL_SPECS else {}
+    kind = "shifted" if blank else name if kind is None else _str(kind, f"{where}.protocol", src)
+    if kind not in PROTOCOL_SPECS:
+        raise InputError(src, f"{where}{'.protocol' if kind != name else ''}: "
+                              f"{unknown('view protocol', kind, PROTOCOL_SPECS.names())} (or give a mapping)")
+    if "/" in name:
+        raise InputError(src, f"{where}.name: {name!r} has a '/' (it names views and table files)")
+    try:
+        return protocol(name, kind, e, blank=blank)
+    except ParamError as err:
+        raise InputError(src, f"{where}.{err}" if err.key else f"{where}: {err}") from None

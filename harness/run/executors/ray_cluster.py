@@ -283,9 +283,7 @@ class RayExecutor(Executor):
             return results
         ray = self.start()
         index = {id(s): i for i, s in enumerate(stages)}
-        for s in stages:
-            if s.tasks:
-                bars.start(s.name, sum(s.weight(t) for t in s.tasks))
+        _start_bars(stages, bars)
         jobs = self._jobs(stages)
         pipe = _Pipeline(ray, self, jobs)
         window = self.window or max(4, 2 * int(ray.cluster_resources().get("CPU", 1) // self.threads))
@@ -304,9 +302,8 @@ class RayExecutor(Executor):
         except BaseException:  # Ctrl-C / SIGTERM / a bug here: nothing keeps running for this run
             _cancel(ray, pending)
             raise
-        for s in stages:
-            if s.tasks:
-                bars.finish(s.name)
+        for s in (s for s in stages if s.tasks):
+            bars.finish(s.name)
         return results
 
     def _result(self, ray, ref, job: _Job) -> dict:
@@ -331,6 +328,13 @@ class RayExecutor(Executor):
             first = _ANSI.sub("", str(err)).strip().splitlines()
             return job.task.failed(f"{what}: the worker died {self.max_retries + 1} times running it (killed, out "
                                    f"of memory or crashed): {type(err).__name__}: {first[0] if first else ''}")
+
+
+def _start_bars(stages: Sequence[Stage], bars: Bars) -> None:
+    """A bar per stage with tasks, its total the tasks' weight."""
+    for s in stages:
+        if s.tasks:
+            bars.start(s.name, sum(s.weight(t) for t in s.tasks))
 
 
 def _cancel(ray, pending) -> None:

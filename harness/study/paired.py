@@ -9,7 +9,7 @@ alone. For a candidate C and a reference R (e.g. ``random``) at one (scene, rati
           "t"          the house interval, D ± t_{0.975, n−1}·s/√n (:func:`harness.report.stats.t_ci`);
           "bootstrap"  the 2.5th / 97.5th percentiles of the means of 10,000 resamples of the views
                        with replacement (numpy default_rng(seed), seed 0) — the interval round one of
-                       the reading selection was pre-registered with (``ctc_configs/reading.yaml``)
+                       the reading selection was pre-registered with (``ctc_configs/study/reading.yaml``)
 
 Views where either side reaches ``max_psnr`` (100 dB, +inf included: the pruned render equals the
 reference render there, e.g. nothing pruned is visible) are excluded and counted (``n_excluded``).

@@ -1,17 +1,18 @@
 """`harness bench virtualrig select|confirm`: the pre-registered parameter selection of the
-``virtual-rig`` pruner and of ``betadesc-vr``'s evidence weight (rule: ``ctc_configs/virtualrig.yaml``,
-verbatim), and a quick confirmation on the other scenes (``ctc_configs/virtualrig_confirm.yaml``).
+``virtual-rig`` pruner and of ``betadesc-vr``'s evidence weight (rule: ``ctc_configs/study/virtualrig.yaml``,
+verbatim), and a quick confirmation on the other scenes (``ctc_configs/study/virtualrig_confirm.yaml``).
 
-    harness bench virtualrig select   [--config ctc_configs/virtualrig.yaml] [--workers 2] [--out DIR]
-    harness bench virtualrig confirm  [--config ctc_configs/virtualrig_confirm.yaml] [--workers 2] [--run] [--out DIR]
+    harness bench virtualrig select   [--config ctc_configs/study/virtualrig.yaml] [--workers 2] [--out DIR]
+    harness bench virtualrig confirm  [--config ctc_configs/study/virtualrig_confirm.yaml] [--workers 2] [--run]
+                                      [--out DIR]
 
 ``select`` walks the virtual rig's axes with the engine of the reading selection
-(:func:`harness.benchmarks._selection.run_selection`): reference ``lightgs``, the views of the
+(:func:`harness.study.selection.run_selection`): reference ``lightgs``, the views of the
 ``shifted`` and ``independent`` protocols pooled, values over the scoring budget ruled out, axes that
 do not apply to a scene (identical renders) judged on the scenes they change. Then ``betadesc-vr``'s
 ``vr_weight`` axis on the selected rig. Writes ``selection.md``, ``.json`` and ``selected.json``.
 ``confirm`` writes ``<config name>.md`` (``virtualrig-confirm.md``; the development run on the
-selection scenes, ``--config ctc_configs/virtualrig_dev.yaml``: ``virtualrig-dev.md``): per protocol,
+selection scenes, ``--config ctc_configs/study/virtualrig_dev.yaml``: ``virtualrig-dev.md``): per protocol,
 paired differences against LightGS, opacity and the significance alone. Both write into ``--out``
 (default ``runs/bench/virtualrig``; ``--out results/virtualrig`` updates the committed reports).
 """
@@ -25,15 +26,15 @@ from pathlib import Path
 import yaml
 
 from harness.benchmarks._common import out_dir, tracked_note
-from harness.benchmarks._selection import (
+from harness.io.files import atomic_write_text
+from harness.study import reading_search as rs
+from harness.study.selection import (
     add_stage_arguments,
     confirmation_results,
     run_selection,
     run_stage,
     write_selection,
 )
-from harness.io.files import atomic_write_text
-from harness.report import reading_search as rs
 
 NAME = "virtualrig"
 HELP = "pre-registered selection (and a quick confirmation) of the virtual-rig pruner; results/virtualrig/"
@@ -105,9 +106,25 @@ def confirm(args) -> int:
 
 
 def add_arguments(parser) -> None:
-    add_stage_arguments(parser, "select the parameters, or confirm them",
-                        "ctc_configs/virtualrig.yaml for select, virtualrig_confirm.yaml for confirm")
+    add_stage_arguments(parser, "select the parameters, or confirm them; rho: the virtual rig's Spearman rho "
+                        "with LightGS significance per scene against its goal",
+                        "ctc_configs/study/virtualrig.yaml for select, virtualrig_confirm.yaml for confirm; "
+                        "round 2: ctc_configs/study/virtualrig2.yaml, virtualrig2_confirm.yaml", extra_stages=("rho",))
+    parser.add_argument("--scenes", default=None, help="rho: comma-separated scenes (default: the default "
+                        "study's and the two generated ones)")
+    parser.add_argument("--round", type=int, choices=(1, 2), default=1,
+                        help="1: the rig's geometry and betadesc-vr's weight; 2: where the cameras stand")
 
 
 def run(args) -> int:
+    if args.stage == "rho":
+        from harness.study import virtualrig_round2 as r2
+
+        args.scenes = args.scenes or r2.RHO_SCENES
+        return r2.rho(args, OUT_SUB)
+    if args.round == 2:
+        from harness.study import virtualrig_round2 as r2
+
+        return run_stage(args, "virtualrig2.yaml", "virtualrig2_confirm.yaml",
+                         lambda a: r2.select(a, OUT_SUB), lambda a: r2.confirm(a, OUT_SUB))
     return run_stage(args, "virtualrig.yaml", "virtualrig_confirm.yaml", select, confirm)

@@ -1,6 +1,6 @@
 """`harness bench tradeoff`: run time against error for every speed/accuracy knob, in one run.
 
-Knobs and error measures: :mod:`harness.benchmarks._tradeoff_knobs`. Output: ``tradeoff.json`` / ``tradeoff.md``
+Knobs and error measures: :mod:`harness.study.tradeoff_knobs`. Output: ``tradeoff.json`` / ``tradeoff.md``
 (a table per family, the reference setting marked, Pareto-optimal settings marked) and
 ``tradeoff_pareto.png`` (CPU seconds vs the family's main error, Pareto front drawn) under
 ``--out`` (default ``runs/bench``; ``--out results/bench`` updates the committed results).
@@ -107,7 +107,13 @@ def plot(path: Path, rows, flags) -> None:
 def run(args) -> int:
     import numpy as np
 
-    from harness.benchmarks._tradeoff_knobs import (
+    from harness.core.errors import InputError
+    from harness.io.datasets import identify
+    from harness.io.scenes import load_scene
+    from harness.metrics.lpips_vgg import LpipsVGG
+    from harness.report.machine import describe_machine as machine
+    from harness.report.machine import time_calibration
+    from harness.study.tradeoff_knobs import (
         PRUNE_FAMILIES,
         QUICK_PRUNE,
         Evaluator,
@@ -115,12 +121,6 @@ def run(args) -> int:
         pareto_front,
         prune_knobs,
     )
-    from harness.core.errors import InputError
-    from harness.io.datasets import identify
-    from harness.io.scenes import load_scene
-    from harness.metrics.lpips_vgg import LpipsVGG
-    from harness.report.machine import describe_machine as machine
-    from harness.report.machine import time_calibration
     from harness.views.rigs import scene_rig
     from methods.targeting import select_by_ratio
 

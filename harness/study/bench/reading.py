@@ -1,26 +1,26 @@
 """`harness bench reading select|confirm|directions`: the pre-registered selection of BetaDescPrune's
-default reading (round one; rule: ``ctc_configs/reading.yaml``, verbatim), its confirmation on the
+default reading (round one; rule: ``ctc_configs/study/reading.yaml``, verbatim), its confirmation on the
 other scenes, and which way every reading of ℓ, s, u points.
 
     harness bench reading select     [--round 1|2] [--config CONFIG] [--workers 2]
     harness bench reading confirm    [--round 1|2] [--config CONFIG] [--workers 2] [--run]
     harness bench reading directions [--scenes luigi,grape-small,bonsai-7k-mini]
 
-Round one: ``ctc_configs/reading.yaml`` / ``reading_confirm.yaml`` (percentile bootstrap, its rule);
-round two: ``ctc_configs/reading2.yaml`` / ``reading2_confirm.yaml`` (t interval; also searches
+Round one: ``ctc_configs/study/reading.yaml`` / ``reading_confirm.yaml`` (percentile bootstrap, its rule);
+round two: ``ctc_configs/study/reading2.yaml`` / ``reading2_confirm.yaml`` (t interval; also searches
 ``betadesc-nodesc``'s definition). Reports: ``results/reading/selection[2].md|json``,
 ``confirmation[2].md``.
 
 ``select`` runs the config (``harness run``; cached stages are reused) unless its results exist,
-then walks the axes in order (:mod:`harness.report.reading_search`, driven by
-:mod:`harness.benchmarks._selection`). When an axis needs readings the results do not hold (after an
+then walks the axes in order (:mod:`harness.study.reading_search`, driven by
+:mod:`harness.study.selection`). When an axis needs readings the results do not hold (after an
 adoption), it writes a stage config next to the run (``<output>/stage-<k>-<axis>.yaml``: the same
 protocol and scenes, ``random`` and the needed readings) and runs it. It writes
 ``selection[2].md`` and ``.json`` and prints the selected reading. ``confirm`` runs the confirmation
 config and writes ``confirmation[2].md``. Both write into ``--out`` (default ``runs/bench/reading``;
 ``--out results/reading`` updates the committed reports).
 ``directions`` measures, render-free, the Spearman ρ of every reading of ℓ, s, u with neighbourhood
-homogeneity on real scenes (:mod:`methods.betadesc.directions`) and writes
+homogeneity on real scenes (:mod:`harness.study.directions`) and writes
 ``results/reading/directions.md`` / ``.json``.
 """
 
@@ -34,14 +34,14 @@ from pathlib import Path
 import yaml
 
 from harness.benchmarks._common import out_dir, tracked_note
-from harness.benchmarks._selection import (
+from harness.study import reading_search as rs
+from harness.study.selection import (
     add_stage_arguments,
     confirmation_results,
     run_selection,
     run_stage,
     write_selection,
 )
-from harness.report import reading_search as rs
 
 NAME = "reading"
 HELP = "pre-registered selection (and confirmation) of BetaDescPrune's default reading; results/reading/"
@@ -134,7 +134,7 @@ DIRECTION_SCENES = "luigi,grape-small,bonsai-7k-mini,playbot,bonsai-7k"
 def directions(args) -> int:
     out = out_dir(args, OUT_SUB)  # created and probed before any work
     from harness.io.scenes import load_scene
-    from methods.betadesc import directions as dirs
+    from harness.study import directions as dirs
 
     scenes = [s.strip() for s in args.scenes.split(",") if s.strip()]
     rows = []
@@ -152,7 +152,7 @@ def directions(args) -> int:
 
 
 def directions_markdown(rows: list[dict], scenes: list[str]) -> str:
-    from methods.betadesc.directions import PAPER_DIRECTION
+    from harness.study.directions import PAPER_DIRECTION
 
     want = {"ell": "ρ(ℓ, H_geo) > 0", "s": "ρ(s, H_app) > 0", "u": "ρ(u, H_geo) < 0"}
     lines = ["# Which way each reading of ℓ, s, u points (`harness bench reading directions`)", "",
@@ -178,11 +178,12 @@ def directions_markdown(rows: list[dict], scenes: list[str]) -> str:
 
 def add_arguments(parser) -> None:
     add_stage_arguments(parser, "select the reading, confirm it, or measure the readings' directions",
-                        "the round's, ctc_configs/reading[2].yaml for select, reading[2]_confirm.yaml for confirm",
+                        "the round's, ctc_configs/study/reading[2].yaml for select, "
+                        "reading[2]_confirm.yaml for confirm",
                         extra_stages=("directions",))
     parser.add_argument("--scenes", default=DIRECTION_SCENES, help="directions: comma-separated scenes")
     parser.add_argument("--round", type=int, choices=sorted(ROUNDS), default=1,
-                        help="selection round (1: ctc_configs/reading.yaml, 2: reading2.yaml)")
+                        help="selection round (1: ctc_configs/study/reading.yaml, 2: reading2.yaml)")
 
 
 def run(args) -> int:

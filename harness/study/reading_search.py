@@ -1,11 +1,11 @@
 """The pre-registered greedy selection of a pruner's parameters: BetaDescPrune's reading (round one:
-``ctc_configs/reading.yaml``, round two: ``ctc_configs/reading2.yaml``) and the virtual rig's
-geometry and betadesc-vr's weight (``ctc_configs/virtualrig.yaml``); each rule is in its file's header.
+``ctc_configs/study/reading.yaml``, round two: ``ctc_configs/study/reading2.yaml``) and the virtual rig's
+geometry and betadesc-vr's weight (``ctc_configs/study/virtualrig.yaml``); each rule is in its file's header.
 
 Pure functions over a run config's raw mapping and the tidy results of its runs; the drivers that
-run the stages are ``harness bench reading`` (:mod:`harness.benchmarks.reading`; named
+run the stages are ``harness bench reading`` (:mod:`harness.study.bench.reading`; named
 tools/reading_search.py when round one was pre-registered in commit 70c2edb) and ``harness bench
-virtualrig`` (:mod:`harness.benchmarks.virtualrig`).
+virtualrig`` (:mod:`harness.study.bench.virtualrig`).
 
 * :func:`search_space` reads the rule's start (the ``params`` of the first sweep entry of each
   searched method: ``betadesc``; in round two also ``betadesc-nodesc``; ``virtual-rig``, then
@@ -23,7 +23,7 @@ virtualrig`` (:mod:`harness.benchmarks.virtualrig`).
   on every scene where the candidate changes anything — an exactly zero difference with a zero-width
   interval means the axis does not apply there — and on at least one). The interval is the round's:
   the percentile bootstrap in round one and for the virtual rig (their rules), the t interval in
-  round two (:mod:`harness.report.paired`).
+  round two (:mod:`harness.study.paired`).
 * :func:`selection_markdown` and :func:`confirmation_markdown` write the report tables.
 """
 
@@ -36,7 +36,7 @@ from typing import Any, Mapping
 
 import pandas as pd
 
-from harness.report.paired import Paired, compare
+from harness.study.paired import Paired, compare
 
 METHOD = "betadesc"
 #: the methods whose sweep entries are axes in round two (round one used only the first)
