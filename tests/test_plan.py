@@ -11,6 +11,7 @@ from harness.cli import main
 from harness.io.ply import write_ply
 from harness.run.config import parse_config
 from harness.run.estimate import (
+    POOL_START_S,
     Assumptions,
     Estimate,
     SceneInfo,
@@ -113,14 +114,25 @@ def test_doubling_workers_halves_the_wall_time_down_to_the_longest_task():
               "prune": Stage("prune", 1, 5.0), "render_ref": Stage("render_ref"),
               "render+metrics": Stage("render+metrics", 10_000, 1e6, 200.0)}
     est = Estimate(stages, [], {})
-    serial, startup = 15.0, 20.0
-    pool = [est.wall_s(w, 1.0) - serial - 2 * startup for w in (1, 2, 4)]
+    serial, startup = 15.0, POOL_START_S  # the pool starts once per run
+    pool = [est.wall_s(w, 1.0) - serial - startup for w in (1, 2, 4)]
     assert pool[1] == pytest.approx(pool[0] / 2) and pool[2] == pytest.approx(pool[0] / 4)
-    floor = serial + 2 * startup + 50.0 + 200.0  # each pool stage takes at least its longest task
+    floor = serial + startup + 50.0 + 200.0  # each pool stage takes at least its longest task
     assert est.wall_s(100_000, 1.0) == pytest.approx(floor)
     assert est.wall_s(100_000, 1.0) == est.wall_s(200_000, 1.0)
     assert est.wall_s(8, 0.5) == pytest.approx(est.wall_s(4, 1.0))
     assert est.nodes(8.0, 16, 1.0)[0] == 3  # ceil(1,001,015 s / (8 h × 16 cores)) = ceil(2.17)
+
+
+def test_one_worker_runs_in_process_and_the_reference_renders_pipeline_with_the_view_tasks():
+    stages = {"load": Stage("load", 1, 1.0), "score": Stage("score"), "prune": Stage("prune", 1, 2.0),
+              "render_ref": Stage("render_ref", 4, 40.0, 10.0),
+              "render+metrics": Stage("render+metrics", 8, 60.0, 30.0)}
+    est = Estimate(stages, [], {})
+    walls = est.stage_walls(1, 0.5)  # one worker: no parallel loss, whatever the efficiency
+    assert walls == {"load": 1.0, "prune": 2.0, "score": 0.0, "render_metrics": 100.0 + POOL_START_S}
+    assert est.stage_walls(1000, 1.0)["render_metrics"] == 30.0 + POOL_START_S  # the longer longest task
+    assert est.wall_s(2, 0.5) == pytest.approx(3.0 + 100.0 + POOL_START_S)
 
 
 def test_absent_sequences_use_the_assumptions_and_say_so(tmp_path):

@@ -209,6 +209,8 @@ def markdown(doc: dict) -> str:
 
 
 def _wall(doc: dict) -> list[str]:
+    from harness.run.estimate import POOL_START_S
+
     w = doc["wall_hours"]
     o = doc["overnight"]
     st = doc["stages"]
@@ -222,7 +224,8 @@ def _wall(doc: dict) -> list[str]:
             f"Workers of one core each at {100 * doc['efficiency']:.0f} % parallel efficiency; the pool stages run one "
             f"after another, each at least as long as its longest task (score: {_n(st['score']['longest_task_s'])} s, "
             f"camera-aware scoring of the largest frame; render+metrics: "
-            f"{_n(st['render+metrics']['longest_task_s'])} s, one view task of the largest) plus ~20 s start-up; "
+            f"{_n(st['render+metrics']['longest_task_s'])} s, one view task of the largest), plus the pool's start-up "
+            f"once (~{POOL_START_S:g} s); one worker runs in-process, at full efficiency; "
             f"load and prune run in the driver, serially ({_n(serial)} h). "
             + (f"Workers asked for (--workers): {doc['workers']}." if doc.get("workers_from") == "--workers"
                else f"Config's workers: {doc['workers']}."),

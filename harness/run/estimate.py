@@ -38,12 +38,13 @@ view work (its reference renders and view tasks) is kept (:attr:`Estimate.protoc
 units, a run spends :data:`DRIVER_CPU_S` in its driver (imports, hashing, the run record) and
 :data:`WORKER_CPU_S` per worker that starts (torch, the LPIPS weights, numba's cached kernels).
 
-**Wall time on W workers** (one core each, parallel efficiency e): the pool stages run one after
-another, each taking ``max(core_s / (W·e), longest task)`` plus :data:`STARTUP_S` (spawn, imports,
-JIT); the driver's stages (load, prune) are serial. So doubling the workers halves a stage's wall
-time until its longest single task — camera-aware scoring of the largest scene, or one view task
-of the largest — bounds it from below. ``harness bench calibrate --check RUN_DIR`` compares an
-estimate with what a finished run measured.
+**Wall time on W workers** (one core each, parallel efficiency e; e = 1 for one worker, which runs
+in-process): the pool stages run one after another — scoring, then the reference renders and view
+tasks as one pipeline — each taking ``max(core_s / (W·e), longest task)``, plus the pool's start-up
+once (:data:`POOL_START_S`: spawn, imports, JIT); the driver's stages (load, prune) are serial.
+So doubling the workers halves a stage's wall time until its longest single task — camera-aware
+scoring of the largest scene, or one view task of the largest — bounds it from below.
+``harness bench calibrate --check RUN_DIR`` compares an estimate with what a finished run measured.
 
 Scenes whose files are absent (the MPEG sequences are not public) are estimated from
 :class:`~harness.run.scene_sizes.Assumptions`, and every row says whether it was read or assumed
@@ -59,8 +60,9 @@ from harness.run.config import RunConfig
 from harness.run.scene_sizes import Assumptions, SceneInfo, scene_info  # noqa: F401  (estimate's inputs)
 from harness.run.unit_costs import UnitCosts, train_pixels
 
-#: per pool stage: spawning workers, importing torch/lpips, numba's first compile (default study:
-#: its first score results came after ~15 s, its first reference renders after ~20 s)
+#: per pool stage of the GPU model (:mod:`harness.run.estimate_device`): spawning workers, importing
+#: torch/lpips, numba's first compile (default study on a busy 2-core machine: its first score results
+#: came after ~15 s, its first reference renders after ~20 s)
 STARTUP_S = 20.0
 #: per measured image, work outside the timed render and metrics: reading and unpacking the mask,
 #: PNGs, cache writes, the driver (default study, second half on this machine: 2,009 CPU-s for
@@ -72,6 +74,13 @@ DRIVER_CPU_S = 2.0
 #: CPU seconds of a pool worker starting: imports (torch, numba), the LPIPS weights, numba's
 #: cached kernels (ci.yaml cold with one worker: ~6 CPU-s between the driver's and the units')
 WORKER_CPU_S = 6.0
+#: wall seconds of the pool starting, once per run (the executor keeps its pool from the first pool
+#: stage to the end): the workers start side by side, each on its own core; in-process (one worker)
+#: the same imports happen in the first task. ci.yaml cold, one worker: its score and render stages
+#: took 2.6 s more wall than their tasks' seconds
+POOL_START_S = 3.0
+#: stages the runner runs as one pipeline (a view's pruned sets start once its reference is drawn)
+PIPELINED = ("render_ref", "render+metrics")
 STAGES = ("load", "score", "prune", "render_ref", "render+metrics")
 SERIAL = ("load", "prune")
 
@@ -109,15 +118,28 @@ class Estimate:
         worker's start-up (:data:`DRIVER_CPU_S`, :data:`WORKER_CPU_S`)."""
         return self.core_s + DRIVER_CPU_S + WORKER_CPU_S * workers
 
+    def stage_walls(self, workers: int, efficiency: float) -> dict[str, float]:
+        """Projected wall seconds of each stage the runner times on ``workers`` one-core workers
+        (``load``, ``score``, ``prune``, ``render_metrics``: the pipelined :data:`PIPELINED`); the
+        pool's start-up (:data:`POOL_START_S`) falls on the first pool stage with work. One worker
+        runs in-process: no parallel loss (efficiency 1)."""
+        e = 1.0 if workers == 1 else efficiency
+        render = [self.stages[n] for n in PIPELINED]
+        pool = {"score": (self.stages["score"].core_s, self.stages["score"].longest_s, self.stages["score"].units),
+                "render_metrics": (sum(s.core_s for s in render), max(s.longest_s for s in render),
+                                   sum(s.units for s in render))}
+        out = {n: self.stages[n].core_s for n in SERIAL}
+        started = False
+        for name, (core_s, longest_s, units) in pool.items():
+            out[name] = max(core_s / (workers * e), longest_s) if units else 0.0
+            if units and not started:
+                out[name] += POOL_START_S
+                started = True
+        return out
+
     def wall_s(self, workers: int, efficiency: float) -> float:
         """Projected wall seconds on ``workers`` one-core workers (module docstring)."""
-        out = 0.0
-        for s in self.stages.values():
-            if s.name in SERIAL:
-                out += s.core_s
-            elif s.units:
-                out += STARTUP_S + max(s.core_s / (workers * efficiency), s.longest_s)
-        return out
+        return sum(self.stage_walls(workers, efficiency).values())
 
     def nodes(self, hours: float, cores: int, efficiency: float) -> tuple[int, int | None]:
         """(nodes by CPU-hours = ceil(core_s / (hours · cores · e)), the fewest nodes whose

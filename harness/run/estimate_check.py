@@ -63,7 +63,7 @@ def measured(run_dir: Path) -> tuple[dict, dict, dict]:
 def rows(run_dir: Path, *, bench: Path, efficiency: float) -> tuple[list[dict], dict]:
     """One row per quantity (``what, estimate, measured, ratio, within``) and what they stand on."""
     from harness.run.config import parse_config
-    from harness.run.estimate import STARTUP_S, estimate, scene_info
+    from harness.run.estimate import estimate, scene_info
     from harness.run.scene_sizes import Assumptions
     from harness.run.unit_costs import from_bench
 
@@ -74,15 +74,11 @@ def rows(run_dir: Path, *, bench: Path, efficiency: float) -> tuple[list[dict], 
     est = estimate(config, infos, from_bench(bench))
     stages = record.get("stage_seconds") or {}
 
-    def stage_wall(*names: str) -> float:
-        pool = [est.stages[n] for n in names if est.stages[n].units]
-        return sum(STARTUP_S + max(s.core_s / (workers * efficiency), s.longest_s) for s in pool)
-
+    walls = est.stage_walls(workers, efficiency)
     out = [("CPU seconds (cold run)", est.cpu_s(workers), record.get("cpu_seconds")),
            ("wall seconds (cold run)", est.wall_s(workers, efficiency), stages.get("total")),
-           ("wall: score stage", stage_wall("score"), stages.get("score")),
-           ("wall: render and metrics stages", stage_wall("render_ref", "render+metrics"),
-            stages.get("render_metrics")),
+           ("wall: score stage", walls["score"], stages.get("score")),
+           ("wall: render and metrics stage", walls["render_metrics"], stages.get("render_metrics")),
            ("task seconds: scoring", est.stages["score"].core_s, score["score"])]
     out += [(f"task seconds: {p} views", est.protocols.get(p, 0.0), v) for p, v in per_protocol.items()]
     table = []
