@@ -40,7 +40,7 @@ def test_the_measured_column_is_the_runs_own(run_dir, tmp_path, capsys):
     bench.mkdir()
     assert main(["bench", "calibrate", "--check", str(run_dir), "--bench", str(bench), "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
-    doc = json.loads((tmp_path / "calibrate-check.json").read_text())
+    doc = json.loads((tmp_path / "calibrate-check-check.json").read_text())
     rows = {r["what"]: r for r in doc["rows"]}
     record = json.loads((run_dir / "run.json").read_text())
     assert rows["CPU seconds (cold run)"]["measured"] == record["cpu_seconds"]

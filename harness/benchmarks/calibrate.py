@@ -104,7 +104,7 @@ def run(args) -> int:
         from harness.run.estimate_check import check_run
 
         payload, md = check_run(args.check, bench=args.bench, efficiency=args.efficiency)
-        write_result(f"{NAME}-check", payload, md, out=folder)
+        write_result(f"{NAME}-check-{payload['name']}", payload, md, out=folder)
         print(md)
         return 0
     device = check_device(args.device, "--device")

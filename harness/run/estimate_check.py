@@ -20,8 +20,8 @@ workers the run had, and set against what the run measured:
 
 Reading of "within 20 % of the measured default study (CPU-s and wall, per protocol)": each row's
 ratio estimate / measured must lie in [1/1.2, 1.2]; the table says it row by row. Markdown on
-stdout and ``calibrate-check.json``/``.md`` in the benchmark's ``--out``; the exit status is 0 either way
-(a check to read, not a gate: the machine it ran on may have been busy).
+stdout and ``calibrate-check-<run name>.json``/``.md`` in the benchmark's ``--out``; the exit status
+is 0 either way (a check to read, not a gate: the machine it ran on may have been busy).
 """
 
 from __future__ import annotations
@@ -88,8 +88,10 @@ def rows(run_dir: Path, *, bench: Path, efficiency: float) -> tuple[list[dict], 
                       "within": ratio is not None and 1 / (1 + TOLERANCE) <= ratio <= 1 + TOLERANCE})
     misses = sum(int(c.get("misses", 0)) for c in (record.get("cache_counts") or {}).values())
     hits = sum(int(c.get("hits", 0)) for c in (record.get("cache_counts") or {}).values())
-    info = {"run": str(run_dir), "record": record.get("when"), "workers": workers, "efficiency": efficiency,
-            "cache_hits": hits, "cache_misses": misses, "bench": str(bench), "config": record.get("config_path")}
+    name = "".join(c if c.isalnum() or c in "-_" else "-" for c in str(record.get("name") or config.name))
+    info = {"name": name, "run": str(run_dir), "record": record.get("when"), "workers": workers,
+            "efficiency": efficiency, "cache_hits": hits, "cache_misses": misses, "bench": str(bench),
+            "config": record.get("config_path")}
     return table, info
 
 
