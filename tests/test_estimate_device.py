@@ -9,7 +9,7 @@ import json
 import pytest
 
 from harness.cli import main
-from harness.run.estimate import STARTUP_S, estimate
+from harness.run.estimate import IMAGE_OVERHEAD_S, STARTUP_S, estimate
 from harness.run.estimate_device import CALIBRATION, GPU_UNITS, one_gpu
 from tests.test_plan import _tiny, _units
 
@@ -38,7 +38,7 @@ def test_gpu_stages_are_serial_at_the_gpu_units_and_cpu_scoring_is_shared(tmp_pa
     assert zero["stages_s"]["prune"] == pytest.approx(cpu_est["prune"].core_s)
     # opacity on 100 and 200 splats at 1e-2 s per splat, on 4 cores at 50 %
     assert zero["stages_s"]["score"] == pytest.approx(STARTUP_S + 300 * 1e-2 / (4 * 0.5))
-    assert zero["stages_s"]["render+metrics"] == pytest.approx(STARTUP_S + 48 * 0.1)  # the per-image overhead
+    assert zero["stages_s"]["render+metrics"] == pytest.approx(STARTUP_S + 48 * IMAGE_OVERHEAD_S)  # per image
     _calibration(tmp_path, psnr_px=1e-6, ssim_px=2e-6, render_px=1e-6)
     one = one_gpu(config, infos, tmp_path, cpu, 4, 0.5)
     _calibration(tmp_path, psnr_px=2e-6, ssim_px=4e-6, render_px=2e-6)

@@ -87,13 +87,14 @@ def test_render_cost_doubles_with_pixels_and_metrics_scale_with_them(tmp_path, m
     config, _ = _tiny(tmp_path)
     u = _units(render_px=1e-6, lpips_px=2e-6, ssim_px=1e-6, lpips_ref_px=1e-6)
     with_overhead = estimate(config, _one_scene((64, 48)), u).stages["render+metrics"]
+    overhead = est_mod.IMAGE_OVERHEAD_S
     monkeypatch.setattr(est_mod, "IMAGE_OVERHEAD_S", 0.0)
     small = estimate(config, _one_scene((64, 48)), u)
     big = estimate(config, _one_scene((128, 48)), u)
     for stage in ("render_ref", "render+metrics"):
         assert big.stages[stage].core_s == pytest.approx(2 * small.stages[stage].core_s)
     # the fixed per-image overhead comes on top, once per image (16 = 4 views × 4 sets)
-    assert with_overhead.core_s - small.stages["render+metrics"].core_s == pytest.approx(16 * 0.1)
+    assert with_overhead.core_s - small.stages["render+metrics"].core_s == pytest.approx(16 * overhead)
     # per-splat render work doubles with the splats instead
     u = _units(render_splat=1e-6)
     assert estimate(config, _one_scene((64, 48), 2000), u).stages["render_ref"].core_s == pytest.approx(

@@ -36,7 +36,8 @@ Counting follows the runner's stages (:mod:`harness.run.runner`) and reads no mo
 are core-seconds per splat or pixel (:mod:`harness.run.unit_costs`). Each protocol's share of the
 view work (its reference renders and view tasks) is kept (:attr:`Estimate.protocols`). Beyond the
 units, a run spends :data:`DRIVER_CPU_S` in its driver (imports, hashing, the run record) and
-:data:`WORKER_CPU_S` per worker that starts (torch, the LPIPS weights, numba's cached kernels).
+:data:`WORKER_CPU_S` per worker that starts (torch, the LPIPS weights, numba's cached kernels;
+:data:`IN_PROCESS_CPU_S` for one worker, which runs in the driver's process).
 
 **Wall time on W workers** (one core each, parallel efficiency e; e = 1 for one worker, which runs
 in-process): the pool stages run one after another — scoring, then the reference renders and view
@@ -65,20 +66,33 @@ from harness.run.unit_costs import UnitCosts, train_pixels
 #: came after ~15 s, its first reference renders after ~20 s)
 STARTUP_S = 20.0
 #: per measured image, work outside the timed render and metrics: reading and unpacking the mask,
-#: PNGs, cache writes, the driver (default study, second half on this machine: 2,009 CPU-s for
-#: 1,498 images where the render and metric units give 1.23 core-s each: +0.1 s)
-IMAGE_OVERHEAD_S = 0.1
+#: PNGs, cache writes, the driver. Fitted with :data:`WORKER_CPU_S` and :data:`IN_PROCESS_CPU_S` to
+#: three cold runs of one-thread workers on this machine, with the units of ``calibrate-cpu.json``
+#: (bonsai-7k-mini, 256 px), CPU-s beyond the driver and the units: ci.yaml in-process (104 images
+#: at 128 px: 3.7 = I + 104·o), ci.yaml on two workers (10.7 = 2·W + 104·o) and the default study
+#: on luigi and grape-small on two workers (1,696 images at 256 px: 29.1 = 2·W + 1,696·o); so
+#: o = 0.012 s, W = 4.75 s, I = 2.5 s
+IMAGE_OVERHEAD_S = 0.012
 #: CPU seconds of a run's driver beyond its stages' units: imports, configuration, hashing the
 #: scene files, the run record (ci.yaml's cached rerun, which computes nothing: 2.0 CPU-s)
 DRIVER_CPU_S = 2.0
-#: CPU seconds of a pool worker starting: imports (torch, numba), the LPIPS weights, numba's
-#: cached kernels (ci.yaml cold with one worker: ~6 CPU-s between the driver's and the units')
-WORKER_CPU_S = 6.0
+#: CPU seconds of a spawned pool worker starting: imports (the harness, torch, numba), the LPIPS
+#: weights, numba's cached kernels, each method's first call — one thread per worker (fitted with
+#: :data:`IMAGE_OVERHEAD_S`). A worker of two threads spends about twice the CPU seconds for the same
+#: work (torch's threads wait busily: ci.yaml in one worker, 26.0 CPU-s with two threads, 12.9 with
+#: one), which the estimate, made for one-core workers, does not count
+WORKER_CPU_S = 4.75
+#: the same for one worker, which runs in the driver's process (its modules are loaded already)
+IN_PROCESS_CPU_S = 2.5
 #: wall seconds of the pool starting, once per run (the executor keeps its pool from the first pool
 #: stage to the end): the workers start side by side, each on its own core; in-process (one worker)
 #: the same imports happen in the first task. ci.yaml cold, one worker: its score and render stages
 #: took 2.6 s more wall than their tasks' seconds
 POOL_START_S = 3.0
+#: parallel efficiency of a local pool of one-thread workers, one per core: on this machine's 2 cores,
+#: 2 workers ran ``study/scaling.yaml``'s stages 1.78× as fast as one (``harness bench executors``),
+#: and the default study used 194 % of the cores (2,670 CPU-s in 22 min 54 s); 0.9 lies between
+DEFAULT_EFFICIENCY = 0.9
 #: stages the runner runs as one pipeline (a view's pruned sets start once its reference is drawn)
 PIPELINED = ("render_ref", "render+metrics")
 STAGES = ("load", "score", "prune", "render_ref", "render+metrics")
@@ -116,7 +130,7 @@ class Estimate:
     def cpu_s(self, workers: int) -> float:
         """CPU seconds of the whole run on ``workers`` workers: the stages' plus the driver's and each
         worker's start-up (:data:`DRIVER_CPU_S`, :data:`WORKER_CPU_S`)."""
-        return self.core_s + DRIVER_CPU_S + WORKER_CPU_S * workers
+        return self.core_s + DRIVER_CPU_S + (IN_PROCESS_CPU_S if workers == 1 else WORKER_CPU_S * workers)
 
     def stage_walls(self, workers: int, efficiency: float) -> dict[str, float]:
         """Projected wall seconds of each stage the runner times on ``workers`` one-core workers

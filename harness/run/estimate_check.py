@@ -89,13 +89,17 @@ def rows(run_dir: Path, *, bench: Path, efficiency: float) -> tuple[list[dict], 
     misses = sum(int(c.get("misses", 0)) for c in (record.get("cache_counts") or {}).values())
     hits = sum(int(c.get("hits", 0)) for c in (record.get("cache_counts") or {}).values())
     name = "".join(c if c.isalnum() or c in "-_" else "-" for c in str(record.get("name") or config.name))
-    info = {"name": name, "run": str(run_dir), "record": record.get("when"), "workers": workers,
+    threads = (record.get("executor") or {}).get("threads") if isinstance(record.get("executor"), dict) else None
+    info = {"name": name, "threads": threads, "run": str(run_dir), "record": record.get("when"), "workers": workers,
             "efficiency": efficiency, "cache_hits": hits, "cache_misses": misses, "bench": str(bench),
             "config": record.get("config_path")}
     return table, info
 
 
 def markdown(table: list[dict], info: dict) -> str:
+    threads = info.get("threads") or 1
+    many = "" if threads <= 1 else (f" Its workers had {threads} threads each: the estimate is for one-thread "
+                                    "workers, and idle torch threads wait busily (about twice the CPU seconds).")
     cold = "" if not info["cache_hits"] else (f" — that run had {info['cache_hits']} cache hits: it was not cold, "
                                                "and measured less than a cold run takes")
     lines = [f"# harness bench calibrate --check {info['run']}", "",
@@ -103,7 +107,8 @@ def markdown(table: list[dict], info: dict) -> str:
              f"stages computed{cold}) against `harness plan --estimate` with the units of {info['bench']} "
              f"(parallel efficiency {info['efficiency']:g}). Within: the estimate is within "
              f"{round(100 * TOLERANCE)} % of the measurement (ratio in [{1 / (1 + TOLERANCE):.3f}, "
-             f"{1 + TOLERANCE:g}]).", "",
+             f"{1 + TOLERANCE:g}]).{many} Wall and task seconds hold waiting on a machine with more busy threads "
+             "than cores.", "",
              "| quantity | estimate (s) | measured (s) | estimate / measured | within 20 % |", "|---|---|---|---|---|"]
     for r in table:
         m = "–" if r["measured"] is None else f"{r['measured']:,.1f}"
@@ -114,11 +119,13 @@ def markdown(table: list[dict], info: dict) -> str:
     return "\n".join(lines)
 
 
-def check_run(run_dir, *, bench=None, efficiency: float = 0.75) -> tuple[dict, str]:
+def check_run(run_dir, *, bench=None, efficiency: float | None = None) -> tuple[dict, str]:
     """(the comparison as JSON-able data, as markdown)."""
     from harness.core.errors import InputError
     from harness.core.paths import results_dir
+    from harness.run.estimate import DEFAULT_EFFICIENCY
 
+    efficiency = DEFAULT_EFFICIENCY if efficiency is None else efficiency
     if not 0 < efficiency <= 1:
         raise InputError("--efficiency", f"must be in (0, 1], got {efficiency}")
     bench = Path(bench) if bench else results_dir() / "bench"
