@@ -52,7 +52,7 @@ def test_the_readme_example(tmp_path, monkeypatch):
 PLUGIN_RUNNER = """
 import doctest, sys
 text = sys.stdin.read()
-test = doctest.DocTestParser().get_doctest(text, {}, "README.md: Plugins", "README.md", 0)
+test = doctest.DocTestParser().get_doctest(text, {"__name__": "__main__"}, "README.md: Plugins", "README.md", 0)
 runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS)
 runner.run(test)
 sys.exit(1 if runner.summarize(verbose=False).failed or not test.examples else 0)
@@ -60,7 +60,10 @@ sys.exit(1 if runner.summarize(verbose=False).failed or not test.examples else 0
 
 
 def test_the_readme_plugin_example(tmp_path):
+    """One registration of each kind, then a study over them, as typed into an interactive session
+    (``__name__`` is ``__main__`` there: the functions it defines belong to that module)."""
     _needs_luigi_and_weights()
+    require_gl()
     done = subprocess.run([sys.executable, "-c", PLUGIN_RUNNER], input=example("Plugins"), cwd=tmp_path,
                           capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stdout + done.stderr
