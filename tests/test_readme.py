@@ -59,6 +59,14 @@ def test_everyday_commands_parse():
         assert args.command == argv[0]
 
 
+def test_every_config_is_described():
+    """Each config of ctc_configs/ has its row; the study's research configs are one row."""
+    described = section("Configs")
+    for config in sorted((ROOT / "ctc_configs").glob("*.yaml")):
+        assert f"| `{config.name}` |" in described, f"README, Configs: no row for {config.name}"
+    assert "| `study/` |" in described and (ROOT / "ctc_configs" / "study").is_dir()
+
+
 def test_config_show_excerpt_is_what_it_prints(capsys):
     (excerpt,) = blocks(section("Configs"), "")
     config = re.search(r"# (ctc_configs/\S+\.yaml):\d+", excerpt).group(1)
