@@ -67,6 +67,29 @@ def test_every_config_is_described():
     assert "| `study/` |" in described and (ROOT / "ctc_configs" / "study").is_dir()
 
 
+def _docs_commands() -> list[tuple[str, list[str]]]:
+    """``harness …`` lines of the bash blocks of docs/ (plugins.md's are run by tests/test_plugin_docs.py)."""
+    found = []
+    for doc in sorted((ROOT / "docs").glob("*.md")):
+        if doc.name == "plugins.md":
+            continue
+        for block in blocks(doc.read_text(), "bash"):
+            found += [(doc.name, shlex.split(line, comments=True)[1:]) for line in block.splitlines()
+                      if line.startswith("harness ")]
+    return found
+
+
+@pytest.mark.parametrize("doc, argv", _docs_commands(), ids=lambda v: v if isinstance(v, str) else " ".join(v[:2]))
+def test_docs_commands_parse(doc, argv):
+    """The docs' command lines name commands and options that exist (they need a GPU, a cluster or a
+    finished run to execute, so they are parsed, not run)."""
+    try:
+        args = parse_args(argv)
+    except SystemExit as exc:
+        pytest.fail(f"{doc}: harness {shlex.join(argv)}: refused by its parser ({exc})")
+    assert args.command == argv[0]
+
+
 def test_config_show_excerpt_is_what_it_prints(capsys):
     (excerpt,) = blocks(section("Configs"), "")
     config = re.search(r"# (ctc_configs/\S+\.yaml):\d+", excerpt).group(1)
