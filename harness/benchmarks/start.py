@@ -5,7 +5,7 @@ exit) and its own CPU seconds and peak resident memory (``os.wait4``: that child
 running maximum over all children; spawned from a small launcher, :data:`LAUNCHER`) are recorded. A bare ``python -c
 "import numpy"`` runs in every round as the floor every command stands on.
 
-``--against DIR`` times a second checkout (e.g. a worktree of the ``wave3-base`` tag) with the same
+``--against DIR`` times a second checkout (e.g. a worktree of an earlier commit) with the same
 interpreter in the same sitting: ``python -m harness`` run in DIR imports DIR's code. Rounds
 alternate the order of the two trees (ABBA) so drift in the machine's load falls on both; a first
 round warms the page cache and numba's kernel cache and is not counted. Per command: median and
