@@ -157,7 +157,11 @@ def test_missing_benchmark_files_fall_back_with_a_message(tmp_path):
     assert any("metrics.json is missing" in n for n in units.notes)
     here = from_bench(REPO / "results" / "bench")
     assert not any("missing" in n for n in here.notes)
-    assert here.sources["lpips_px"].startswith("metrics.json lpips_cached_per_pruned_s")
+    assert here.sources["lpips_px"].startswith("calibrate-cpu.json units.lpips_px")  # measured units win
+    import shutil
+
+    shutil.copy(REPO / "results" / "bench" / "metrics.json", tmp_path / "metrics.json")
+    assert from_bench(tmp_path).sources["lpips_px"].startswith("metrics.json lpips_cached_per_pruned_s")
 
 
 def test_ctc_estimate_runs_and_reports_every_sequence_as_assumed(tmp_path, monkeypatch, capsys):
