@@ -223,22 +223,26 @@ def estimate(config: RunConfig, infos: list[SceneInfo], units: UnitCosts | None)
     st = {n: Stage(n) for n in STAGES}
     st["score"].detail = {"training_renders": 0, "camera_aware_tasks": 0}
     st["render+metrics"].detail = {"view_tasks": 0, **{f"{k}_passes": 0 for k in passes}}
-    rows = []
     per_protocol: dict[str, float] = {p.name: 0.0 for p in config.protocols}
     specs = {s.name: s for s in config.scenes}
-    for info in infos:
-        tasks = _score_tasks(config, specs[info.name], info, cost.notes)
-        keeps = [1.0 - r for _, _, rs in tasks.values() for r in rs]
-        protos = info.view_protocols(config.protocols[0].name)
-        by_proto = {p: _keeps(config, specs[info.name], tasks, p) for p in set(protos)}
-        before = {k: (s.units, s.core_s) for k, s in st.items()}
-        for n in info.splats:
-            for proto, core_s in _cost_frame(st, n, info, tasks, [by_proto[p] for p in protos], cost, protos):
-                per_protocol[proto] = per_protocol.get(proto, 0.0) + core_s
-        for k, v in passes.items():
-            st["render+metrics"].detail[f"{k}_passes"] = v * st["render+metrics"].units
-        rows.append(_scene_row(info, st, before, len(keeps)))
+    rows = [_cost_scene(config, specs[info.name], info, st, cost, per_protocol) for info in infos]
+    for k, v in passes.items():
+        st["render+metrics"].detail[f"{k}_passes"] = v * st["render+metrics"].units
     return Estimate(st, rows, passes, sorted(cost.notes), per_protocol)
+
+
+def _cost_scene(config: RunConfig, spec, info: SceneInfo, st: dict, cost: _Costing, per_protocol: dict) -> dict:
+    """Add every frame of one scene to the stages and its views' core-seconds to ``per_protocol``;
+    returns the scene's row."""
+    tasks = _score_tasks(config, spec, info, cost.notes)
+    keeps = [1.0 - r for _, _, rs in tasks.values() for r in rs]
+    protos = info.view_protocols(config.protocols[0].name)
+    by_proto = {p: _keeps(config, spec, tasks, p) for p in set(protos)}
+    before = {k: (s.units, s.core_s) for k, s in st.items()}
+    for n in info.splats:
+        for proto, core_s in _cost_frame(st, n, info, tasks, [by_proto[p] for p in protos], cost, protos):
+            per_protocol[proto] = per_protocol.get(proto, 0.0) + core_s
+    return _scene_row(info, st, before, len(keeps))
 
 
 def _score_tasks(config: RunConfig, spec, info: SceneInfo, notes: set) -> dict[str, tuple]:

@@ -26,17 +26,17 @@ is 0 either way (a check to read, not a gate: the machine it ran on may have bee
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
+
+from harness.core.paths import REPO_ROOT
 
 TOLERANCE = 0.2
 
 
 def cold_record(records: list[dict]) -> dict | None:
     """The record with the most cache misses (ties: the latest)."""
-    def misses(r: dict) -> int:
-        return sum(int(c.get("misses", 0)) for c in (r.get("cache_counts") or {}).values() if isinstance(c, dict))
-
-    return max(reversed(records), key=misses, default=None)
+    return max(reversed(records), key=lambda r: _count(r, "misses"), default=None)
 
 
 def measured(run_dir: Path) -> tuple[dict, dict, dict]:
@@ -81,19 +81,28 @@ def rows(run_dir: Path, *, bench: Path, efficiency: float) -> tuple[list[dict], 
            ("wall: render and metrics stage", walls["render_metrics"], stages.get("render_metrics")),
            ("task seconds: scoring", est.stages["score"].core_s, score["score"])]
     out += [(f"task seconds: {p} views", est.protocols.get(p, 0.0), v) for p, v in per_protocol.items()]
-    table = []
-    for what, e, m in out:
-        ratio = e / m if isinstance(m, (int, float)) and m > 0 else None
-        table.append({"what": what, "estimate": e, "measured": m, "ratio": ratio,
-                      "within": ratio is not None and 1 / (1 + TOLERANCE) <= ratio <= 1 + TOLERANCE})
-    misses = sum(int(c.get("misses", 0)) for c in (record.get("cache_counts") or {}).values())
-    hits = sum(int(c.get("hits", 0)) for c in (record.get("cache_counts") or {}).values())
+    return [_row(*r) for r in out], _about(record, config, run_dir, bench, workers, efficiency)
+
+
+def _row(what: str, estimate: float, measured) -> dict:
+    """One quantity: its ratio estimate / measured and whether it is within the tolerance."""
+    ratio = estimate / measured if isinstance(measured, (int, float)) and measured > 0 else None
+    return {"what": what, "estimate": estimate, "measured": measured, "ratio": ratio,
+            "within": ratio is not None and 1 / (1 + TOLERANCE) <= ratio <= 1 + TOLERANCE}
+
+
+def _count(record: dict, key: str) -> int:
+    return sum(int(c.get(key, 0)) for c in (record.get("cache_counts") or {}).values() if isinstance(c, dict))
+
+
+def _about(record: dict, config, run_dir: Path, bench: Path, workers: int, efficiency: float) -> dict:
+    """What a check stands on: the run (its name as a file-name part), its workers and threads, its
+    cache counts, the units' folder."""
     name = "".join(c if c.isalnum() or c in "-_" else "-" for c in str(record.get("name") or config.name))
-    threads = (record.get("executor") or {}).get("threads") if isinstance(record.get("executor"), dict) else None
-    info = {"name": name, "threads": threads, "run": str(run_dir), "record": record.get("when"), "workers": workers,
-            "efficiency": efficiency, "cache_hits": hits, "cache_misses": misses, "bench": str(bench),
-            "config": record.get("config_path")}
-    return table, info
+    executor = record.get("executor") if isinstance(record.get("executor"), dict) else {}
+    return {"name": name, "threads": executor.get("threads"), "run": str(run_dir), "record": record.get("when"),
+            "workers": workers, "efficiency": efficiency, "cache_hits": _count(record, "hits"),
+            "cache_misses": _count(record, "misses"), "bench": str(bench), "config": record.get("config_path")}
 
 
 def markdown(table: list[dict], info: dict) -> str:
@@ -129,5 +138,7 @@ def check_run(run_dir, *, bench=None, efficiency: float | None = None) -> tuple[
     if not 0 < efficiency <= 1:
         raise InputError("--efficiency", f"must be in (0, 1], got {efficiency}")
     bench = Path(bench) if bench else results_dir() / "bench"
+    with contextlib.suppress(ValueError):  # the committed units: named from the checkout, not this machine
+        bench = bench.resolve().relative_to(REPO_ROOT)
     table, info = rows(Path(run_dir), bench=bench, efficiency=efficiency)
     return {**info, "rows": table}, markdown(table, info)
