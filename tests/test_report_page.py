@@ -170,16 +170,15 @@ def test_page_summary_first_the_rest_folded_captions_and_every_record(tmp_path):
     assert "not run" not in page
 
 
-def test_summary_shows_a_claims_table_first():
+def test_without_a_lead_table_no_bottom_line_and_the_headline_per_protocol():
     from harness.report.page import summary_html
     from harness.report.tabledata import Built, Table
 
-    disp = pd.DataFrame({"verdict": ["supported"]}, index=pd.Index(["claim 1"], name="claim"))
-    claims = Built("claims", "claims", "", "Claims of the paper", Table(disp, [], disp.reset_index(), caption="n = 4"))
+    disp = pd.DataFrame({"psnr": ["30.00 (Δ +1.00 [+0.50, +1.50])"]}, index=pd.Index(["betadesc"], name="method"))
     comp = Built("comparison", "comparison", "rig", "Comparison — held-out views: rig",
                  Table(disp, [], disp.reset_index(), caption="n = 2"))
-    html_text = summary_html({"comparison": comp, "claims": claims})
-    assert html_text.index("Claims of the paper") < html_text.index("Comparison — held-out views: rig")
+    bottom, summary = summary_html({"comparison": comp})
+    assert bottom == "" and "Comparison — held-out views: rig" in summary and "class='better'" in summary
 
 
 @pytest.mark.skipif(chromium() is None, reason="Debian's chromium is not installed (setup.sh installs it)")
