@@ -78,8 +78,8 @@ def test_claim_items_of_a_claims_table():
     one = items["t2-descriptors"]  # 4 scenes hold, one fails beyond Holm
     assert one.status == FAILS and one.verdict == "fails (paper-literal only)"
     assert [f[:2] for f in one.facets] == [("paper-literal", FAILS), ("paper-direction", NOT_TESTABLE)]
-    assert one.evidence[0] == ("paper", (table.sections[0][1].loc["t2-descriptors", "paper"],))
-    label, chunks = one.evidence[1]
+    assert one.detail.startswith(f"paper: {table.sections[0][1].loc['t2-descriptors', 'paper']} · universal")
+    label, chunks = one.evidence[0]
     assert label == "paper-literal" and len(chunks) == 5 and chunks[2].startswith("S3 ") and chunks[2].endswith("✗")
     runtime = items["runtime-added"]  # no overhead measured: not testable, said why, no numbers
     assert runtime.status == NOT_TESTABLE and runtime.evidence == () and "paper-literal: " in runtime.note

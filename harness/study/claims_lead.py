@@ -6,14 +6,14 @@
   ``inconclusive``, ``underpowered``, ``not testable here``, ``not comparable (render size)``,
   ``depends on the reading`` → ``mixed``); any other cell (a claim's words, its numbers) is no verdict.
 * :func:`claim_items` turns a built ``claims`` table into the page's items, one per claim: its words
-  and line, its type, where it is read and the claimed band (the detail line), the verdict over
-  both readings, each reading's verdict (a facet), and as evidence the numbers — pooled
-  over scenes where the claim pools, then one chunk per scene with its mark — read from the table's
-  display sections, so the page prints exactly the ``.md``'s numbers. Why a reading's verdict is not
-  a plain one ("not testable here — the run has no …") is said once, in the evidence. Beside the
-  paper's own number, the page shows the numbers of the main reading (``paper-literal``, the
-  default) and of the other only where its verdict differs: "each reading's numbers" would double
-  every row, and where both readings agree the full table below has them.
+  and line; the paper's number, its type, where it is read and the claimed band (the detail line);
+  the verdict over both readings, and each reading's verdict (a facet); as evidence, our numbers
+  — pooled over scenes where the claim pools (its τ² and prediction interval left to the table),
+  then one chunk per scene with its mark — read from the table's display sections, so the page
+  prints the ``.md``'s numbers. Why a reading's verdict is not a plain one ("not testable here —
+  the run has no …") is said once, in the evidence. The numbers shown are the main reading's
+  (``paper-literal``, the default) and the other's only where its verdict differs: both for every
+  claim would double every row, and where the readings agree the full table below has them.
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ def _split(words: str) -> tuple[str, str]:
 def _evidence(reading: str, numbers, why: str) -> tuple[str, tuple[str, ...]]:
     """One reading's paragraph: its pooled estimates, then its per-scene chunks (or why it has none)."""
     pooled, per_scene = (str(x) for x in numbers)
-    chunks = [c for c in pooled.split("; ") if c and c != "–"]
+    chunks = [c.split(" (k = ")[0] for c in pooled.split("; ") if c and c != "–"]  # τ², prediction: the table
     chunks += [c for c in per_scene.split(" · ") if c and c != "–"]
     if why:
         chunks.append(why)
@@ -62,7 +62,7 @@ def claim_items(table) -> list[Item]:
         status = status_of(row["verdict"])
         said = {r: _split(row[r]) for r in READINGS}
         facets = tuple((r, status_of(words), words) for r, (words, _) in said.items())
-        evidence = [("paper", (str(row["paper"]),))]
+        evidence = []
         for r, (words, why) in said.items():
             if r != READINGS[0] and status_of(words) == status_of(said[READINGS[0]][0]):
                 continue  # the same verdict as the main reading's: its numbers are in the full table
@@ -73,12 +73,11 @@ def claim_items(table) -> list[Item]:
         note = "; ".join(f"{r}: {why}" for r, (_, why) in said.items() if why) if untestable else ""
         items.append(Item(
             key=str(key), what=str(row["claim"]), status=status, verdict=str(row["verdict"]),
-            detail=f"{row['type']} · {row['at']} · claimed {row['claimed band']}", facets=facets, note=note,
+            detail=f"paper: {row['paper']} · {row['type']} · {row['at']} · claimed {row['claimed band']}", facets=facets, note=note,
             evidence=() if untestable else tuple(e for e in evidence if e[1])))
     return items
 
 
 LEAD = Lead(items=claim_items, noun=("claim", "claims"),
             phrases={MIXED: ("depends on the reading", "depend on the reading")},
-            evidence="the numbers under each reading: pooled over scenes, then per scene "
-                     "(✓ holds, ✗ fails, ? unclear; ↑ ↓ above / below 0)")
+            evidence="our numbers under the main reading (and the other where its verdict differs): pooled over scenes, then per scene (✓ holds, ✗ fails, ? unclear; ↑ ↓ above / below 0)")
