@@ -4,8 +4,14 @@ Built only by :func:`harness.report.outputs.publish` from the tables it has just
 page shows the numbers of ``tables/`` — whichever of ``harness run``, ``harness tables`` or
 ``harness report`` wrote it. Order, summary first and the rest folded (``<details>``):
 
-* **Summary**: the ``claims`` table when the run has one, then per held-out view protocol the
-  headline table — the comparison's first metric (else the versus table's) — with its caption;
+* **Bottom line** (when a table leads the page: :mod:`harness.report.verdicts`, e.g. the study's
+  ``claims``): one paragraph from its verdicts under the main protocol — what holds, fails, is
+  mixed, inconclusive, underpowered, not testable, counted and named — and how each other protocol's
+  verdicts differ (:mod:`harness.report.pagelead`);
+* **Summary**: the lead table of the main protocol, its cells coloured by verdict, then the
+  protocol's headline table — the comparison's first metric (else the versus table's) — with its
+  caption; every other protocol's lead and headline folded under a line with its counts. Without a
+  lead table: per protocol the headline table;
 * **Tables**: every table of every protocol, each folded, titled with its protocol; each HTML table
   has a caption with ``n`` and the interval method (:mod:`harness.report.cells`) and scrolls inside
   its box when wider than the page;
