@@ -5,6 +5,7 @@ claims whose verdicts are known."""
 from __future__ import annotations
 
 import re
+from html import unescape
 
 import pandas as pd
 import pytest
@@ -111,3 +112,20 @@ def test_summary_leads_with_the_main_protocols_claims_and_folds_the_others(tmp_p
     lead = summary.index("<table class='lead'>")
     assert lead < summary.index("Comparison") < summary.index("<details id='s-shifted'>")
     assert summary.count("<table class='lead'>") == 2  # the shifted protocol's, folded
+
+
+def test_a_lead_whose_items_are_invalid_leads_nothing_and_says_why(monkeypatch):
+    from harness.report.page import summary_html
+    from harness.report.tabledata import Built, Table
+    from harness.report.tables import TABLE_SPECS, TableSpec
+
+    def bad(table):
+        return [_item("a", "supported")]
+
+    TABLE_SPECS.get("claims")  # the registry loaded, then one more entry, taken out after the test
+    spec = TableSpec("bad-lead", bad, "Bad", verdicts=status_of, lead=Lead(items=bad))
+    monkeypatch.setitem(TABLE_SPECS._entries, "bad-lead", spec)
+    disp = pd.DataFrame({"verdict": ["supported"]}, index=pd.Index(["a"], name="key"))
+    bottom, summary = summary_html({"bad-lead": Built("bad-lead", "bad-lead", "rig", "Bad", Table(disp, [], disp))})
+    assert bottom == ""
+    assert "the bad-lead table cannot lead this page: item 'a': status 'supported'" in unescape(summary)

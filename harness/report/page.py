@@ -82,17 +82,21 @@ def headline_html(built: dict[str, Built], proto: str) -> str:
                       f"<p class='notes'><a href='#t-{esc(head.key)}'>every metric of this table</a></p>"])
 
 
-def _leads(built: dict[str, Built]) -> dict[str, tuple[Built, object, list]]:
-    """{protocol: (its lead table, the table's Lead, its items)} for the first table registered as a
-    lead that was made for some protocol."""
+def _leads(built: dict[str, Built]) -> tuple[dict[str, tuple[Built, object, list]], str]:
+    """({protocol: (its lead table, the table's Lead, its items)} for the first table registered as a
+    lead that was made for some protocol, a problem): a lead whose items are not valid (a status
+    outside the vocabulary) leads nothing, and the problem says why."""
     from harness.report.tables import TABLE_SPECS
 
     made = [b for b in built.values() if isinstance(b.table, Table) and b.name in TABLE_SPECS
             and TABLE_SPECS.get(b.name).lead is not None]
     if not made:
-        return {}
+        return {}, ""
     lead = TABLE_SPECS.get(made[0].name).lead
-    return {b.protocol: (b, lead, list(lead.items(b.table))) for b in made if b.name == made[0].name}
+    try:
+        return {b.protocol: (b, lead, list(lead.items(b.table))) for b in made if b.name == made[0].name}, ""
+    except ValueError as err:
+        return {}, f"the {made[0].name} table cannot lead this page: {err}"
 
 
 def summary_html(built: dict[str, Built]) -> tuple[str, str]:
@@ -102,9 +106,11 @@ def summary_html(built: dict[str, Built]) -> tuple[str, str]:
     from harness.views.protocols import notes
 
     protocols = list(dict.fromkeys(b.protocol for b in built.values()))
-    leads = _leads(built)
+    leads, problem = _leads(built)
     if not leads:
         out = "\n".join(h for h in (headline_html(built, p) for p in protocols) if h)
+        if problem:
+            return "", f"<p class='warn'>{esc(problem)}</p>" + out
         return "", out or "<p class='warn'>no table could be made from these results</p>"
     main = next(iter(leads))
     b, lead, items = leads[main]

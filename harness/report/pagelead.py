@@ -123,8 +123,9 @@ def bottom_line(protocol: str, items: list[Item], lead: Lead, others: dict[str, 
     """The page's first paragraph (module docstring); ``others``: each other protocol's items (None
     where its lead table was not made); ``describe(protocol)``: a few words on the protocol."""
     about = describe(protocol)
-    where = f"under the {esc(protocol)} views" + (f" ({esc(about)}; the main protocol)" if about else "")
-    text = f"<b>Bottom line</b>, {where}: of {lead.count(len(items))}, {counts(items, lead, protocol)}."
+    where = "" if not protocol else (f", under the {esc(protocol)} views"
+                                     + (f" ({esc(about)}; the main protocol)" if about else ""))
+    text = f"<b>Bottom line</b>{where}: of {lead.count(len(items))}, {counts(items, lead, protocol)}."
     diffs = [_difference(compare(p, items, got), lead) for p, got in others.items()]
     if diffs:
         text += f" The other protocols, over the {lead.noun[1]} both judge: " + "; ".join(diffs) + "."

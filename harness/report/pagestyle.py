@@ -41,7 +41,7 @@ table.imgs td figure{vertical-align:top}.cmp{margin:0;width:var(--w)}
 figcaption{font-size:12px;color:#333}.refimg{width:150px;border:1px solid #999}
 .bottom{font-size:15px;line-height:1.55;background:#fff;border:1px solid #ccd5dd;border-left:6px solid #22303c;
 padding:10px 14px;margin:12px 0}.bottom a{color:inherit}
-.v{font-weight:600}.v small{font-weight:400}
+table.lead td.v{font-weight:600}table.lead td.v small{font-weight:400}
 .v-holds{background:#cdebd3;color:#0d4a1f}.v-fails{background:#f5c9c9;color:#74100f}
 .v-mixed{background:#e4d8f5;color:#3f1f6e}.v-inconclusive{background:#fbeec4;color:#5c4500}
 .v-underpowered{background:#dfe6ee;color:#28384a}

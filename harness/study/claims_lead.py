@@ -73,11 +73,13 @@ def claim_items(table) -> list[Item]:
         note = "; ".join(f"{r}: {why}" for r, (_, why) in said.items() if why) if untestable else ""
         items.append(Item(
             key=str(key), what=str(row["claim"]), status=status, verdict=str(row["verdict"]),
-            detail=f"paper: {row['paper']} · {row['type']} · {row['at']} · claimed {row['claimed band']}", facets=facets, note=note,
+            detail=f"paper: {row['paper']} · {row['type']} · {row['at']} · claimed {row['claimed band']}",
+            facets=facets, note=note,
             evidence=() if untestable else tuple(e for e in evidence if e[1])))
     return items
 
 
 LEAD = Lead(items=claim_items, noun=("claim", "claims"),
             phrases={MIXED: ("depends on the reading", "depend on the reading")},
-            evidence="our numbers under the main reading (and the other where its verdict differs): pooled over scenes, then per scene (✓ holds, ✗ fails, ? unclear; ↑ ↓ above / below 0)")
+            evidence="our numbers under the main reading (and the other where its verdict differs): pooled over "
+                     "scenes, then per scene (✓ holds, ✗ fails, ? unclear; ↑ ↓ above / below 0)")
