@@ -46,7 +46,7 @@ table.lead td.v{font-weight:600}table.lead td.v small{font-weight:400}
 .v-mixed{background:#e4d8f5;color:#3f1f6e}.v-inconclusive{background:#fbeec4;color:#5c4500}
 .v-underpowered{background:#dfe6ee;color:#28384a}
 .v-not-comparable,.v-not-testable{background:#ececec;color:#444}
-span.v{padding:0 4px;border-radius:3px}b.m-holds{color:#137a2e}b.m-fails{color:#b3191b}
+span.v{padding:0 4px;border-radius:3px;font-weight:600}b.m-holds{color:#137a2e}b.m-fails{color:#b3191b}
 table.lead{width:100%;table-layout:fixed}
 table.lead td,table.lead th{text-align:left;white-space:normal;vertical-align:top}
 table.lead th.what{width:23%}table.lead th.v{width:7em;font-weight:600}table.lead th.ev{width:auto}
