@@ -12,8 +12,7 @@ without parameters *is* the significance pass (ρ = 1, the least significance a 
 
 from __future__ import annotations
 
-import json
-
+from harness.core import jsonout
 from harness.core.errors import InputError
 
 NAME = "diagnose"
@@ -69,6 +68,7 @@ def parse_method(text: str):
 def run(args) -> int:
     import math
 
+    from harness.core.extent import check_extent
     from harness.io.scenes import load_scene
     from harness.views.rigs import training_views
     from methods import diagnose as dg
@@ -82,11 +82,15 @@ def run(args) -> int:
     scene = load_scene(args.scene, lod=args.lod)
     if len(scene) == 0:
         raise InputError(args.scene, "the scene has no splats")
+    check_extent(scene, args.scene)
     cams = training_views(args.scene, scene, n_train=args.n_train, n_test=args.n_test,
                              longest_side=args.longest_side, seed=args.seed)
     if not cams:
         raise InputError("--n-train", "the rig has no training views to compute LightGS significance from")
     sig = dg.lightgs_significance(scene, cams, longest_side=args.significance_side, device=args.device)
+    if not sig.sum() > 0:  # every share of it would be 0/0
+        raise InputError(args.scene, f"no training view sees a splat (LightGS significance is 0 over all {len(cams)} "
+                                     "views): there is nothing to diagnose against")
     out = []
     for name, params, given in methods:
         try:
@@ -98,8 +102,8 @@ def run(args) -> int:
         d.label = name + (":" + ",".join(f"{k}={v}" for k, v in given.items()) if given else "")
         out.append(d)
     if args.json:
-        print(json.dumps({"scene": args.scene, "splats": len(scene), "ratio": args.ratio,
-                          "train_views": len(cams), "diagnoses": [d.to_dict() for d in out]}, default=float))
+        print(jsonout.dumps({"scene": args.scene, "splats": len(scene), "ratio": args.ratio,
+                          "train_views": len(cams), "diagnoses": [d.to_dict() for d in out]}))
     else:
         print(dg.format_text(args.scene, len(scene), out))
     return 0
