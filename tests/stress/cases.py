@@ -963,7 +963,7 @@ def main(argv=None) -> int:
 
 
 # the families of issue 24, family M and the plugins' (they register into CASES above)
-from tests.stress import cases_issue24, cases_memory, cases_plugins  # noqa: E402,F401
+from tests.stress import cases_issue24, cases_memory, cases_numbers, cases_outputs, cases_plugins  # noqa: E402,F401,I001
 
 if __name__ == "__main__":
     sys.exit(main())
