@@ -128,3 +128,15 @@ def test_prune_warns_for_the_tuned_reading_only(tmp_path):
     assert [x for x in loud.stderr.splitlines() if "no longer local" in x] == [
         "harness: warning: method 'betadesc': FPFH radius = radius_voxels 5 × voxel 0.2 = 100 % of the bounding-box "
         "diagonal (> 10 %): the descriptors are no longer local (the paper's voxel is 1–2 % of the diagonal, L313)"]
+
+
+def test_a_methods_own_default_is_not_announced_but_a_users_choice_is(capsys):
+    """betadesc-vr's default reading carries the non-local advisory (documented with the method);
+    announcing its defaults prints nothing, a voxel the user chose past them prints the one line."""
+    vr = get_pruner("betadesc-vr")
+    assert vr.parse_params({}).advisories(), "betadesc-vr's default reading is round two's (non-local)"
+    advice.announce("method 'betadesc-vr' (test defaults)", vr.parse_params({}))
+    assert capsys.readouterr().err == ""
+    advice.announce("method 'betadesc-vr' (test choice)", vr.parse_params({"voxel": 0.3}))
+    err = capsys.readouterr().err
+    assert err.count("harness: warning: method 'betadesc-vr' (test choice)") == 1 and "150 %" in err

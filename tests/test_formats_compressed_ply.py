@@ -57,7 +57,8 @@ def check_against_source(path, decoded: GaussianScene, src: GaussianScene) -> di
     table = lambda *names: np.stack([chunk[n].astype(np.float64) for n in names], 1)[ci]  # noqa: E731
     errors: dict = {}
     lo, hi = table("min_x", "min_y", "min_z"), table("max_x", "max_y", "max_z")
-    assert_within("position", np.abs(decoded.means - src.means), (hi - lo) / _BITS / 2 + _EPS, errors)
+    ulps = 2 * np.spacing(np.maximum(np.abs(lo), np.abs(hi)).astype(np.float32))  # float32 bounds and decode
+    assert_within("position", np.abs(decoded.means - src.means), (hi - lo) / _BITS / 2 + ulps + _EPS, errors)
     lo = table("min_scale_x", "min_scale_y", "min_scale_z")
     hi = table("max_scale_x", "max_scale_y", "max_scale_z")
     assert_within("log-scale", np.abs(decoded.scales_log - np.clip(src.scales_log, lo, hi)),

@@ -135,7 +135,8 @@ def test_dataset_table_and_explicit_rigs():
     from harness.io.datasets import SCENES
 
     assert set(SCENE_RIGS) <= set(SCENES)  # keyed by dataset name, never by file name
-    assert set(SCENE_RIGS) == {"grape-small", "luigi", "bonsai-7k-mini", "bonsai-7k", "playbot"}
+    assert set(SCENE_RIGS) == {"grape-small", "luigi", "bonsai-7k-mini", "bonsai-7k", "playbot", "synth-room",
+                               "synth-statue"}
     scene = blob()
     views = scene_rig("playbot", scene, n_train=2, n_test=4)
     up = np.array(SCENE_RIGS["playbot"].up)

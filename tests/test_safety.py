@@ -56,7 +56,7 @@ def test_confined_paths(tmp_path):
 
 
 def test_yaml_duplicate_keys_and_aliases(tmp_path):
-    from harness.io.safe import load_yaml
+    from harness.io.safe_yaml import load_yaml
 
     p = tmp_path / "c.yaml"
     p.write_text("a: 1\nb: {x: 1, x: 2}\n")

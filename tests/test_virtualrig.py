@@ -60,7 +60,7 @@ def test_reference_backend_matches_dense_and_pairs(early_stop):
 
 
 def test_auto_backend_follows_the_device():
-    assert resolve_backend("auto", "cpu") == "pairs"
+    assert resolve_backend("auto", "cpu") == "sweep"
     assert resolve_backend("auto", "cuda") == resolve_backend("auto", "cuda:0") == "reference"
     with pytest.raises(ValueError, match="unknown significance backend"):
         resolve_backend("gl", "cpu")
@@ -152,7 +152,7 @@ def test_outside_in_rig_frames_the_bounding_sphere():
 
 def test_inside_out_rig_circles_the_subject_inside_the_room():
     scene = _scene_from(_room(), 0.15)
-    shape, cams = virtual_cameras(scene, VirtualRigParams(views=24, resolution=32, fov_deg=50.0))
+    shape, cams = virtual_cameras(scene, VirtualRigParams(views=24, resolution=32, fov_deg=50.0, positions="around"))
     assert shape.kind == "room" and len(cams) == 24
     dist = np.array([np.linalg.norm(c.center - shape.peak) for c in cams])
     assert np.all(dist >= MIN_CELLS * shape.cell - 1e-9) and np.all(np.abs([c.center for c in cams]) < 4.0)

@@ -9,7 +9,14 @@
    and betadesc (those registered and scored), PSNR of the pruned render against the unpruned render
    on the first ``--test-views`` held-out (test) views of the same rig, with the GL renderer (the
    reference rasterizer if GL cannot start).
-3. **Descriptor overhead** (``--overhead``; the paper's runtime claim, L474): per scene of ``--scenes``
+3. **Backends** (``--backends``): the significance sums of ``lightgs`` (the rig's training views at
+   its 512 px) and ``virtual-rig`` (its own rig, placed once and timed apart) computed by each exact
+   CPU backend of :func:`methods.lightgs.significance.significance` — ``sweep`` (the default) and
+   ``pairs`` (the pixel-pair compositing it replaced) — one after the other in this process, one
+   torch thread: CPU seconds of each, their ratio, and whether the sums are identical (max relative
+   difference, Spearman ρ). ``--stem`` names the result files (``methods-<scene>`` for the committed
+   per-scene reports under ``results/virtualrig/bench/``).
+4. **Descriptor overhead** (``--overhead``; the paper's runtime claim, L474): per scene of ``--scenes``
    (default the five of ``default.yaml``), ``betadesc`` and ``betadesc-nodesc`` (default parameters:
    the paper-literal reading, the faithful no-descriptor ablation) each prune the scene end to end
    (read, score, select, write) in a child process with every thread pool pinned to one, warm-up
@@ -24,6 +31,7 @@ from __future__ import annotations
 import logging
 import os
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -48,6 +56,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--test-views", type=int, default=4, help="held-out views rendered (default 4)")
     parser.add_argument("--renderer", choices=("gl", "reference"), default="gl")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--backends", action="store_true",
+                        help="also time lightgs's and virtual-rig's significance with the sweep and the pairs backend")
+    parser.add_argument("--stem", default=NAME, help="result file name without suffix (default methods)")
 
 
 def _score_all(scene, rig, names: list[str], seed: int) -> tuple[dict, dict]:
@@ -100,6 +111,54 @@ def _quality(scene, rig, scores: dict, ratio: float, n_views: int, renderer_name
     return {"ratio": ratio, "renderer": used, "views": [c.name for c in views],
             "resolution": [views[0].width, views[0].height], "kept": {m: len(pruned[m]) for m in names},
             "psnr": psnr, "mean_psnr": {m: float(np.mean(v)) for m, v in psnr.items()}}
+
+
+def _backends(scene, rig, names: list[str]) -> dict:
+    """Sweep vs pairs on the same views (module docstring, 3)."""
+    from scipy.stats import spearmanr
+
+    from methods.lightgs import LightGSParams
+    from methods.lightgs.significance import significance
+    from methods.virtualrig import VirtualRigParams, virtual_cameras
+    from renderers.pixel_pairs import torch_threads
+
+    jobs = {}
+    if "lightgs" in names:
+        jobs["lightgs"] = {"cameras": rig.train, "side": LightGSParams().train_longest_side, "rig_cpu_s": 0.0}
+    if "virtual-rig" in names:
+        c0 = time.process_time()
+        cams = virtual_cameras(scene, VirtualRigParams())[1]
+        jobs["virtual-rig"] = {"cameras": cams, "side": 0, "rig_cpu_s": time.process_time() - c0}
+    out = {}
+    for name, job in jobs.items():
+        sums, cpu = {}, {}
+        for backend in ("sweep", "pairs"):
+            with torch_threads(1):
+                c0 = time.process_time()
+                sums[backend] = significance(scene, job["cameras"], longest_side=job["side"], backend=backend)
+                cpu[backend] = time.process_time() - c0
+        a, b = sums["sweep"], sums["pairs"]
+        out[name] = {"views": len(job["cameras"]), "rig_cpu_s": job["rig_cpu_s"], "sweep_cpu_s": cpu["sweep"],
+                     "pairs_cpu_s": cpu["pairs"], "ratio": cpu["pairs"] / max(cpu["sweep"], 1e-9),
+                     "identical": bool(np.array_equal(a, b)),
+                     "max_rel_diff": float(np.abs(a - b).max() / max(np.abs(b).max(), 1e-300)),
+                     "spearman": float(spearmanr(a, b)[0]) if len(a) > 1 else 1.0}
+        r = out[name]
+        print(f"{name}: sweep {r['sweep_cpu_s']:.2f} CPU-s, pairs {r['pairs_cpu_s']:.2f} ({r['ratio']:.1f}x), "
+              f"identical {r['identical']}", flush=True)
+    return out
+
+
+def _backends_markdown(backends: dict) -> list[str]:
+    lines = ["", "Significance backends on the same views, one torch thread, in this process (CPU seconds; "
+             "the virtual rig's placement timed apart):", "",
+             "| pruner | views | rig CPU s | sweep CPU s | pairs CPU s | pairs / sweep | identical "
+             "| max rel. diff | ρ |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    lines += [f"| {m} | {b['views']} | {b['rig_cpu_s']:.2f} | {b['sweep_cpu_s']:.2f} | {b['pairs_cpu_s']:.2f} | "
+              f"{b['ratio']:.1f}× | {'yes' if b['identical'] else 'no'} | {b['max_rel_diff']:.1e} "
+              f"| {b['spearman']:.6f} |" for m, b in backends.items()]
+    return lines
 
 
 def _markdown(scene_name: str, n: int, n_train: int, timings: dict, quality: dict | None) -> str:
@@ -183,6 +242,8 @@ def run(args) -> int:
     from harness.views.rigs import scene_rig
     from methods import list_pruners
 
+    if not args.stem or args.stem != Path(args.stem).name or args.stem.startswith("."):
+        raise InputError("--stem", f"a file name without folders, got {args.stem!r}")
     folder = out_dir(args)  # created and probed before any work
     if args.overhead:
         scenes = [s.strip() for s in args.scenes.split(",") if s.strip()]
@@ -209,10 +270,13 @@ def run(args) -> int:
     rig = scene_rig(identify(args.scene), scene, seed=args.seed)
     timings, scores = _score_all(scene, rig, names, args.seed)
     quality = _quality(scene, rig, scores, args.ratio, max(1, args.test_views), args.renderer) if args.quality else None
+    backends = _backends(scene, rig, names) if args.backends else None
     payload = {"scene": args.scene, "splats": len(scene), "rig": rig.rig, "train_views": len(rig.train),
                "train_resolution": [rig.train[0].width, rig.train[0].height], "scoring": timings,
-               "quality": quality, "load_average_after": os.getloadavg()}
-    path = write_result(NAME, payload, _markdown(args.scene, len(scene), len(rig.train), timings, quality), out=folder)
-    print(_markdown(args.scene, len(scene), len(rig.train), timings, quality))
+               "quality": quality, "backends": backends, "load_average_after": os.getloadavg()}
+    md = _markdown(args.scene, len(scene), len(rig.train), timings, quality)
+    md += "\n" + "\n".join(_backends_markdown(backends)) if backends else ""
+    path = write_result(args.stem, payload, md, out=folder)
+    print(md)
     print(f"\nwritten {path}")
     return 0

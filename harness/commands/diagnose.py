@@ -18,6 +18,7 @@ from harness.core.errors import InputError
 NAME = "diagnose"
 HELP = "render-free diagnostics of a pruner: correlation with LightGS significance, what a ratio removes"
 REFERENCES = ("random", "opacity", "lightgs")
+RIG_METHODS = ("virtual-rig", "betadesc-vr")
 
 
 def add_arguments(parser) -> None:
@@ -41,6 +42,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--picture", default=None, metavar="PNG",
+                        help="virtual-rig / betadesc-vr: where to draw the rig over the scene (default "
+                        "virtual-rig-<scene>.png in the current folder)")
+    parser.add_argument("--no-picture", action="store_true", help="do not draw the virtual rig")
 
 
 def parse_method(text: str):
@@ -76,6 +81,8 @@ def run(args) -> int:
     if not (math.isfinite(args.ratio) and 0.0 <= args.ratio <= 1.0):
         raise InputError("--ratio", f"must be in [0, 1], got {args.ratio}")
     methods = [parse_method(m) for m in (args.method or ["betadesc"])]
+    if not args.no_picture and any(name in RIG_METHODS for name, _, _ in methods):
+        check_picture_path(args)
     if not args.no_references:
         methods += [parse_method(m) for m in REFERENCES if m not in {x[0] for x in methods}]
     sig_params = parse_method(f"lightgs:train_longest_side={args.significance_side}")[1]
@@ -101,9 +108,53 @@ def run(args) -> int:
             raise InputError("--method", f"{name}: {err}") from None
         d.label = name + (":" + ",".join(f"{k}={v}" for k, v in given.items()) if given else "")
         out.append(d)
+    rigs = [] if args.no_picture else [draw_virtual_rig(scene, args, name, params) for name, params, _ in methods
+                                       if name in RIG_METHODS][:1]
     if args.json:
         print(jsonout.dumps({"scene": args.scene, "splats": len(scene), "ratio": args.ratio,
-                          "train_views": len(cams), "diagnoses": [d.to_dict() for d in out]}))
+                             "train_views": len(cams), "diagnoses": [d.to_dict() for d in out],
+                             "virtual_rig": rigs[0] if rigs else None}))
     else:
         print(dg.format_text(args.scene, len(scene), out))
+        for r in rigs:
+            print("\nvirtual rig\n  " + r["text"].replace("\n", "\n  ") + f"\n  picture: {r['picture']}")
     return 0
+
+
+def check_picture_path(args) -> None:
+    """Refuse, before any work, a picture path that is not a .png or whose folder takes no file."""
+    from pathlib import Path
+
+    from harness.io.files import probe_writable
+
+    stem = Path(str(args.scene)).name.split(".")[0]
+    args.picture = args.picture or f"virtual-rig-{stem}.png"
+    if Path(args.picture).suffix.lower() != ".png":
+        raise InputError("--picture", f"the rig picture is a PNG: give a path ending in .png, got {args.picture!r}")
+    probe_writable(Path(args.picture).resolve().parent)
+
+
+def draw_virtual_rig(scene, args, name: str, params: dict) -> dict:
+    """Draw the virtual rig of ``name`` (its rig parameters from ``params``) over ``scene``: the PNG
+    path, what the rig found, and where every camera stands."""
+    from pathlib import Path
+
+    import numpy as np
+
+    from harness.views.rig_picture import draw_rig
+    from methods.virtualrig import VirtualRigParams, rig_report
+
+    fields = VirtualRigParams.__dataclass_fields__
+    p = VirtualRigParams(**{k: v for k, v in params.items() if k in fields})
+    try:
+        shape, ground, cams, text = rig_report(scene, p)
+    except ValueError as err:
+        raise InputError("--method", f"{name}: {err}") from None
+    stem = Path(str(args.scene)).name.split(".")[0]
+    path = Path(args.picture)
+    reach = max([shape.radius] + [float(np.linalg.norm(c.center - shape.center)) for c in cams])
+    up = None if ground is None else ground.up
+    draw_rig(scene, cams, path, center=shape.center, radius=reach * 1.02, up=up, title=f"{stem}: {name}")
+    return {"picture": str(path), "text": text, "cameras": [
+        {"name": c.name, "position": np.round(c.center, 6).tolist(), "forward": np.round(c.forward, 6).tolist()}
+        for c in cams]}

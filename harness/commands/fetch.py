@@ -15,7 +15,8 @@ from __future__ import annotations
 from harness.core.errors import InputError
 
 NAME = "fetch"
-HELP = ("download and verify the named scenes (bonsai-7k, bonsai-7k-mini, luigi, grape-small, playbot), the bonsai "
+HELP = ("download (or generate) and verify the named scenes (bonsai-7k, bonsai-7k-mini, luigi, grape-small, playbot; "
+        "synth-room, synth-statue), the bonsai "
         "capture (real cameras and photos) and LPIPS weights")
 
 

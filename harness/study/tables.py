@@ -1,14 +1,17 @@
-"""The study's tables — ``claims``, and ``findings`` generated from it — registered as a third party
-registers one (:func:`harness.report.tables.register_table`; this module is named by the project's
-``harness.tables`` entry point)."""
+"""The study's tables — ``claims``, ``findings`` generated from it, and the virtual rig against its
+goals — registered as a third party registers one (:func:`harness.report.tables.register_table`; this
+module is named by the project's ``harness.tables`` entry point)."""
 
 from __future__ import annotations
 
 from harness.report.tables import register_table
 from harness.study.claims import table_claims
 from harness.study.findings import table_findings
+from harness.study.vrgoals import table_virtual_rig
 
 register_table("claims", build=table_claims,
                title="The paper's claims, each tested as the paper states it, with a verdict")
 register_table("findings", build=table_findings,
                title="Findings: which of the paper's claims hold, fail, depend on the reading or are underpowered")
+register_table("virtual_rig", build=table_virtual_rig,
+               title="The virtual rig against its goals at 30 % (gap to LightGS and to opacity, met or not)")

@@ -109,6 +109,14 @@ SCENE_RIGS: dict[str, RigDefaults] = {
     "playbot": RigDefaults(
         "orbit", up=(0.0, -1.0, 0.0), elevations=(20.0, 35.0, 50.0),
         note="robot above a 2 × 2 ground patch at y = 0: orbit from above the ground only"),
+    # generated scenes (harness.io.generated): up is where the generator's +z went; the rig kinds' own
+    # elevations (orbit from above the ground, a room circled from inside)
+    "synth-room": RigDefaults(
+        "room", up=(-0.6206, -0.6344, 0.4609), elevations=(15.0, 30.0),
+        note="generated room (floor, walls, table with a vase and a plant): cameras inside, circling the table"),
+    "synth-statue": RigDefaults(
+        "orbit", up=(0.0608, -0.9533, -0.2959), elevations=(5.0, 25.0, 45.0),
+        note="generated figure on a pedestal on a 3 × 3 ground patch: orbit from above the ground"),
 }
 
 _RIG_DEFAULT_ELEVATIONS = {"orbit": (5.0, 25.0, 45.0), "room": (15.0, 30.0), "forward": (0.0,)}

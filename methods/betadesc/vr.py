@@ -49,7 +49,10 @@ class BetaDescVRParams(BetaDescParams, NoDescStatisticsParams, VirtualRigParams,
     pre-registered selection of ``vr_weight`` and of the rig (``ctc_configs/study/virtualrig.yaml``: "fixed,
     not searched: … betadesc-vr: the default reading of betadesc") was made and measured when
     BetaDescPrune's default was round two's reading, so that is the reading the selected values
-    belong to. Changing it is a change of this pruner's default and follows docs/reading.md."""
+    belong to. Changing it is a change of this pruner's default and follows docs/reading.md. Its FPFH
+    radius (5 × 0.2 of the diagonal) is not local: the descriptors summarise the whole scene, which this
+    pruner's selection measured and kept; the non-local warning is therefore printed only for a voxel or
+    radius a user sets, not for these defaults (:func:`harness.core.advice.announce`)."""
 
     reading: Literal["paper-literal", "paper-direction", "round-one", "round-two", "v1"] = param(
         "round-two", doc="base bundle of reading choices (methods/betadesc/params.py); round-two: the reading "

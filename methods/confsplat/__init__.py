@@ -41,7 +41,8 @@ class ConfSplatParams(Params):
     rank_start_step: int = param(0, ge=0, doc="first rank-loss step (2025 code: 0; HEAD: 1000 of 30k joint steps, "
                                  "i.e. after warm-up, which a post-hoc run on a trained scene is past)")
     early_stop: bool = param(False, doc="graphdeco's early termination in the training renders")
-    threads: int = param(1, ge=0, doc="torch intra-op threads while scoring (0 = unchanged)")
+    threads: int = param(1, ge=0, doc="torch intra-op threads of the set-up (0 = unchanged); the optimisation "
+                         "runs on one thread, so the scores do not depend on it")
 
 
 def _budget(p: ConfSplatParams) -> str | None:

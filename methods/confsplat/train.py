@@ -57,7 +57,13 @@ Readings decided here:
 * A splat invisible from every training view never enters a rendered pair, so its image gradient is
   exactly zero; only the sparsity and entropy terms move it (c falls from 0.5), while splats the
   images need rise above 0.5.
-* ``threads``: torch intra-op threads while scoring (default 1, see :func:`renderers.pixel_pairs.torch_threads`).
+* ``threads``: torch intra-op threads of the set-up (projecting the training views: each splat's values
+  depend on it alone, :mod:`renderers.projection`); the optimisation always runs on **one** thread.
+  torch's CPU kernels of softplus, lgamma/digamma/polygamma (the Beta entropy and its gradient) compute
+  the last elements of each thread's chunk with a scalar formula that differs in the last bit from the
+  vectorised one, and its sums add chunk by chunk, so on more threads the learned confidences changed
+  with the thread count (measured: 1, 2 and 8 threads gave three different score arrays on
+  bonsai-7k-mini), and with ``threads: 0`` with the worker's ``--threads``.
 """
 
 from __future__ import annotations
@@ -207,7 +213,7 @@ def optimise_confidence(scene: GaussianScene, cameras, params=None, *, seed: int
     deterministic = torch.are_deterministic_algorithms_enabled()
     torch.use_deterministic_algorithms(True, warn_only=True)
     try:
-        with torch.random.fork_rng(devices=[]), torch_threads(int(p["threads"])):
+        with torch.random.fork_rng(devices=[]), torch_threads(1):  # the thread count changes the sums
             torch.manual_seed(seed)
             a = torch.full((n,), float(p["init"]), dtype=torch.float32, requires_grad=True)
             b = torch.full((n,), float(p["init"]), dtype=torch.float32, requires_grad=True)

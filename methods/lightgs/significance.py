@@ -26,18 +26,22 @@ Readings decided here:
 * ``threads``: torch intra-op threads while scoring (default 1, see :func:`renderers.pixel_pairs.torch_threads`).
 
 The accumulation is :func:`significance`, shared with the camera-free ``virtual-rig`` pruner
-(:mod:`methods.virtualrig`), with two exact backends of the same sum:
+(:mod:`methods.virtualrig`), with three exact backends of the same sum:
 
-* ``pairs`` (LightGS's, always): :mod:`renderers.pixel_pairs`, the reference rasterizer's projection
-  and α tests compositing over enumerated (pixel, splat) pairs (numba, CPU; on CUDA only the
-  projection runs on the GPU);
+* ``sweep`` (the CPU's): :mod:`renderers.sweep`, one front-to-back pass over the depth-sorted splats
+  with a transmittance per pixel, the projection in numba — bit for bit the ``pairs`` result (same
+  projection, same float operations in the same order per pixel and per splat), 4–11× faster on the
+  same views, projection included (``harness bench methods --backends``, ``results/virtualrig/bench/``);
+* ``pairs``: :mod:`renderers.pixel_pairs`, the reference rasterizer's projection and α tests
+  compositing over enumerated (pixel, splat) pairs (numba, CPU; on CUDA only the projection runs on
+  the GPU);
 * ``reference``: the reference rasterizer's own per-splat statistics (:func:`renderers.reference.composite`),
   torch on the context's device, so on CUDA the whole pass runs on the GPU.
 
-They agree to float rounding (the reference retires a tile once every pixel has T < 1e-7 without
-early stop: effects below 1e-7). Measured on bonsai-7k-mini, 256×192 views, one thread: pairs
-0.18 s per view, the reference's eager CPU step 3.8 s (21×), so ``auto`` is ``pairs`` on the CPU
-and ``reference`` on any other device. Neither needs a renderer from the context.
+``pairs`` and ``reference`` agree to float rounding (the reference retires a tile once every pixel
+has T < 1e-7 without early stop: effects below 1e-7). Measured on bonsai-7k-mini, 256×192 views, one
+thread: pairs 0.18 s per view, the reference's eager CPU step 3.8 s (21×), so ``auto`` is ``sweep``
+on the CPU and ``reference`` on any other device. None needs a renderer from the context.
 """
 
 from __future__ import annotations
@@ -46,27 +50,36 @@ import numpy as np
 import torch
 
 from harness.core.scene import GaussianScene
-from renderers import reference
+from renderers import reference, sweep
 from renderers.pixel_pairs import build_pairs, composite
 from renderers.projection import SplatTensors, project_gaussians
 
 V_REF_FRACTION = 0.9
-BACKENDS = ("auto", "pairs", "reference")
+BACKENDS = ("auto", "sweep", "pairs", "reference")
 
 
 def resolve_backend(backend: str, device) -> str:
-    """``pairs`` or ``reference``: ``auto`` is pairs on the CPU, the reference elsewhere (CUDA)."""
+    """``sweep``, ``pairs`` or ``reference``: ``auto`` is the sweep on the CPU, the reference elsewhere (CUDA)."""
     if backend not in BACKENDS:
         raise ValueError(f"unknown significance backend {backend!r}; known: {', '.join(BACKENDS)}")
     if backend != "auto":
         return backend
-    return "pairs" if torch.device(device).type == "cpu" else "reference"
+    return "sweep" if torch.device(device).type == "cpu" else "reference"
 
 
 def significance(scene: GaussianScene, cameras, *, longest_side: int = 512, early_stop: bool = True,
-                 device: str = "cpu", backend: str = "pairs") -> np.ndarray:
+                 device: str = "cpu", backend: str = "auto") -> np.ndarray:
     """I_j = Σ_views Σ_pixels o_j·T_j over ``cameras`` (float64, (N,)); ``backend`` as in the module doc."""
     use = resolve_backend(backend, device)
+    if use == "sweep":
+        if torch.device(device).type != "cpu":
+            raise ValueError(f"the sweep backend runs on the CPU, not {device!r}")
+        geom, total = sweep.Geometry(scene), np.zeros(len(scene), np.float64)
+        for cam in cameras:
+            ids, sums = sweep.opacity_transmittance(geom, cam.resized(longest_side) if longest_side else cam,
+                                                    early_stop=early_stop)
+            total[ids] += sums
+        return total
     st = SplatTensors.from_scene(scene, device=device)
     total = np.zeros(len(scene), np.float64)
     acc = torch.zeros(len(scene), dtype=torch.float64, device=st.device) if use == "reference" else None

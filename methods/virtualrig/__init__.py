@@ -30,7 +30,7 @@ class VirtualRigParams(Params):
     rig: Literal["auto", "outside-in", "inside-out"] = param(
         "auto", doc="auto = outside-in for an object, inside-out for a room (the scene-shape analysis); "
         "or force one")
-    views: int = param(48, ge=1, le=1024, doc="virtual views (inside-out: cubes of 6, ⌈views/6⌉ positions)")
+    views: int = param(48, ge=1, le=1024, doc="virtual views (inside-out enclosed: cubes of 6, ⌈views/6⌉ positions)")
     shells: int = param(2, ge=1, le=16, doc="outside-in: concentric shells of cameras, equal shares of the views")
     radius_min: float = param(0.6, gt=0, le=10, doc="outside-in: distance of the closest shell, a multiple of "
                               "the fit distance R/sin(fov/2) (R: weighted P95 distance to the centre)")
@@ -39,10 +39,18 @@ class VirtualRigParams(Params):
     resolution: int = param(384, ge=16, le=4096, doc="side of the square virtual views (px; 384 by the "
                             "pre-registered selection, results/virtualrig/selection.md)")
     grid: int = param(32, ge=8, le=256, doc="occupancy-grid cells along the content's longest side")
-    positions: Literal["around", "enclosed"] = param(
-        "around", doc="inside-out cameras: around = in the room's free space all around the subject (the "
-        "opacity peak), looking at it (fov_deg); enclosed = cubes of six 90° views from the enclosed central "
-        "free space (the pre-registered first version: on bonsai-7k all below the table top)")
+    positions: Literal["around", "coverage", "enclosed"] = param(
+        "around", doc="inside-out cameras: around = along every direction from the subject (the opacity "
+        "peak) at 0.7 of its free reach, looking at it; coverage = free-space positions within the content's "
+        "median distance that see the subject, chosen greedily by the content their views add "
+        "(methods/virtualrig/coverage.py; not adopted by the round-two selection, "
+        "results/virtualrig/selection2.md); enclosed = cubes of six 90° views from the enclosed central free "
+        "space (the first, pre-registered version: on bonsai-7k all below the table top)")
+    support: Literal["auto", "off"] = param(
+        "auto", doc="outside-in: auto = find the plane the content stands on (a dominant one-sided plane "
+        "under the content's footprint, from the flat splats' normals; methods/virtualrig/support.py) and put "
+        "no camera below it (adopted by the round-two selection and confirmation, "
+        "results/virtualrig/confirmation2.md); off = the full sphere of directions")
     room_enclosure: float = param(0.8, gt=0, le=1, doc="median share of blocked rays from the central free "
                                   "space from which the scene is a room (inside-out)")
     rig_seed: int = param(0, ge=0, doc="seed of the rig's rotations and probe subsample (not the run's seed)")
@@ -61,9 +69,32 @@ def virtual_cameras(scene, p: VirtualRigParams):
     if kind == "inside-out":
         return shape, rig.inside_out(shape, views=p.views, resolution=p.resolution, seed=p.rig_seed,
                                      positions=p.positions, room_enclosure=p.room_enclosure, fov_deg=p.fov_deg)
+    ground = support_of(scene, shape, p)
     return shape, rig.outside_in(shape, views=p.views, shells=p.shells, radius_min=p.radius_min,
                                  radius_max=p.radius_max, fov_deg=p.fov_deg, resolution=p.resolution,
-                                 seed=p.rig_seed)
+                                 seed=p.rig_seed, support=ground)
+
+
+def support_of(scene, shape, p: VirtualRigParams):
+    """The support plane the outside-in rig keeps its cameras above (None with ``support: off``)."""
+    from methods.virtualrig.support import find_support
+
+    if p.support == "off":
+        return None
+    return find_support(scene, shape.center, shape.radius, shape.cell, seed=p.rig_seed)
+
+
+def rig_report(scene, p: VirtualRigParams):
+    """(shape, support or None, cameras, a few lines saying what the rig found and where it put its views)."""
+    shape, cams = virtual_cameras(scene, p)
+    outside = bool(cams) and cams[0].name.startswith("vr_shell")
+    ground = support_of(scene, shape, p) if outside else None
+    lines = [f"scene shape: {shape.describe()}"]
+    if ground is not None:
+        lines.append(f"support: {ground.describe()}")
+    lines.append(f"rig: {'outside-in' if outside else 'inside-out (' + p.positions + ')'}, {len(cams)} views of "
+                 f"{p.resolution} px, field of view {p.fov_deg:g}°")
+    return shape, ground, cams, "\n".join(lines)
 
 
 def virtual_significance(scene, p: VirtualRigParams, device: str = "cpu") -> np.ndarray:

@@ -27,7 +27,9 @@ splat (no sampling: deterministic in the scene) and ignores non-finite centres.
   camera positions (:mod:`.rig`), kept for any kind (most clearance first) with their enclosure, so
   ``rig: inside-out`` can be forced where such free space exists.
 * **Subject**: ``peak``, the cell with the most opacity mass after Gaussian smoothing (σ = 1 cell)
-  — what a room capture circles (bonsai-7k: the bonsai on its table). :func:`free_reach` measures
+  — what a room capture circles (bonsai-7k: the bonsai on its table); ``subject``, its blob: the
+  connected cells (faces) around the peak whose smoothed mass is at least :data:`SUBJECT_SHARE` of
+  the peak's (a table top it stands on is a thin, lighter layer, not part of it). :func:`free_reach` measures
   how far a ray from it runs through free space, which is where the room rig puts its cameras.
 
 Measured on the five default scenes (render-free, before any evaluation; grid 32, mass 1), and the
@@ -45,7 +47,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import binary_closing, distance_transform_edt, gaussian_filter
+from scipy.ndimage import binary_closing, distance_transform_edt, gaussian_filter, label
 
 from harness.core.scene import GaussianScene, opacities
 from harness.core.sphere import fibonacci_sphere
@@ -54,6 +56,7 @@ MIN_CLEARANCE = 1.5  # cells between a probe and the nearest occupied cell
 MAX_PROBES = 512
 N_RAYS = 64
 CENTRAL_QUANTILE = 0.25  # the central region: within this weighted quantile of the distance to the centre
+SUBJECT_SHARE = 0.5  # smoothed mass, relative to the peak's, of the subject's blob
 SUBJECT_CELLS = 1.5  # occupied cells this close to the subject's peak are the subject, not an obstacle
 
 
@@ -72,6 +75,10 @@ class Shape:
     probe_enclosure: np.ndarray  # (K,) their enclosure
     peak: np.ndarray  # (3,) the subject: peak of the smoothed opacity mass
     occupied: np.ndarray  # (X, Y, Z) bool occupancy grid
+    mass: np.ndarray  # (X, Y, Z) opacity mass per cell
+    subject: np.ndarray  # (X, Y, Z) bool: the subject's blob around the peak
+    clearance: np.ndarray  # (X, Y, Z) distance (cells) to the nearest occupied cell
+    median_distance: float  # weighted median distance of the content to center
     origin: np.ndarray  # (3,) world position of the grid's corner
 
     def describe(self) -> str:
@@ -80,11 +87,14 @@ class Shape:
                 f"{len(self.probes)} free-space probes")
 
 
-def weighted_quantile(values: np.ndarray, weights: np.ndarray, q: float) -> float:
-    """The smallest value whose cumulative weight reaches ``q`` of the total (a weighted quantile)."""
-    order = np.argsort(values, kind="stable")
+def weighted_quantile(values: np.ndarray, weights: np.ndarray, q):
+    """The smallest value whose cumulative weight reaches ``q`` of the total (a weighted quantile);
+    ``q`` a number or a sequence (one sort for all). Ties may sort in any order: the value is the same."""
+    order = np.argsort(values)
     cum = np.cumsum(weights[order])
-    return float(values[order][min(np.searchsorted(cum, q * cum[-1]), len(cum) - 1)])
+    k = np.minimum(np.searchsorted(cum, np.asarray(q, np.float64) * cum[-1]), len(cum) - 1)
+    out = values[order][k]
+    return float(out) if np.ndim(out) == 0 else out.astype(np.float64)
 
 
 def _weights(scene: GaussianScene) -> tuple[np.ndarray, np.ndarray]:
@@ -156,9 +166,8 @@ def analyse(scene: GaussianScene, *, grid: int = 32, occupied_mass: float = 1.0,
     pts, w = _weights(scene)
     center = np.array([weighted_quantile(pts[:, k], w, 0.5) for k in range(3)])
     dist = np.linalg.norm(pts - center, axis=1)
-    radius = max(weighted_quantile(dist, w, 0.95), 1e-6)
-    extent = max(weighted_quantile(dist, w, 0.90), 1e-6)
-    central = weighted_quantile(dist, w, CENTRAL_QUANTILE)
+    radius, extent, central, half = weighted_quantile(dist, w, [0.95, 0.90, CENTRAL_QUANTILE, 0.5])
+    radius, extent = max(float(radius), 1e-6), max(float(extent), 1e-6)
     core = dist <= radius
     occupied, mass, origin, cell = occupancy(pts[core], w[core], grid, occupied_mass)
     clearance = distance_transform_edt(~occupied) if occupied.any() else np.full(occupied.shape, np.inf)
@@ -167,9 +176,13 @@ def analyse(scene: GaussianScene, *, grid: int = 32, occupied_mass: float = 1.0,
     cells = _subsample(free[np.linalg.norm(world - center, axis=1) <= central], seed)
     enc = ray_enclosure(occupied, cells + 0.5, fibonacci_sphere(N_RAYS)) if len(cells) else np.zeros(0)
     median = float(np.median(enc)) if len(enc) else 0.0
-    peak_cell = np.array(np.unravel_index(np.argmax(gaussian_filter(mass, 1.0, mode="constant")), mass.shape))
+    smooth = gaussian_filter(mass, 1.0, mode="constant")
+    peak_cell = np.array(np.unravel_index(np.argmax(smooth), mass.shape))
+    blobs = label(smooth >= SUBJECT_SHARE * smooth[tuple(peak_cell)])[0]
+    subject = blobs == blobs[tuple(peak_cell)]
     order = np.argsort(-clearance[tuple(cells.T)], kind="stable")
     cells = cells[order]
     return Shape("room" if median >= room_enclosure else "object", center, extent, radius, cell, median,
                  origin + (cells + 0.5) * cell, clearance[tuple(cells.T)] * cell, enc[order],
-                 origin + (peak_cell + 0.5) * cell, occupied, origin)
+                 origin + (peak_cell + 0.5) * cell, occupied, mass, subject, clearance,
+                 float(half), origin)

@@ -70,7 +70,7 @@ def _extended(base_name, source: str, chain: tuple) -> Path:
 
 def resolve(doc, source: str, origins: dict | None = None, chain: tuple = ()) -> tuple:
     """``(document, origins)`` of a parsed config with its ``extends`` chain resolved."""
-    from harness.io.safe import load_yaml
+    from harness.io.safe_yaml import load_yaml
 
     origins = {} if origins is None else origins
     if not isinstance(doc, dict) or "extends" not in doc:
@@ -91,7 +91,7 @@ def resolve(doc, source: str, origins: dict | None = None, chain: tuple = ()) ->
 
 def read_config_file(path: Path) -> tuple:
     """``(document, origins)`` of a config file, ``extends`` resolved (module docstring)."""
-    from harness.io.safe import load_yaml
+    from harness.io.safe_yaml import load_yaml
 
     doc, node = load_yaml(path, with_node=True)
     origins: dict = {}

@@ -255,9 +255,9 @@ def parse_config(data: Any, source: str = "<config>") -> RunConfig:
 def load_config(path: str | Path) -> RunConfig:
     """Read and validate a YAML run config; any problem is an InputError naming the file and key.
 
-    Read through :func:`harness.io.safe.load_yaml`: a regular file of at most 1 MiB of UTF-8,
+    Read through :func:`harness.io.safe_yaml.load_yaml`: a regular file of at most 1 MiB of UTF-8,
     duplicate keys refused, aliases bounded (no "billion laughs")."""
-    from harness.io.safe import load_yaml
+    from harness.io.safe_yaml import load_yaml
 
     path = Path(path)
     if not path.exists():

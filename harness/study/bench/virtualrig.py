@@ -106,9 +106,25 @@ def confirm(args) -> int:
 
 
 def add_arguments(parser) -> None:
-    add_stage_arguments(parser, "select the parameters, or confirm them",
-                        "ctc_configs/study/virtualrig.yaml for select, virtualrig_confirm.yaml for confirm")
+    add_stage_arguments(parser, "select the parameters, or confirm them; rho: the virtual rig's Spearman rho "
+                        "with LightGS significance per scene against its goal",
+                        "ctc_configs/study/virtualrig.yaml for select, virtualrig_confirm.yaml for confirm; "
+                        "round 2: ctc_configs/study/virtualrig2.yaml, virtualrig2_confirm.yaml", extra_stages=("rho",))
+    parser.add_argument("--scenes", default=None, help="rho: comma-separated scenes (default: the default "
+                        "study's and the two generated ones)")
+    parser.add_argument("--round", type=int, choices=(1, 2), default=1,
+                        help="1: the rig's geometry and betadesc-vr's weight; 2: where the cameras stand")
 
 
 def run(args) -> int:
+    if args.stage == "rho":
+        from harness.study import virtualrig_round2 as r2
+
+        args.scenes = args.scenes or r2.RHO_SCENES
+        return r2.rho(args, OUT_SUB)
+    if args.round == 2:
+        from harness.study import virtualrig_round2 as r2
+
+        return run_stage(args, "virtualrig2.yaml", "virtualrig2_confirm.yaml",
+                         lambda a: r2.select(a, OUT_SUB), lambda a: r2.confirm(a, OUT_SUB))
     return run_stage(args, "virtualrig.yaml", "virtualrig_confirm.yaml", select, confirm)
