@@ -16,7 +16,7 @@ import pytest
 import harness
 from harness.core.cameras import COORD_MAX, Camera, CameraError
 from harness.core.errors import InputError
-from harness.core.extent import extent_problem
+from harness.core.extent import blur, extent_problem
 from harness.core.scene import GaussianScene
 from tests.scene_factory import random_scene
 
@@ -65,6 +65,23 @@ def test_a_scene_beyond_the_pipelines_range_is_refused_where_it_would_be_rendere
     assert "1 of 100 splats lie beyond" in extent_problem(one) and "first: row 7" in extent_problem(one)
     assert extent_problem(_scaled(one.subset(np.arange(100) != 7), COORD_MAX / 10)) is None
     harness.save(one, tmp_path / "one.ply")  # not rendering: written as it is
+
+
+def test_a_scene_far_from_the_origin_for_its_size_is_refused():
+    """float32 spaces numbers near 10⁵ 2⁻⁷ apart: a scene of radius ~1 there renders blurred, at 10⁸
+    its centres round to a few points (a radius of 0, which the splats' own size stands in for)."""
+    s = random_scene(300, 0, seed=1)
+
+    def moved(k):
+        return GaussianScene.from_arrays(s.means + np.float32(k), s.scales_log, s.quats, s.opacity_logit, s.sh_dc)
+
+    assert blur(s) < 1e-6 and extent_problem(moved(1e2)) is None
+    for k in (1e5, 1e8):
+        assert "float32's steps there are" in extent_problem(moved(k))
+    with pytest.raises(harness.HarnessError, match="move the scene near the origin"):
+        harness.render(moved(1e8), [Camera(np.eye(4), 9.0, 9.0, 4.0, 4.0, 8, 8)])
+    assert extent_problem(s.subset(np.arange(300) == 0)) is None  # one splat: its size is its radius
+    assert blur(s.subset(np.zeros(300, bool))) == 0.0
 
 
 def test_a_metric_that_gives_nan_is_refused_naming_it():

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from harness.core.cameras import COORD_MAX, Camera
-from harness.core.extent import check_extent, largest_coordinate
+from harness.core.extent import MAX_BLUR, blur, check_extent, largest_coordinate
 from harness.run.cache import StageCache, digest_json
 from harness.run.cache.versions import Versions
 from harness.run.config import MethodVariant, RunConfig, SceneSpec
@@ -163,19 +163,20 @@ def _scene_items(spec, frames, config, cache, toolkit, versions, base, on_note=N
         scene = _LazyScene(toolkit, str(path), spec.lod)
         key = cache.key("load", scene=digest, code=versions.reader)
         info = cache.get_json("load", key, check=load_check())
-        if info is None or "largest_coordinate" not in info:  # (entries of older code lack it)
+        if info is None or "blur" not in info:  # (entries of older code lack it)
             from harness.io.plysize import ply_size_model
 
             s = scene()
             size = ply_size_model(s)
             info = {"n_splats": len(s), "sh_degree": int(s.sh_degree), "ply_base": size.base, "ply_row": size.row,
-                    "largest_coordinate": largest_coordinate(s)}
+                    "largest_coordinate": largest_coordinate(s), "blur": blur(s)}
             cache.put_json("load", key, info)
         if not info["n_splats"]:  # an error of this scene (exit 1), not of the run
             from harness.core.errors import InputError
 
             raise InputError(path, "holds no splats: there is nothing to prune or render")
-        if info["largest_coordinate"] > COORD_MAX:  # beyond what the render pipeline holds: an error of this scene
+        if info["largest_coordinate"] > COORD_MAX or info["blur"] > MAX_BLUR:  # beyond what the renders hold: an
+            # error of this scene (harness.core.extent)
             check_extent(scene(), path)
         if views is None:  # the first frame's views serve the whole sequence
             views = scene_views(spec, scene, path, config.protocol, cache, toolkit, versions, digest, base)

@@ -60,9 +60,10 @@ def load_check():
             v = rec.get(k)
             if v is not None and not (isinstance(v, int) and not isinstance(v, bool) and v > 0):
                 return f"{k} {v!r} is not a byte count"
-        far = rec.get("largest_coordinate")  # harness.core.extent
-        if far is not None and not (isinstance(far, (int, float)) and not isinstance(far, bool) and far >= 0):
-            return f"largest_coordinate {far!r} is not a distance"
+        for k in ("largest_coordinate", "blur"):  # harness.core.extent
+            v = rec.get(k)
+            if v is not None and not (isinstance(v, (int, float)) and not isinstance(v, bool) and v >= 0):
+                return f"{k} {v!r} is not a distance or share"
         return None
     return check
 

@@ -3,8 +3,9 @@ into :data:`tests.stress.cases.CASES`): families **F** and **Y**.
 
 * **F**: a scene far beyond what the float32 render pipeline holds (splat centres × 1e18 made NaN
   cameras, black renders and PSNR inf counted as perfect), one far inside it (× 1e10, which must
-  still render), the MPEG set on images smaller than its windows (``nan`` printed, invalid JSON,
-  an ``IndexError``), a plugin metric that returns NaN, ``harness track`` on a group whose SSIM is
+  still render), a scene far from the origin for its size (float32 rounds its centres to a few
+  points), the MPEG set on images smaller than its windows (``nan`` printed, invalid JSON, an
+  ``IndexError``), a plugin metric that returns NaN, ``harness track`` on a group whose SSIM is
   NaN on every view, ``diagnose`` of the far scene (``significance nan%``).
 * **Y**: Python code calling the API as a user would — scenes built or changed in memory (NaN
   opacities, mismatched lengths, float64 arrays, no splats), arguments of the wrong type or range
@@ -64,7 +65,7 @@ def _(d):
 @case("F2", "numbers", "render the same scene scaled by 1e10: finite cameras, strict JSON", want="ok")
 def _(d):
     s = _scaled(d, 1e10)
-    return Setup(["render", str(s), "--longest-side", "32", "--out", str(d / "o")], unchanged=[s],
+    return Setup(["render", str(s), "--longest-side", "32", "--n-test", "2", "--out", str(d / "o")], unchanged=[s],
                  check=_finite_cameras(d / "o"))
 
 
@@ -82,6 +83,34 @@ def _(d):
     s = _scaled(d, 1e18)
     return Setup(["diagnose", str(s), "--method", "opacity", "--significance-side", "32", "--n-train", "2"],
                  unchanged=[s], stderr_lacks="nan")
+
+
+def _moved(d: Path, offset: float, name: str = "moved.ply") -> Path:
+    """A random scene of radius ~3 moved ``offset`` along every axis (float32 rounds its centres)."""
+    sys.path.insert(0, str(ROOT))
+    from harness.core.scene import GaussianScene
+    from harness.io.ply import write_ply
+    from tests.scene_factory import random_scene
+
+    s = random_scene(300, 0, seed=1)
+    write_ply(GaussianScene.from_arrays(s.means + np.float32(offset), s.scales_log, s.quats, s.opacity_logit,
+                                        s.sh_dc), d / name)
+    return d / name
+
+
+@case("F10", "numbers", "render a scene of radius 3 moved 1e7 from the origin (centres rounded to a few points)")
+def _(d):
+    s = _moved(d, 1e7)
+    return Setup(["render", str(s), "--longest-side", "32", "--n-test", "2", "--out", str(d / "o")], unchanged=[s],
+                 absent=[d / "o"], stderr_has="near the origin")
+
+
+@case("F11", "numbers", "run: a scene moved 1e7 from the origin beside a good one", want="scene error", slow=True)
+def _(d):
+    _moved(d, 1e7)
+    c = _config(d, scenes=[{"name": "s", "source": "s.ply"}, {"name": "moved", "source": "moved.ply"}],
+                output=str(d / "out"))
+    return Setup(["run", str(c), "--cache", str(d / "cache")], unchanged=[c], stderr_has="near the origin")
 
 
 def _tiny_pngs(d: Path, side: int) -> list[str]:
