@@ -141,6 +141,23 @@ def test_an_input_inside_a_replaced_entry_is_never_deleted(tmp_path):
     assert (out / "tables" / "config.yaml").read_text() == "name: x"
 
 
+def test_a_carried_record_read_while_staging_is_moved_not_refused(tmp_path):
+    """The page reads the earlier runs' records carried into the staging folder (hard links of the
+    ones the publication replaces): they move with it, so reading them does not make the old entry
+    an input that may not be deleted (every second run into a folder was refused)."""
+    from harness.io.safe import read_bytes, recording_inputs
+
+    out = tmp_path / "out"
+    with OwnedFolder(out, "first") as f:
+        _published(f, **{"records/1.json": "r1"})
+    with recording_inputs(), OwnedFolder(out, "second") as f:
+        stage = f.stage(carry=("records",))
+        read_bytes(stage / "records" / "1.json", "json", "run record")
+        (stage / "records" / "2.json").write_text("r2")
+        f.publish(["records"])
+    assert sorted(p.name for p in (out / "records").iterdir()) == ["1.json", "2.json"]
+
+
 def test_tables_and_report_take_the_runs_lock(tmp_path, capsys):
     from tests.stress.cases import _run_dir
 

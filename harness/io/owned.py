@@ -100,17 +100,32 @@ def _move_in(src: Path, dst: Path, replaced: Path) -> None:
     os.replace(src, dst)
 
 
-def _refuse_inputs_under(paths) -> None:
+def _files(path: Path):
+    """Every file under ``path`` (itself, when it is not a folder)."""
+    if path.is_dir() and not path.is_symlink():
+        for root, _, files in os.walk(path):
+            yield from (Path(root) / f for f in files)
+    elif os.path.lexists(path):
+        yield path
+
+
+def _inode(path: Path):
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return st.st_dev, st.st_ino
+
+
+def _refuse_inputs_under(paths, staged) -> None:
     """InputError when a file under ``paths`` (the entries a publication replaces and deletes) is one
-    this command read: an input is never deleted, whatever folder it sits in."""
+    this command read: an input is never deleted, whatever folder it sits in. A file carried into the
+    publication (the same inode under ``staged``: an earlier run's record the page read) is not
+    deleted but moved with it, and passes."""
     from harness.io.files import refuse_inputs
 
-    for path in paths:
-        if path.is_dir() and not path.is_symlink():
-            for root, _, files in os.walk(path):
-                refuse_inputs(*(Path(root) / f for f in files))
-        else:
-            refuse_inputs(path)
+    kept = {_inode(f) for path in staged for f in _files(path)}
+    refuse_inputs(*(f for path in paths for f in _files(path) if _inode(f) not in kept))
 
 
 class OwnedFolder:
@@ -198,7 +213,7 @@ class OwnedFolder:
         if staging is None:
             raise RuntimeError("publish() before stage()")
         entries = [e for e in entries if os.path.lexists(staging / e)]
-        _refuse_inputs_under([self.path / e for e in entries])
+        _refuse_inputs_under([self.path / e for e in entries], [staging / e for e in entries])
         try:
             with open(staging / _ENTRIES, "w") as f:
                 json.dump(entries, f, allow_nan=False)
