@@ -5,7 +5,7 @@
 
 ``reference`` is the tile-based torch rasterizer (CPU or CUDA, differentiable, per-splat statistics);
 ``gl`` is the moderngl/EGL renderer (Mesa llvmpipe on the CPU, the GPU when present). Both implement
-the classic 3DGS math described in DESIGN.md and must agree to ≥ 45 dB PSNR.
+the classic 3DGS math written out in :mod:`renderers.projection` and must agree to ≥ 45 dB PSNR.
 
 A renderer declares what it can do beyond ``render`` in its class attribute ``capabilities``
 (:func:`capabilities`): :data:`ALPHA` — ``render_with_alpha(scene, camera, background) -> (image,

@@ -7,7 +7,7 @@ import sys
 import textwrap
 from pathlib import Path
 
-from harness.run.cache.versions import find_module_spec, module_file, module_versions, project_closure
+from harness.run.cache.versions import callable_version, find_module_spec, module_file, module_versions, project_closure
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -69,3 +69,23 @@ def test_project_versions_import_nothing_heavy_and_find_the_imported_files():
     assert res["heavy"] == []
     assert res["n"] >= 9 and len(res["static"]) > 20
     assert res["static"] == res["loaded"]
+
+
+def _made_by_exec(body: str):
+    scope: dict = {}  # no __name__: the function's __module__ is None, as in a doctest with empty globals
+    exec(f"def views(scene, seed):\n    return {body}\n", scope)
+    return scope["views"]
+
+
+def test_a_function_without_a_module_is_versioned_by_its_code():
+    a, same, other = _made_by_exec("[1]"), _made_by_exec("[1]"), _made_by_exec("[2]")
+    assert a.__module__ is None
+    assert callable_version(a) == callable_version(same) != callable_version(other)
+    assert callable_version(a, ("harness.views.protocols",)) != callable_version(a)
+
+
+def test_a_project_function_is_versioned_by_its_modules_closure():
+    from methods.simple import opacity_score as fn
+
+    want = module_versions(tuple(sorted(project_closure(fn.__module__))) + ("methods.registry",))
+    assert callable_version(fn, ("methods.registry",)) == want

@@ -1,4 +1,4 @@
-"""The public Python API, exported at the top of the package (``harness.prune`` ...; see the README).
+"""The public Python API, exported at the top of the package (``harness.prune`` ...; the README's "From Python").
 
 One module per subject: :mod:`.scenes` (load, save, info, score, prune, methods), :mod:`.views`
 (cameras), :mod:`.images` (render, compare), :mod:`.study` (evaluate). The commands of :mod:`harness.commands` are these

@@ -8,7 +8,7 @@ tables and report page included: what a user waits for) and the runner's own
 the outputs). One thread per worker (``--threads``), so that W workers use W cores: with the
 default ``cores // workers`` threads one worker would already use both cores of this machine.
 
-Goals of issue 17, both ratios of runs taken in the same sitting (the order of the runs is
+The goals, both ratios of runs taken in the same sitting (the order of the runs is
 interleaved over the repeats, so a drift in the machine's load hits every variant alike):
 
 * Ray overhead at equal workers: ``wall(ray-W) / wall(local-W) - 1`` ≤ 15 %;

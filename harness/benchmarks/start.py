@@ -5,7 +5,7 @@ exit) and its own CPU seconds and peak resident memory (``os.wait4``: that child
 running maximum over all children; spawned from a small launcher, :data:`LAUNCHER`) are recorded. A bare ``python -c
 "import numpy"`` runs in every round as the floor every command stands on.
 
-``--against DIR`` times a second checkout (e.g. a worktree of the ``wave3-base`` tag) with the same
+``--against DIR`` times a second checkout (e.g. a worktree of an earlier commit) with the same
 interpreter in the same sitting: ``python -m harness`` run in DIR imports DIR's code. Rounds
 alternate the order of the two trees (ABBA) so drift in the machine's load falls on both; a first
 round warms the page cache and numba's kernel cache and is not counted. Per command: median and
@@ -13,7 +13,7 @@ range over the rounds of each tree, and the median of the per-round ratios (this
 only figure that compares the two on a shared machine. The 1-minute load average is recorded with
 every sample.
 
-The commands (goals of issue 25 on a quiet 2-core machine, this tree): ``harness prune bonsai-7k
+The commands (their goals on a quiet 2-core machine, this tree): ``harness prune bonsai-7k
 OUT.ply --ratio 0.3`` ≤ 1.5 s and ≤ 600 MiB; ``harness info luigi`` and ``harness --help`` ≤ 0.3 s;
 ``harness prune luigi``; and ``harness prune bonsai-7k --reading v1``, so that the default reading's
 cost is compared with v1's in the same rounds (the command's own ``score`` seconds are kept too).

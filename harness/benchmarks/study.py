@@ -19,7 +19,7 @@ see the same machine load; their tables are compared file by file (the runtime t
 Results: ``<out>/study.{json,md}`` for ci.yaml, ``study-<config stem>`` otherwise (``--out``,
 default ``runs/bench``). ``--device DEV`` measures a study on one device instead (seconds per stage,
 images/s, GPU memory, its tables against a CPU run of a subset): :mod:`._study_device`.
-Goals of issue 25 (reported, not enforced): cached rerun of ci.yaml
+Goals (reported, not enforced): cached rerun of ci.yaml
 ≤ 5 s, of default.yaml ≤ 10 s; default study cold ≤ 2,200 CPU-s.
 """
 

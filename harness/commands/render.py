@@ -9,8 +9,8 @@ holds one image in memory, not all of them):
   :mod:`harness.views.contact_sheet`), ``coverage.json`` (per view) and ``cameras.json`` (the views,
   3DGS format, so a render can be repeated with ``--cameras``).
 
-**Predictable views** (issue 23: ``render luigi30.ply --rig default`` picked 1024×768 where
-``render luigi`` picked 1024×1024 under the same view names, and ``compare`` failed). The rule:
+**Predictable views** (so that ``render luigi30.ply`` and ``render luigi`` give images ``compare``
+can pair: the same view names at the same sizes). The rule:
 views come from the scene's content and the flags, never from its file name, and **image sizes
 from the flags alone**, so renders of any two scenes made with the same flags have the same sizes:
 

@@ -9,8 +9,7 @@
   splat parameters"; :mod:`.nodesc`, ``nodesc_def``: ``splat-params`` = anisotropy, colour/SH
   dispersion and extent, or ``param-stats`` = v1's, anisotropy for both ℓ and u), w = 1. With
   ``nodesc_def="opacity-only"`` the s, ℓ, u terms are dropped and the score is a monotone function
-  of opacity: it ranks exactly like the ``opacity`` baseline (its twin, not an ablation; the
-  default before issue 21).
+  of opacity: it ranks exactly like the ``opacity`` baseline (its twin, not an ablation).
 * ``betadesc-nobeta``: the same descriptor statistics and evidence, ranked deterministically by
   the net evidence A − B (no posterior mean, no σ: evidence magnitude is not turned into
   confidence and uncertainty earns no bonus).

@@ -28,8 +28,7 @@ Definitions (norm = ``stat_norm`` over the splats; o is the same normalised opac
 * ``opacity-only``: the s, ℓ, u terms dropped (their coefficients zeroed, :func:`methods.betadesc.
   evidence.opacity_only`). Then A and B depend on o alone, μ + γσ, A − B and every score are
   increasing in o, and the variant ranks exactly like the ``opacity`` baseline: it is that
-  baseline's twin, not an ablation. It was the default from commit 185f6c2 (2.5 minutes before the
-  round-one reading rule, 70c2edb, was registered, and outside that rule) until issue 21.
+  baseline's twin, not an ablation, and no reading's default.
 
 Which of ``splat-params`` and ``param-stats`` is the default is decided by the pre-registered round
 two (``ctc_configs/study/reading2.yaml``). Both are invariant to splat order and translation; scaling the

@@ -19,7 +19,8 @@ Scores (param ``score``):
   *pruning* probability, and Eq. 9 prunes the splats whose score is *below* τ. Ranking ascending
   then removes first the splats with the most *retention* evidence (opaque, distinctive) and keeps
   the safest-to-prune ones: the opposite of the method's stated intent, hence the erratum
-  (DESIGN.md). It is exactly 1 − (μ − γσ) of the consistent reading, i.e. the reversed LCB order.
+  (docs/reading.md, "The score sign"). It is exactly 1 − (μ − γσ) of the consistent reading, i.e. the
+  reversed LCB order.
 """
 
 from __future__ import annotations

@@ -2,8 +2,8 @@
 
 The paper's view-aware slot (§3.1–3.2: "when camera information is available", view features add
 evidence; :mod:`methods.betadesc.view_aware`) filled *without* real cameras, from the rig that
-:mod:`methods.virtualrig` synthesises from the splats — this project's own combination (issue 22),
-not the paper's::
+:mod:`methods.virtualrig` synthesises from the splats — this project's own combination,
+not the paper's (docs/virtual-rig.md)::
 
     A_i ← A_i + vr_weight · g_i,    g_i = norm(Σ_{virtual views} Σ_pixels o_i·T_i) ∈ [0, 1]
 

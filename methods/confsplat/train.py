@@ -12,7 +12,7 @@ with λ = 0.2, λ_s = 2e-3 and λ_e = 2e-3; their default ``beta_entropy_sign="m
 entropy (confident, peaked Betas are favoured). Their optimiser is Adam per parameter group with
 lr 1e-3 for both (batch size 1: lr·√1), eps 1e-15, betas (0.9, 0.999); that is the default here.
 
-Pruning-only variant (DESIGN.md "Baselines"): every other parameter is frozen and the target of each
+Pruning-only variant (docs/decisions.md, "The baselines"): every other parameter is frozen and the target of each
 training view is the **unpruned** render of the same scene (computed once, no grad), so the gate learns
 which splats the scene's own images need. Score = c. Left out: the co-training of geometry and SH,
 which needs a training run.

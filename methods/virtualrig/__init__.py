@@ -1,5 +1,5 @@
 """``virtual-rig``: LightGaussian's significance without cameras, over a rig synthesised from the
-splats alone (this project's own method, not the paper's; issue 22).
+splats alone (this project's own method, not the paper's; docs/virtual-rig.md).
 
     score_j = (V_j / V_ref)^v_pow · Σ_{virtual views} Σ_pixels o_j·T_j
 

@@ -15,7 +15,7 @@ was computed for its old name. Two layouts carry the tag:
   that chunk. Viewers ignore the chunk (ancillary, private), so the entry stays an ordinary PNG;
   a truncated image has no ``IEND`` and no chunk and fails verification like a torn envelope.
 
-**What this detects and what it cannot** (README, "Bad input, the cache, and kills"): any change of
+**What this detects and what it cannot** (docs/safety.md): any change of
 an entry's bytes (a flipped bit, a truncation, a hand edit) and any entry moved to another name.
 With a plain sha256 anyone who can write the cache can also recompute a tag, so a *deliberately*
 re-sealed wrong value is accepted (the stages' schema checks in :mod:`harness.run.verify` still

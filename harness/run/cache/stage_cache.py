@@ -16,7 +16,7 @@ read then runs the caller's schema check (:mod:`harness.run.verify`: length = sp
 counts ≤ input, finite metrics ...) on the decoded value. An entry that fails either — or that is
 not a regular file at all (a FIFO, a symlink to ``/dev/zero``: :mod:`harness.run.cache.stores`) —
 is **discarded**: a one-line warning, the name deleted, and it reads as a miss, so the stage
-recomputes it. What this can and cannot detect: README, "Bad input, the cache, and kills".
+recomputes it. What this can and cannot detect: docs/safety.md.
 
 **Scene keys** cover every file a scene reads (:meth:`FileDigests.scene`): a SOG scene named by its
 ``meta.json`` or ``lod-meta.json`` is keyed on its whole folder (its textures and LOD files may

@@ -114,6 +114,20 @@ def project_closure(module_name: str, roots=PROJECT_PACKAGES) -> set[str]:
     return seen
 
 
+def callable_version(fn, extra: tuple[str, ...] = ()) -> str:
+    """Digest of the code ``fn`` runs: its module's :func:`project_closure` and ``extra`` when the
+    module has a source file; otherwise (a function made by ``exec``, in a doctest or a notebook, whose
+    ``__module__`` is None or names no file) its compiled code and constants, with ``extra``."""
+    name = getattr(fn, "__module__", None)
+    if name and module_file(name) is not None:
+        return module_versions(tuple(sorted(project_closure(name))) + extra)
+    import marshal
+
+    code = getattr(fn, "__code__", None)
+    body = marshal.dumps(code) if code is not None else repr(fn).encode()
+    return digest_json([digest_bytes(body), module_versions(extra)])
+
+
 def plugin_metric_modules() -> tuple[str, ...]:
     """The modules of registered metrics that live outside :mod:`harness.metrics` (third-party
     packages, :mod:`harness.metrics.registry`): their source versions the metrics they compute."""
@@ -147,8 +161,8 @@ class Versions:
         if name not in self.protocols:
             from harness.views.protocols import PROTOCOL_SPECS
 
-            mods = sorted(project_closure(PROTOCOL_SPECS.get(name).views.__module__))
-            self.protocols[name] = digest_json([self.rigs, module_versions(tuple(mods) + ("harness.views.protocols",))])
+            code = callable_version(PROTOCOL_SPECS.get(name).views, ("harness.views.protocols",))
+            self.protocols[name] = digest_json([self.rigs, code])
         return self.protocols[name]
 
     def pruner(self, name: str) -> str:
@@ -158,6 +172,5 @@ class Versions:
         if name not in self.pruners:
             from methods.registry import get_pruner
 
-            mods = sorted(project_closure(get_pruner(name).fn.__module__))
-            self.pruners[name] = module_versions(tuple(mods) + ("methods.registry",))
+            self.pruners[name] = callable_version(get_pruner(name).fn, ("methods.registry",))
         return self.pruners[name]
