@@ -28,7 +28,7 @@ from harness.report.views_csv import write_views
 #: what :func:`publish` writes into a run folder, and what it reads there besides the results (the
 #: page's renders and run records): the entries a command that rebuilds them stages and publishes
 #: (:class:`harness.io.owned.OwnedFolder`)
-PUBLISHED = ("tables", "plots", "report.html")
+PUBLISHED = ("tables", "plots", "views.csv.gz", "report.html")
 READS = ("images", "records")
 
 

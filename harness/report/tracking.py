@@ -98,9 +98,8 @@ def summarize_groups(df: pd.DataFrame) -> dict[str, dict]:
             out.update(summarize_groups(sub.drop(columns=["protocol"])))
         return out
     ok = df[df["status"] == "ok"]
-    # a metric the run measured anywhere was measured everywhere: NaN on a group's every view is an error too
     tracked = [m for m in registry.tracked() if m.name in df]
-    measured = {m.name for m in tracked if pd.to_numeric(ok[m.name], errors="coerce").notna().any()}
+    measured = _measured(ok, tracked)
     out: dict[str, dict] = {}
     for (scene, method, variant, ratio), g in ok.groupby(["scene", "method", "variant", "ratio"], sort=True):
         where = f"results of {scene} / {method}[{variant}]"
@@ -117,6 +116,12 @@ def summarize_groups(df: pd.DataFrame) -> dict[str, dict]:
                              **{k: v for m in tracked for k, v in
                                 ({m.name: None} | ({f"{m.name}_n_inf": 0} if m.inf_if_identical else {})).items()}})
     return out
+
+
+def _measured(ok: pd.DataFrame, tracked) -> set[str]:
+    """The metrics the run measured on some view: measured anywhere, measured everywhere (NaN on a
+    group's every view is an error too, not a metric left out)."""
+    return {m.name for m in tracked if pd.to_numeric(ok[m.name], errors="coerce").notna().any()}
 
 
 def _metric_summary(values: pd.Series, m, where: str, measured: bool) -> dict:

@@ -15,6 +15,8 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 
+from harness.report.outputs import PUBLISHED as PAGE_OUTPUTS
+
 
 @dataclass
 class Finished:
@@ -33,8 +35,7 @@ class Finished:
 
 #: what a run publishes into its folder, as one step (:class:`harness.io.owned.OwnedFolder`); the
 #: records of earlier runs are carried along, everything else is this run's alone
-PUBLISHED = ("results.parquet", "results.csv", "images", "contact_sheets", "run.json", "records", "tables", "plots",
-             "report.html")
+PUBLISHED = ("results.parquet", "results.csv", "images", "contact_sheets", "run.json", "records") + PAGE_OUTPUTS
 
 
 def finish_run(folder, config, runner, result, *, workers: int, cache_root, argv) -> Finished:
