@@ -15,6 +15,7 @@ import pytest
 from PIL import Image
 
 from harness.cli import main
+from harness.core.names import file_name
 from harness.report.outputs import publish
 from harness.report.pageimages import AMPLIFY
 from harness.report.record import image_name
@@ -92,7 +93,7 @@ def test_page_shows_tables_with_cis_missing_tables_and_the_run_record(tmp_path):
     assert "scene &lt;A&gt;" in page and "scene <A>" not in page  # labels escaped
     for text in ("abc123", "page-test", "harness run x.yaml", "1 / 2"):
         assert text in page
-    assert "curves_scene__A_.png" in page
+    assert f"curves_{file_name('scene <A>')}.png" in page
 
 
 def test_report_command_writes_the_page(tmp_path, capsys):

@@ -27,13 +27,12 @@ Images are ``data:`` URIs; the only script is the slider's and the one opening a
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from harness.core import ratios
+from harness.core import jsonout, ratios
 from harness.report import catalog, pagelead
 from harness.report.pagehtml import esc, html_table, kv_table
 from harness.report.pageimages import AMPLIFY, JPEG_QUALITY, file_uri, scene_images
@@ -219,7 +218,7 @@ def images_html(scenes, protocol: str = "") -> str:
         f"PSNR: this 8-bit pair.</p><p><label>image width <input id='imgw' type='range' min='160' max='720' "
         f"value='240'></label></p>",
     ]
-    out += [_scene_html(s, f"ref-{slug(s.scene)}".replace(".", "_")) for s in scenes]
+    out += [_scene_html(s, f"ref-{i}") for i, s in enumerate(scenes)]  # a CSS class: any scene name, one class
     return "\n".join(out)
 
 
@@ -247,8 +246,8 @@ def _record_detail(meta: dict) -> str:
            kv_table([(k, f"{c.get('hits', 0)} / {c.get('misses', 0)}") for k, c in counts.items()])]
     for key, title in (("skipped", "Skipped"), ("errors", "Errors")):
         if meta.get(key):
-            out += [f"<h4>{title}</h4><pre>{esc(json.dumps(meta[key], indent=1, default=str))}</pre>"]
-    out += ["<h4>Config</h4>", f"<pre>{esc(json.dumps(meta.get('config', {}), indent=2, default=str))}</pre>"]
+            out += [f"<h4>{title}</h4><pre>{esc(jsonout.dumps(meta[key], indent=1))}</pre>"]
+    out += ["<h4>Config</h4>", f"<pre>{esc(jsonout.dumps(meta.get('config', {}), indent=2))}</pre>"]
     return "\n".join(out)
 
 
@@ -310,7 +309,7 @@ def write_report(run_dir: str | Path, df: pd.DataFrame, meta: dict, built: dict[
     run_dir = Path(run_dir)
     warnings, notes = _problems(built, missing)
     scenes = list(dict.fromkeys(zip(df["scene"], df["label"])))
-    known = {slug(m): m for m in df["method"].unique()}
+    known = {slug(n): n for col in ("method", "variant") if col in df for n in df[col].dropna().unique()}
     protocols = list(dict.fromkeys(b.protocol for b in built.values() if b.protocol))  # the primary first
     images = images_html(scene_images(run_dir / "images", scenes, known), protocols[0] if protocols else "")
     records, unreadable = read_records(run_dir)
