@@ -252,20 +252,21 @@ def test_betadesc_gets_training_views_only_when_its_view_evidence_is_on(scenes, 
 
 
 @pytest.mark.parametrize("workers", [1, 2])
-def test_progress_lines_count_what_was_done(scenes, tmp_path, workers):
-    """The plain (non-terminal) progress lines end with done N/N per stage; they used to print
-    'render_ref: done 0/4' after rendering the four references in-process."""
+def test_progress_lines_count_what_was_done(scenes, tmp_path, workers, caplog):
+    """The plain (non-terminal) progress lines — records of the ``harness.run`` logger — end with
+    done N/N per stage; they used to say 'render_ref: done 0/4' after rendering the four references
+    in-process."""
     import io
+    import logging
 
     from rich.console import Console
 
     from harness.run.progress import StageProgress
 
-    buf = io.StringIO()
-    console = Console(file=buf, force_terminal=False, width=200)
-    with StageProgress(console) as progress:
+    console = Console(file=io.StringIO(), force_terminal=False, width=200)
+    with caplog.at_level(logging.INFO, logger="harness.run"), StageProgress(console) as progress:
         _run(_config(scenes, ["opacity"]), tmp_path, progress=progress, workers=workers)
-    done = [line for line in buf.getvalue().splitlines() if ": done " in line]
+    done = [r.getMessage() for r in caplog.records if ": done " in r.getMessage()]
     assert done and all(
         line.split("done ")[1].split()[0].split("/")[0] == line.split("done ")[1].split()[0].split("/")[1]
         for line in done
