@@ -37,7 +37,7 @@ from harness.report.tabledata import Built, Missing, Table, Written
 
 FOLDER = ".outputs"
 NAME = "memo.json"
-VERSION = 1
+VERSION = 2
 #: a memo larger than this is not read (the default study's is well under it)
 MAX_BYTES = 256 << 20
 
@@ -68,10 +68,10 @@ def inputs_digest(df: pd.DataFrame, options: dict) -> str:
 
     h = hashlib.sha256()
     h.update(pd.util.hash_pandas_object(df, index=True).to_numpy().tobytes())
-    h.update(json.dumps([list(map(str, df.columns)), [str(t) for t in df.dtypes]]).encode())
-    h.update(json.dumps(options, sort_keys=True, default=str).encode())
+    h.update(json.dumps([list(map(str, df.columns)), [str(t) for t in df.dtypes]], allow_nan=False).encode())
+    h.update(json.dumps(options, sort_keys=True, default=str, allow_nan=False).encode())
     versions = [platform.python_version(), np.__version__, pd.__version__, matplotlib.__version__]
-    h.update(json.dumps(versions).encode())
+    h.update(json.dumps(versions, allow_nan=False).encode())
     for f in code_files():
         h.update(f"{f.name}:{_sha(f.read_bytes())}".encode())
     return h.hexdigest()
@@ -95,8 +95,15 @@ def _cell(v):
     if v is None or v is pd.NA or v is pd.NaT:
         return None
     if isinstance(v, (np.integer, np.floating, np.bool_)):
-        return v.item()
+        v = v.item()
+    if isinstance(v, float) and not np.isfinite(v):  # strict JSON has no NaN or ±inf: a tagged string
+        return {"float": repr(v)}
     return v
+
+
+def _uncell(v):
+    """:func:`_cell` back: a tagged non-finite float to its float."""
+    return float(v["float"]) if isinstance(v, dict) and set(v) == {"float"} else v
 
 
 def frame_to_json(df: pd.DataFrame) -> dict:
@@ -106,7 +113,8 @@ def frame_to_json(df: pd.DataFrame) -> dict:
 
 def frame_from_json(d: dict) -> pd.DataFrame:
     columns = _from_index(d["columns"])
-    data = {j: pd.array(values, dtype=dtype) for j, (values, dtype) in enumerate(zip(d["data"], d["dtypes"]))}
+    data = {j: pd.array([_uncell(v) for v in values], dtype=dtype)
+            for j, (values, dtype) in enumerate(zip(d["data"], d["dtypes"]))}
     out = pd.DataFrame(data, index=_from_index(d["index"]))
     out.columns = columns
     return out
@@ -160,12 +168,16 @@ def save(run_dir: Path, digest: str, written: Written, plots: Written) -> bool:
 
     run_dir = Path(run_dir)
     tables = {k: table_to_json(b) for k, b in written.built.items()}
-    text = json.dumps({"version": VERSION, "digest": digest,
-                       "files": {str(Path(p).relative_to(run_dir)): _sha(Path(p).read_bytes())
-                                 for p in written.paths},
-                       "plots": [str(Path(p).relative_to(run_dir)) for p in plots.paths],
-                       "missing": written.missing, "warnings": written.warnings, "notes": written.notes,
-                       "tables": tables})
+    try:  # strict JSON; a non-finite number left in an index or a note: no memo (rebuilt next time)
+        text = json.dumps({"version": VERSION, "digest": digest,
+                           "files": {str(Path(p).relative_to(run_dir)): _sha(Path(p).read_bytes())
+                                     for p in written.paths},
+                           "plots": [str(Path(p).relative_to(run_dir)) for p in plots.paths],
+                           "missing": written.missing, "warnings": written.warnings, "notes": written.notes,
+                           "tables": tables}, allow_nan=False)
+    except ValueError:
+        forget(run_dir)
+        return False
     back = json.loads(text)["tables"]
     if not all(_same(b, table_from_json(back[k])) for k, b in written.built.items()):
         forget(run_dir)
