@@ -70,3 +70,13 @@ def test_a_device_run_routes_its_device_tasks_and_gives_the_cpu_runs_rows(tmp_pa
     assert tasks["render_ref"]["cpu"] == tasks["render+metrics"]["cpu"] == 0
     assert tasks["render_ref"]["device"] == tasks["render+metrics"]["device"] == 4  # 2 scenes x 2 views
     assert len(gpu) == 16 and gpu.equals(cpu)
+
+
+def test_the_gpu_benchmark_reports_where_the_tasks_ran():
+    from harness.benchmarks._study_device import _device_workers
+
+    assert _device_workers({"name": "local", "workers": 8, "threads": 2}) == []  # a CPU run: no row
+    row = _device_workers({"device_workers": 2, "tasks": {"score": {"cpu": 30, "device": 10},
+                                                          "render+metrics": {"cpu": 0, "device": 40}}})
+    assert row == ["| device workers (tasks per stage) | 2 (score 30 CPU / 10 device; render+metrics 0 CPU / 40 "
+                   "device) |"]
