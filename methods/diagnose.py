@@ -138,6 +138,11 @@ def lightgs_significance(scene: GaussianScene, cameras, *, longest_side: int = 5
     return spec.score(scene, PruneContext(params=params, cameras=cameras, device=device))
 
 
+def _share(v: float) -> str:
+    """A share as a percentage; ``n/a`` where it is undefined (a total of 0: NaN), never ``nan%``."""
+    return f"{v:.1%}" if np.isfinite(v) else "n/a"
+
+
 def format_text(scene_name: str, n: int, diagnoses: list[Diagnosis]) -> str:
     """A plain-text report: one correlation block and one removal line per pruner."""
     lines = [f"{scene_name}: {n:,} splats; ρ = Spearman with LightGS significance; removal at ratio "
@@ -146,7 +151,7 @@ def format_text(scene_name: str, n: int, diagnoses: list[Diagnosis]) -> str:
         lines.append(f"\n{d.label or d.method}")
         lines.append("  ρ: " + "  ".join(f"{k} {('  n/a' if v is None else f'{v:+.3f}')}"
                                         for k, v in d.correlations.items()))
-        lines.append(f"  removed {d.removed:,}: significance {d.significance_removed:.1%}, "
-                     f"opacity·volume {d.opacity_volume_removed:.1%}, from voxels losing > 90 % "
-                     f"{d.region_removed:.1%} (voxels emptied {d.voxels_emptied:.1%})")
+        lines.append(f"  removed {d.removed:,}: significance {_share(d.significance_removed)}, "
+                     f"opacity·volume {_share(d.opacity_volume_removed)}, from voxels losing > 90 % "
+                     f"{_share(d.region_removed)} (voxels emptied {_share(d.voxels_emptied)})")
     return "\n".join(lines)

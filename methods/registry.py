@@ -27,6 +27,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from harness.core.errors import HarnessError
 from harness.core.params import Params
 from harness.core.registry import Registry
 
@@ -114,10 +115,18 @@ class PrunerSpec:
             raise RuntimeError(f"pruner {self.name!r} needs {', '.join(missing)}")
         scores = np.asarray(self.fn(scene, ctx), dtype=np.float64)
         if scores.shape != (len(scene),):
-            raise RuntimeError(f"pruner {self.name!r} returned shape {scores.shape}, expected ({len(scene)},)")
-        if not np.all(np.isfinite(scores)):
-            raise RuntimeError(f"pruner {self.name!r} returned non-finite scores")
+            raise PrunerOutputError("method", f"pruner {self.name!r} returned shape {scores.shape}, "
+                                              f"expected ({len(scene)},)")
+        bad = ~np.isfinite(scores)
+        if bad.any():
+            raise PrunerOutputError("method", f"pruner {self.name!r} returned {int(bad.sum())} non-finite "
+                                              f"scores (first: splat {int(np.flatnonzero(bad)[0])})")
         return scores
+
+
+class PrunerOutputError(HarnessError, RuntimeError):
+    """Scores that break the pruner contract (a wrong shape, NaN or inf): one line naming the pruner,
+    never used to select splats. A RuntimeError too, as it was before it named the pruner."""
 
 
 PRUNERS: Registry[PrunerSpec] = Registry("pruner", modules=BUILTIN_MODULES, group=ENTRY_POINT_GROUP)

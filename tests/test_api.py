@@ -227,7 +227,7 @@ def test_render_is_the_commands_render(tmp_path, capsys):
     for img, again, f in zip(images, harness.render(path, rig, background=(0.1, 0.2, 0.3)), files):
         np.testing.assert_array_equal(img, np.load(f))
         np.testing.assert_array_equal(again, img)
-    with pytest.raises(harness.HarnessError, match="longest_side: must be 1..8192 pixels"):
+    with pytest.raises(harness.HarnessError, match="longest_side: must be a whole number from 1 to 8192"):
         harness.cameras(path, longest_side=0)
     with pytest.raises(harness.HarnessError, match="background: expected three numbers"):
         harness.render(path, tmp_path / "r" / "cameras.json", background=(2, 0, 0))

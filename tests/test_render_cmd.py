@@ -85,7 +85,7 @@ def test_camera_file_png_split(scene_file, tmp_path):
     (["--cameras", "/nonexistent/cams.json"], "no such file"),
     (["--rig", "orbit", "--longest-side", "0"], "--longest-side"),
     (["--rig", "orbit", "--n-test", "0"], "--n-test"),
-    (["--rig", "orbit", "--n-test", "10000"], "need 1..1000 test views"),
+    (["--rig", "orbit", "--n-test", "10000"], "--n-test: must be a whole number from 1 to 1000"),
     (["--rig", "orbit", "--aspect", "0"], "--aspect"),
 ])
 def test_bad_input_is_one_line_exit_2(scene_file, tmp_path, capsys, extra, message):

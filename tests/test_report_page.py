@@ -15,6 +15,7 @@ import pytest
 from PIL import Image
 
 from harness.cli import main
+from harness.core.names import file_name
 from harness.report.outputs import publish
 from harness.report.pageimages import AMPLIFY
 from harness.report.record import image_name
@@ -92,7 +93,7 @@ def test_page_shows_tables_with_cis_missing_tables_and_the_run_record(tmp_path):
     assert "scene &lt;A&gt;" in page and "scene <A>" not in page  # labels escaped
     for text in ("abc123", "page-test", "harness run x.yaml", "1 / 2"):
         assert text in page
-    assert "curves_scene__A_.png" in page
+    assert f"curves_{file_name('scene <A>')}.png" in page
 
 
 def test_report_command_writes_the_page(tmp_path, capsys):
@@ -170,16 +171,15 @@ def test_page_summary_first_the_rest_folded_captions_and_every_record(tmp_path):
     assert "not run" not in page
 
 
-def test_summary_shows_a_claims_table_first():
+def test_without_a_lead_table_no_bottom_line_and_the_headline_per_protocol():
     from harness.report.page import summary_html
     from harness.report.tabledata import Built, Table
 
-    disp = pd.DataFrame({"verdict": ["supported"]}, index=pd.Index(["claim 1"], name="claim"))
-    claims = Built("claims", "claims", "", "Claims of the paper", Table(disp, [], disp.reset_index(), caption="n = 4"))
+    disp = pd.DataFrame({"psnr": ["30.00 (Δ +1.00 [+0.50, +1.50])"]}, index=pd.Index(["betadesc"], name="method"))
     comp = Built("comparison", "comparison", "rig", "Comparison — held-out views: rig",
                  Table(disp, [], disp.reset_index(), caption="n = 2"))
-    html_text = summary_html({"comparison": comp, "claims": claims})
-    assert html_text.index("Claims of the paper") < html_text.index("Comparison — held-out views: rig")
+    bottom, summary = summary_html({"comparison": comp})
+    assert bottom == "" and "Comparison — held-out views: rig" in summary and "class='better'" in summary
 
 
 @pytest.mark.skipif(chromium() is None, reason="Debian's chromium is not installed (setup.sh installs it)")
@@ -200,3 +200,34 @@ def test_no_table_is_wider_than_the_page_and_links_open_their_section(tmp_path, 
         doc = b.evaluate("document.documentElement.scrollWidth")
         errors = list(b.errors)
     assert opened is True and over == 0 and doc == width and errors == []
+
+
+@pytest.mark.skipif(chromium() is None, reason="Debian's chromium is not installed (setup.sh installs it)")
+@pytest.mark.parametrize("width", [1280, 1920])
+def test_page_opens_with_the_bottom_line_and_colours_claims_by_verdict(tmp_path, width):
+    """A study's page: the bottom line is the first thing in it, a failing claim's cells are red
+    although its Δ is positive on most scenes, the evidence column is the wide one."""
+    from tests.test_claims import _study
+    from tests.test_page_lead import two_protocols
+
+    df = two_protocols(_study(gains={"s3": -3.0}))  # t2-descriptors: +2 dB on four scenes, -3 on one: fails
+    write_results(df, tmp_path)
+    meta = {"name": "claims", "commit": "abc", "when": "2026-01-01T00:00:00", "tables": ["claims", "comparison"],
+            "plots": [], "argv": ["run", "x.yaml"]}
+    (tmp_path / "run.json").write_text(json.dumps(meta))
+    page = write_report(tmp_path, df, meta)
+    with Browser(width=width, height=900) as b:
+        b.open(page.as_uri())
+        first = b.evaluate("document.querySelector('main').firstElementChild.id")
+        top = b.evaluate("document.getElementById('bottom-line').getBoundingClientRect().bottom")
+        cell = b.evaluate("(() => { const a = document.getElementById('lead-rig-t2-descriptors');"
+                          " const td = a.closest('tr').children[1];"
+                          " return [td.className, getComputedStyle(td).backgroundColor, td.textContent]; })()")
+        widths = b.evaluate("Array.from(document.querySelectorAll('table.lead')[0].rows[0].cells)"
+                            ".map(c => Math.round(c.getBoundingClientRect().width))")
+        folded = b.evaluate("document.getElementById('s-shifted').open")
+        errors = list(b.errors)
+    assert first == "bottom-line" and 0 < top < 400 and errors == []
+    assert cell[0] == "v v-fails" and cell[1] == "rgb(245, 201, 201)" and cell[2].startswith("fails")
+    assert widths[-1] > 2 * max(widths[1:-1]) and widths[-1] > widths[0]  # evidence wide, verdicts narrow
+    assert folded is False  # the other protocol's claims are folded

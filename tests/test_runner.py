@@ -170,7 +170,7 @@ def test_an_absent_required_scene_is_an_error_before_any_work(scenes, tmp_path):
     """Issue 23: `name: luigii` was skipped (exit 0) and the run replaced the previous tables. A scene
     not marked optional must resolve before any work; the Runner records one that vanished as an error."""
     from harness.core.errors import InputError
-    from harness.run.plan import check_sources
+    from harness.run.sources import check_sources
 
     cfg = _config([{"name": "s0", "source": scenes["s0"]}, {"name": "luigii"},
                    {"name": "cams", "source": scenes["s1"], "cameras": {"path": "gone.json", "test_every": 8}},

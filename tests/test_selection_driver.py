@@ -47,7 +47,7 @@ def effect(method: str, p: dict, scene: str, protocol: str) -> float:
 
 
 def fake_run(root: Path, calls: list):
-    def run(config: Path, workers: int) -> float:
+    def run(config: Path, workers: int, cache: str | None = None) -> float:
         cfg = parse_config(yaml.safe_load(Path(config).read_text()), str(config))
         calls.append((Path(config).name, [(m.method, m.params.to_dict()) for m in cfg.methods]))
         rows = []

@@ -9,6 +9,7 @@ import pandas as pd
 import pytest
 
 from harness.cli import main
+from harness.core.names import file_name
 from harness.report.results import read_results, to_frame, write_results
 from harness.report.summary import summarise
 from harness.report.tabledata import Missing
@@ -205,7 +206,7 @@ def test_files_and_tables_command_regenerates_without_cache(tmp_path, monkeypatc
     assert r"\multirow{5}{*}{scene A}" in tex and "PSNR ($\\uparrow$)" in tex  # 3 metrics, splats, bytes
     md = (tmp_path / "tables" / "ablation.md").read_text()
     assert "| scene A | 20.00 (Δ -8.00 [-8.00, -8.00]) |" in md
-    assert (tmp_path / "plots" / "curves_scene_A.png").stat().st_size > 1000
+    assert (tmp_path / "plots" / f"curves_{file_name('scene A')}.png").stat().st_size > 1000
     assert not (tmp_path / "no-cache-used" / "stages").exists()
 
 

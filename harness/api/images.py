@@ -60,10 +60,12 @@ def render(scene, cameras, *, backend: str = "gl", device: str | None = None, ba
     """One float32 ``(H, W, 3)`` image per camera (linear colour, unclamped: what the renderer
     returns, as ``harness render --format npy`` writes). ``scene``: a scene, a path or a name."""
     from harness.api.scenes import _scene
+    from harness.core.extent import check_extent
 
     bg = check_background(background)
     cams = camera_list(cameras)
     scene = _scene(scene)
+    check_extent(scene, scene.meta.source or "scene")
     renderer = start_renderer(backend, device)
     try:
         return [renderer.render(scene, cam, background=bg) for cam in cams]

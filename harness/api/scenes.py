@@ -33,11 +33,13 @@ def load(path_or_name, *, lod: int | str | None = None, drop_nonfinite: bool = F
 
 
 def _scene(scene, seconds: dict | None = None):
-    """``scene`` itself, or the scene loaded from a path or name (timed as ``seconds["read"]``)."""
+    """``scene`` validated (:func:`harness.core.validate.validate`: a scene changed in memory is held
+    to the readers' rules), or the scene loaded from a path or name (timed as ``seconds["read"]``)."""
     from harness.core.scene import GaussianScene
+    from harness.core.validate import validate
 
     if isinstance(scene, GaussianScene):
-        return scene
+        return validate(scene, "scene", hint="drop those rows (scene.subset) or fix them")[0]
     t0 = time.perf_counter()
     loaded = load(_scene_argument(scene))
     if seconds is not None:
@@ -53,12 +55,16 @@ def _scene_argument(scene):
 
 def info(scene, *, lod: int | str | None = None, drop_nonfinite: bool = False) -> dict:
     """What ``harness info --json`` prints: splat count, SH degree, bounding box, opacity and scale
-    statistics, memory (and, for a file, its format and size on disk, and ``dropped_nonfinite``)."""
+    statistics, memory (and, for a file, its format and size on disk) and ``dropped_nonfinite``."""
     from harness.core.scene import GaussianScene
     from harness.io.scenes import describe_scene, read_scene
 
     if isinstance(scene, GaussianScene):
-        return describe_scene(scene, fmt=scene.meta.format or None)
+        from harness.core.validate import validate
+
+        checked, dropped = validate(scene, "scene", drop_nonfinite=drop_nonfinite,
+                                    hint="pass drop_nonfinite=True to drop them")
+        return {**describe_scene(checked, fmt=scene.meta.format or None), "dropped_nonfinite": dropped}
     result = read_scene(_scene_argument(scene), lod=lod, drop_nonfinite=drop_nonfinite)
     described = describe_scene(result.scene, result.path, fmt=result.format, lod=result.lod,
                                format_name=result.format_name)
@@ -173,11 +179,11 @@ def _ratio(ratio, keep) -> float:
 
     if (ratio is None) == (keep is None):
         raise InputError("ratio", "give exactly one of ratio (the fraction removed) and keep (the fraction kept)")
+    from harness.core.arguments import number
+
     value, name = (ratio, "ratio") if ratio is not None else (keep, "keep")
-    try:
-        return ratios.canonical(value) if name == "ratio" else ratios.from_keep(value)
-    except (TypeError, ValueError):
-        raise InputError(name, f"must be a number in [0, 1], got {value}") from None
+    value = number(value, name, 0, 1)  # True is not a ratio
+    return ratios.canonical(value) if name == "ratio" else ratios.from_keep(value)
 
 
 def _score(spec, params, scene, cameras, seed: int, device: str, seconds: dict):
@@ -199,9 +205,11 @@ def score(scene, method: str = DEFAULT_METHOD, *, cameras=None, seed: int = 0, d
     """Every splat's score under ``method`` (float64 (N,), higher = keep). ``scene``: a scene, a
     path or a name; ``cameras``: a camera file or a list of :class:`harness.core.cameras.Camera`
     (pruners that need training views); ``params``: the pruner's parameters (``harness methods``)."""
+    from harness.core.arguments import whole
     from harness.core.devices import check_device
 
     spec, resolved = pruner(method, params)
+    seed = whole(seed, "seed", 0)
     check_device(device, "device")
     cams = _cameras(spec, resolved, cameras)
     return _score(spec, resolved, _scene(scene), cams, seed, device, {})
@@ -236,11 +244,13 @@ def prune(scene, ratio: float | None = None, *, keep: float | None = None, metho
     scene is read or scored; ``ratio=0`` scores nothing. See :func:`score` for the arguments."""
     import numpy as np
 
+    from harness.core.arguments import whole
     from harness.core.devices import check_device
     from methods import select_by_ratio
 
     spec, resolved = pruner(method, params)
     cut = _ratio(ratio, keep)
+    seed = whole(seed, "seed", 0)
     check_device(device, "device")
     cams = _cameras(spec, resolved, cameras)
     seconds: dict[str, float] = {}

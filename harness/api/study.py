@@ -70,40 +70,52 @@ def run_study(config_or_path, *, out=None, executor: str | None = None, address:
               console=None, argv=None) -> Study:
     """Run a study (module docstring). ``executor`` None: the config's; ``console``: a rich Console
     for progress and messages (default: stderr); ``argv``: what the run record says ran it."""
-    from rich.console import Console
-
+    from harness.core.arguments import optional, whole
     from harness.core.devices import check_device
     from harness.core.paths import cache_dir
-    from harness.io.files import make_output_folder, sweep_stale_temps
+    from harness.io.files import check_output_folder, make_output_folder, sweep_stale_temps
+    from harness.io.owned import OwnedFolder
     from harness.run.cache import is_url
-    from harness.run.executors import make_executor, preflight
-    from harness.run.finish import finish_run
-    from harness.run.plan import check_sources
-    from harness.run.progress import StageProgress
+    from harness.run.executors import preflight
+    from harness.run.finish import PUBLISHED
     from harness.run.protocol_views import check_protocols
-    from harness.run.runner import Runner
+    from harness.run.sources import check_sources
     from harness.run.toolkit import Toolkit
 
+    workers = optional(whole, workers, "workers", 1, 256)  # the arguments first, then the config
+    threads = optional(whole, threads, "threads", 1, 1024)
     config = _config(config_or_path)
     check_protocols(config, Path.cwd())  # a bad capture: one line, before any output
-    workers = workers if workers is not None else config.workers
-    if not 1 <= workers <= 256:
-        raise InputError("workers", f"must be 1..256, got {workers}")
-    if threads is not None and not 1 <= threads <= 1024:
-        raise InputError("threads", f"must be 1..1024, got {threads}")
+    workers = config.workers if workers is None else workers
     spec = executor_spec(config.executor, executor, address)
     preflight(spec, workers, cache)  # before the output folder: a bad cache URL or Ray address
     if spec.address is None:  # on a cluster the nodes' devices count (checked when it is joined)
         check_device(config.protocol.device, f"{config.source_path}: protocol.device")
     check_sources(config, Toolkit(), Path.cwd())  # a misspelt or absent required scene: before any work
-    out_dir = make_output_folder(Path(out or config.output), "out" if out else f"{config.source_path}: output")
+    out_dir = Path(out or config.output)
+    check_output_folder(out_dir, "out" if out else f"{config.source_path}: output")
     cache = str(cache) if cache is not None else None
     if cache and is_url(cache) and not cache.startswith("file://"):
         cache_root = cache  # an fsspec URL: its entries are PUT one by one (harness.run.cache)
     else:
         cache_root = make_output_folder(Path(cache.removeprefix("file://")) if cache else cache_dir() / "stages",
                                         "cache" if cache else "stage cache").absolute()
-    sweep_stale_temps(out_dir, recursive=True)
+    with OwnedFolder(out_dir, f"harness run {config.source_path}", "out" if out else f"{config.source_path}: output",
+                     owns=PUBLISHED) as folder:
+        sweep_stale_temps(out_dir, recursive=True)
+        return _run(config, folder, cache_root, spec, workers, threads, force, console, argv)
+
+
+def _run(config, folder, cache_root, spec, workers, threads, force, console, argv) -> Study:
+    """The run itself, once ``folder`` (:class:`harness.io.owned.OwnedFolder`) is held."""
+    from rich.console import Console
+
+    from harness.run.executors import make_executor
+    from harness.run.finish import finish_run
+    from harness.run.progress import StageProgress
+    from harness.run.runner import Runner
+
+    out_dir = folder.path
     console = console or Console(stderr=True, soft_wrap=True)
     log = lambda m: console.print(f"[yellow]{m}[/]")  # noqa: E731
     where = f"{workers} worker(s)" if spec.name == "local" else \
@@ -115,7 +127,7 @@ def run_study(config_or_path, *, out=None, executor: str | None = None, address:
         runner = Runner(config, out_dir=out_dir, cache_root=cache_root, workers=workers, force=force,
                         progress=progress, log=log, base_dir=Path.cwd(), executor=pool)
         result = runner.run()
-    done = finish_run(out_dir, config, runner, result, workers=workers, cache_root=cache_root, argv=argv)
+    done = finish_run(folder, config, runner, result, workers=workers, cache_root=cache_root, argv=argv)
     return Study(done.frame, out_dir, done.summary, warnings=done.warnings, written=done.written,
                  errors=list(result.errors), measured=done.measured, notes=done.notes)
 

@@ -63,6 +63,8 @@ def source_dataset(arg: str, scene):
     name = identify(arg) if arg else None
     if name is not None:
         return name, scene, f"the {name} dataset's own"
+    if len(scene) == 0:  # the empty set is a subset of every dataset: it was pruned from none of them
+        return None
     keys = None
     for name in SCENES:
         path = scene_path(name)
@@ -83,10 +85,12 @@ def views(scene, *, cameras=None, rig: str | None = None, split: str | None = No
     """(where the views came from, the cameras) for ``scene`` (a loaded scene; ``name`` the name or
     path it was given by, default the file it was read from), per the module docstring: the checks,
     then a camera file's (or the scene's embedded) cameras, else a rig fitted to the scene."""
+    from harness.core.extent import check_extent
     from harness.io.cameras import embedded_cameras, load_cameras
 
     name = name or scene.meta.source
     up = _check_options(longest_side, split, rig, up)
+    check_extent(scene, name or "scene")
     file_cams = load_cameras(cameras) if cameras else None
     if file_cams is None and rig in (None, "default"):
         file_cams = embedded_cameras(scene) or None
@@ -107,11 +111,11 @@ def views(scene, *, cameras=None, rig: str | None = None, split: str | None = No
 
 def _check_options(longest_side, split, rig, up):
     """The options' one-line errors (before any file is read); returns ``up`` as a triple or None."""
+    from harness.core.arguments import optional, whole
     from harness.core.cameras import MAX_SIDE
     from harness.views.rigs import RIG_CHOICES
 
-    if longest_side is not None and not 1 <= longest_side <= MAX_SIDE:
-        raise InputError("longest_side", f"must be 1..{MAX_SIDE} pixels (the maximum render size), got {longest_side}")
+    optional(whole, longest_side, "longest_side", 1, MAX_SIDE)  # pixels, up to the maximum render size
     if split not in (None, "test", "train", "all"):
         raise InputError("split", f"must be test, train or all, got {split!r}")
     if rig is not None and rig not in RIG_CHOICES:
@@ -132,14 +136,15 @@ def _file_split(origin: str, cams: list, split: str) -> tuple[str, list]:
 def _rig_views(scene, name, rig: str, split: str, *, longest_side, n_train, n_test, seed, aspect, up):
     """(origin, the ``split`` views) of a rig fitted to ``scene`` (``default``: its dataset's rig
     when the scene is, or is a subset of, a known dataset; else ``auto``)."""
+    from harness.core.arguments import number, optional, whole
     from harness.views.rigs import ASPECT, LONGEST_SIDE, MAX_VIEWS, N_TEST, N_TRAIN, scene_rig
 
-    n_train, n_test = N_TRAIN if n_train is None else n_train, N_TEST if n_test is None else n_test
-    if not 1 <= n_test <= MAX_VIEWS or not 0 <= n_train <= MAX_VIEWS:
-        raise InputError("n_test/n_train", f"need 1..{MAX_VIEWS} test views and 0..{MAX_VIEWS} training "
-                                           f"views, got {n_test} and {n_train}")
-    if aspect is not None and not (np.isfinite(aspect) and 0.1 <= aspect <= 10):
-        raise InputError("aspect", f"must be a width/height ratio in [0.1, 10], got {aspect}")
+    n_train = N_TRAIN if n_train is None else whole(n_train, "n_train", 0, MAX_VIEWS)
+    n_test = N_TEST if n_test is None else whole(n_test, "n_test", 1, MAX_VIEWS)
+    seed = whole(seed, "seed", 0)
+    aspect = optional(number, aspect, "aspect", 0.1, 10)  # a width/height ratio
+    if len(scene) == 0:
+        raise InputError(name or "scene", "has no splats: a rig cannot be fitted to nothing")
     found = source_dataset(name, scene) if rig == "default" else None
     dataset, fitted, how = found if found else (None, scene, "")
     try:

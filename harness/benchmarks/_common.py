@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import os
 import resource
 import statistics
@@ -11,6 +10,7 @@ import sys
 import time
 from pathlib import Path
 
+from harness.core import jsonout
 from harness.core.paths import results_dir
 from harness.io.files import atomic_write_text
 from harness.report.machine import describe_machine
@@ -74,7 +74,7 @@ def write_result(name: str, payload: dict, markdown: str | None, out: Path) -> P
     out.mkdir(parents=True, exist_ok=True)
     payload = {"benchmark": name, "when": time.strftime("%Y-%m-%dT%H:%M:%S"), "machine": describe_machine(), **payload}
     path = out / f"{name}.json"
-    atomic_write_text(path, json.dumps(payload, indent=2, default=float) + "\n")
+    atomic_write_text(path, jsonout.dumps(payload, indent=2) + "\n")
     if markdown is not None:
         atomic_write_text(out / f"{name}.md", markdown.rstrip() + "\n")
     print(f"bench: wrote {path}" + (" and .md" if markdown is not None else "") + tracked_note(out))

@@ -115,7 +115,8 @@ def run_child(scenes: list[str], repeats: int, ratio: float, scratch: str, timeo
 
     code = ("import json, sys; from harness.benchmarks._overhead import measure; "
             "print(json.dumps(measure(json.loads(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3]), sys.argv[4])))")
-    proc = subprocess.run([sys.executable, "-c", code, json.dumps(scenes), str(repeats), str(ratio), scratch],
+    proc = subprocess.run([sys.executable, "-c", code, json.dumps(scenes, allow_nan=False), str(repeats), str(ratio),
+                           scratch],
                           capture_output=True, text=True, timeout=timeout, env={**os.environ, **ONE_THREAD})
     if proc.returncode != 0:
         tail = (proc.stderr or proc.stdout).strip().splitlines()[-1:] or ["(no output)"]

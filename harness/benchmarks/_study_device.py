@@ -108,7 +108,8 @@ def subset(doc: dict, scenes: list[str]) -> dict:
 
 
 def _write(doc: dict, device: str, path: Path) -> Path:
-    path.write_text(json.dumps({**doc, "protocol": {**doc.get("protocol", {}), "device": device}}, indent=1))
+    path.write_text(json.dumps({**doc, "protocol": {**doc.get("protocol", {}), "device": device}}, indent=1,
+                                allow_nan=False))
     return path  # JSON is YAML: `harness run` reads it
 
 
@@ -261,8 +262,8 @@ def _machine() -> str:
 
 def _smallest(specs) -> str:
     """The name of the scene of ``specs`` with the fewest splats (its file's header; absent ones last)."""
-    from harness.run.plan import resolve_paths
     from harness.run.scene_sizes import splat_count
+    from harness.run.sources import resolve_paths
     from harness.run.toolkit import Toolkit
 
     def size(spec) -> float:

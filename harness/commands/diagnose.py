@@ -12,8 +12,7 @@ without parameters *is* the significance pass (ρ = 1, the least significance a 
 
 from __future__ import annotations
 
-import json
-
+from harness.core import jsonout
 from harness.core.errors import InputError
 
 NAME = "diagnose"
@@ -74,6 +73,7 @@ def parse_method(text: str):
 def run(args) -> int:
     import math
 
+    from harness.core.extent import check_extent
     from harness.io.scenes import load_scene
     from harness.views.rigs import training_views
     from methods import diagnose as dg
@@ -89,11 +89,15 @@ def run(args) -> int:
     scene = load_scene(args.scene, lod=args.lod)
     if len(scene) == 0:
         raise InputError(args.scene, "the scene has no splats")
+    check_extent(scene, args.scene)
     cams = training_views(args.scene, scene, n_train=args.n_train, n_test=args.n_test,
                              longest_side=args.longest_side, seed=args.seed)
     if not cams:
         raise InputError("--n-train", "the rig has no training views to compute LightGS significance from")
     sig = dg.lightgs_significance(scene, cams, longest_side=args.significance_side, device=args.device)
+    if not sig.sum() > 0:  # every share of it would be 0/0
+        raise InputError(args.scene, f"no training view sees a splat (LightGS significance is 0 over all {len(cams)} "
+                                     "views): there is nothing to diagnose against")
     out = []
     for name, params, given in methods:
         try:
@@ -107,9 +111,9 @@ def run(args) -> int:
     rigs = [] if args.no_picture else [draw_virtual_rig(scene, args, name, params) for name, params, _ in methods
                                        if name in RIG_METHODS][:1]
     if args.json:
-        print(json.dumps({"scene": args.scene, "splats": len(scene), "ratio": args.ratio,
-                          "train_views": len(cams), "diagnoses": [d.to_dict() for d in out],
-                          "virtual_rig": rigs[0] if rigs else None}, default=float))
+        print(jsonout.dumps({"scene": args.scene, "splats": len(scene), "ratio": args.ratio,
+                             "train_views": len(cams), "diagnoses": [d.to_dict() for d in out],
+                             "virtual_rig": rigs[0] if rigs else None}))
     else:
         print(dg.format_text(args.scene, len(scene), out))
         for r in rigs:

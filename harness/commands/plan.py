@@ -12,10 +12,10 @@ neither a named dataset nor a file (a typo) is an error with "did you mean". Mar
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from harness.commands import help_text
+from harness.core import jsonout
 
 NAME = "plan"
 HELP = "count the work of a cold run of a config; --estimate: CPU-hours, wall time on N workers, nodes"
@@ -76,7 +76,7 @@ def run(args) -> int:
 
     _check(args)
     config = load_config(args.config)
-    from harness.run.plan import check_sources
+    from harness.run.sources import check_sources
     from harness.run.toolkit import Toolkit
 
     check_sources(config, Toolkit(), Path.cwd(), names_only=True)  # a misspelt scene name: one line, exit 2
@@ -98,7 +98,7 @@ def run(args) -> int:
 
         out = Path(args.out)
         out.parent.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(out, json.dumps(doc, indent=2, ensure_ascii=False) + "\n")
+        atomic_write_text(out, jsonout.dumps(doc, indent=2, ensure_ascii=False) + "\n")
     return 0
 
 

@@ -38,12 +38,12 @@ the files.
 
 from __future__ import annotations
 
-import json
 import re
 from pathlib import Path
 
 import numpy as np
 
+from harness.core import jsonout
 from harness.core.errors import InputError
 from harness.io.files import atomic_write_npy, atomic_write_text, atomic_write_with
 from harness.views.rigs import ASPECT, LONGEST_SIDE, MAX_VIEWS, N_TEST, N_TRAIN, RIG_CHOICES
@@ -53,7 +53,8 @@ NAME = "render"
 HELP = "render a scene from a camera file or a synthetic rig (images + contact sheet)"
 #: how this command names the API's arguments (:func:`harness.core.errors.naming`)
 FLAGS = {"background": "--background", "device": "--device", "backend": "--backend", "longest_side": "--longest-side",
-         "up": "--up", "n_test/n_train": "--n-test/--n-train", "aspect": "--aspect", "split": "--split"}
+         "up": "--up", "n_test": "--n-test", "n_train": "--n-train", "seed": "--seed", "aspect": "--aspect",
+         "split": "--split"}
 
 
 def add_arguments(parser) -> None:
@@ -148,7 +149,7 @@ def run(args) -> int:
         write_3dgs_cameras(cams, out / "cameras.json")
         record = [{"view": lab, "width": c.width, "height": c.height, "coverage": round(v, 4)}
                   for lab, c, v in zip(labels, cams, covs)]
-        atomic_write_text(out / "coverage.json", json.dumps(record, indent=1))
+        atomic_write_text(out / "coverage.json", jsonout.dumps(record, indent=1))
     except OSError as err:  # full disk, folder removed meanwhile: each file is whole or absent
         raise InputError(err.filename or out, f"cannot write: {err.strerror or err}") from None
     finally:

@@ -24,15 +24,20 @@ def run(args) -> int:
     import sys
 
     from harness.io.files import sweep_stale_temps
-    from harness.report.outputs import publish
+    from harness.io.owned import OwnedFolder
+    from harness.report.outputs import PUBLISHED, READS, publish
     from harness.report.tracking import read_run
 
-    df, meta = read_run(args.run_dir)
-    sweep_stale_temps(args.run_dir, recursive=True)
-    published = publish(args.run_dir, df, meta, reference=args.reference)
+    # refused while a run writes the folder
+    with OwnedFolder(args.run_dir, f"harness report {args.run_dir}", create=False) as folder:
+        df, meta = read_run(args.run_dir)
+        sweep_stale_temps(args.run_dir, recursive=True)
+        stage = folder.stage(carry=READS + PUBLISHED)
+        published = publish(stage, df, meta, reference=args.reference)
+        folder.publish(PUBLISHED)
     for line in published.written.warnings + published.written.missing:
         print(f"harness: warning: {line}", file=sys.stderr)
     for line in published.written.notes:  # tables of some protocols only (as `run` and `tables` say)
         print(f"harness: note: {line}", file=sys.stderr)
-    print(published.page)
+    print(folder.final(published.page))
     return 0

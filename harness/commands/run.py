@@ -2,7 +2,7 @@
 [--cache DIR|URL]`: the CTC-style evaluation.
 
 Reads and validates the YAML config (:mod:`harness.run.config`) and resolves every scene before any
-work (:func:`harness.run.plan.check_sources`): a misspelt scene, method or metric, or a required
+work (:func:`harness.run.sources.check_sources`): a misspelt scene, method or metric, or a required
 scene whose files are absent, is one line (with "did you mean") and exit status 2, and nothing is
 written; scenes marked ``optional: true`` whose files are absent are skipped with a message. Then
 it runs the staged, cached plan (:mod:`harness.run.runner`), writes tidy results, contact sheets and

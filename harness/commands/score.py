@@ -184,10 +184,13 @@ def _describe(path: str, scene) -> dict:
 
 
 def run(args) -> int:
+    from harness.core.extent import check_extent
     from harness.io.scenes import load_scene
     from renderers import get_renderer
 
     source, processed = load_scene(args.source), load_scene(args.processed)
+    for given, scene in ((args.source, source), (args.processed, processed)):
+        check_extent(scene, given)
     vp = select_cameras(args, source, processed)
     cams, note = vp.cameras, window_note(vp)
     try:

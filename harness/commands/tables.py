@@ -28,16 +28,23 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from harness.core.errors import InputError
-    from harness.core.suggest import unknown
-    from harness.io.files import sweep_stale_temps
-    from harness.report.outputs import chosen, publish
-    from harness.report.plots import PLOTS
-    from harness.report.tables import TABLES
+    from harness.io.owned import OwnedFolder
     from harness.report.tracking import read_run
 
     run_dir = Path(args.run_dir)
-    df, meta = read_run(run_dir)
+    with OwnedFolder(run_dir, f"harness tables {run_dir}", create=False) as folder:  # refused while a run writes it
+        return _rebuild(args, folder, *read_run(run_dir))
+
+
+def _rebuild(args, folder, df, meta) -> int:
+    from harness.core.errors import InputError
+    from harness.core.suggest import unknown
+    from harness.io.files import sweep_stale_temps
+    from harness.report.outputs import PUBLISHED, READS, chosen, publish
+    from harness.report.plots import PLOTS
+    from harness.report.tables import TABLES
+
+    run_dir = folder.path
     sweep_stale_temps(run_dir, recursive=True)
     tables, plots, _ = chosen(meta)
     tables = args.tables if args.tables is not None else tables
@@ -49,9 +56,11 @@ def run(args) -> int:
         for name in names:
             if name not in known:
                 raise InputError(flag, unknown(flag.removeprefix("--")[:-1], name, known))
-    written = publish(run_dir, df, meta, tables=tables, plots=plots, reference=args.reference).written
+    stage = folder.stage(carry=READS + PUBLISHED)  # what the page reads, and the tables and plots not rebuilt
+    written = publish(stage, df, meta, tables=tables, plots=plots, reference=args.reference).written
+    folder.publish(PUBLISHED)
     for p in written.paths:
-        print(p)
+        print(folder.final(p))
     print(run_dir / "report.html")
     for line in written.warnings:
         print(f"harness: warning: {line}", file=sys.stderr)

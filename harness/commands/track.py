@@ -44,10 +44,12 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     from harness.core.errors import InputError
+    from harness.io.owned import reading
     from harness.report import tracking
 
     baseline_path = Path(args.baseline) if args.baseline else results_dir() / "history" / "baseline.json"
-    df, meta = tracking.read_run(args.run_dir)
+    with reading(args.run_dir):  # not while a run writes it
+        df, meta = tracking.read_run(args.run_dir)
     baseline = tracking.load_baseline(baseline_path) if baseline_path.exists() else None
     if baseline is None and not args.update_baseline:
         raise InputError(baseline_path, "no baseline here; create one from a trusted run with "

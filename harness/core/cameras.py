@@ -63,26 +63,40 @@ def intrinsics_problem(fx, fy, cx, cy) -> str | None:
     return None
 
 
-def camera_problem(cam: "Camera") -> str | None:
-    """Why a Camera cannot be rendered (size, intrinsics, a non-rigid or non-finite pose), or None."""
-    why = size_problem(cam.width, cam.height) or intrinsics_problem(cam.fx, cam.fy, cam.cx, cam.cy)
-    if why:
-        return why
-    m = cam.world_to_cam
-    if not np.all(np.isfinite(m)) or np.abs(m[:3, 3]).max() > COORD_MAX:
-        return "world_to_cam must be finite"
+def pose_problem(world_to_cam: np.ndarray) -> str | None:
+    """Why a 4×4 world-to-camera matrix is not a pose a renderer can use, or None: every entry
+    finite, a rigid transform (proper rotation + translation), the camera centre within
+    ±:data:`COORD_MAX`."""
+    m = world_to_cam
+    if not np.all(np.isfinite(m)):
+        return "world_to_cam must be finite (it holds NaN or inf)"
     r = m[:3, :3]
     if np.abs(m[3] - (0.0, 0.0, 0.0, 1.0)).max() > 1e-9 or np.abs(r @ r.T - np.eye(3)).max() > 1e-3 \
             or np.linalg.det(r) < 0:
         return "world_to_cam is not a rigid transform (proper rotation + translation)"
+    center = np.abs(r.T @ m[:3, 3]).max()
+    if center > COORD_MAX:
+        return f"the camera centre lies {center:.3g} from the origin, beyond the ±{COORD_MAX:g} cameras may take"
     return None
 
 
-class CameraSizeError(InputError, ValueError):
+def camera_problem(cam: "Camera") -> str | None:
+    """Why a Camera cannot be rendered (size, intrinsics, a non-rigid or non-finite pose), or None."""
+    return size_problem(cam.width, cam.height) or intrinsics_problem(cam.fx, cam.fy, cam.cx, cam.cy) \
+        or pose_problem(np.asarray(cam.world_to_cam, np.float64))
+
+
+class CameraError(InputError, ValueError):
+    """A camera no renderer can use — a NaN or non-rigid pose, a centre beyond :data:`COORD_MAX`,
+    unusable intrinsics: refused when the :class:`Camera` is made, whatever made it (camera files,
+    rigs fitted to a scene, the API), so a NaN camera never exists. A ValueError too, for callers
+    that validate cameras rebuilt from stored dicts."""
+
+
+class CameraSizeError(CameraError):
     """A camera asking for an image beyond :data:`MAX_SIDE` (or of no pixels): refused when the
     :class:`Camera` is made, so no source of sizes — camera files, PLY header camera lines, rigs,
-    configs, ``--width/--height`` — can reach a renderer with one. A ValueError too, for callers
-    that validate cameras rebuilt from stored dicts."""
+    configs, ``--width/--height`` — can reach a renderer with one."""
 
 
 @dataclass(frozen=True)
@@ -101,9 +115,13 @@ class Camera:
         if m.shape != (4, 4):
             raise ValueError(f"world_to_cam must be 4x4, got {m.shape}")
         object.__setattr__(self, "world_to_cam", m)
+        where = f"camera {self.name!r}" if self.name else "camera"
         why = size_problem(self.width, self.height)  # where every size enters: no bypass
         if why:
-            raise CameraSizeError(f"camera {self.name!r}" if self.name else "camera", why)
+            raise CameraSizeError(where, why)
+        why = intrinsics_problem(self.fx, self.fy, self.cx, self.cy) or pose_problem(m)
+        if why:
+            raise CameraError(where, why)
 
     # ---------------------------------------------------------------- geometry
     @property
@@ -151,7 +169,11 @@ class Camera:
         point *up* in the image (OpenCV y points down, so image-down = −up)."""
         eye = np.asarray(eye, np.float64)
         z = np.asarray(target, np.float64) - eye
-        z /= np.linalg.norm(z)
+        length = np.linalg.norm(z)
+        if not (np.isfinite(length) and length > 0):  # eye == target: no viewing direction
+            raise CameraError(f"camera {name!r}" if name else "camera",
+                              f"cannot look from {eye.tolist()} at {np.asarray(target).tolist()}: no direction")
+        z /= length
         up = np.asarray(up, np.float64)
         x = np.cross(-up, z)  # image right = down × forward (OpenCV: x = y × z)
         if np.linalg.norm(x) < 1e-9:  # looking along up: pick any perpendicular

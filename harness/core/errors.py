@@ -14,6 +14,15 @@ from pathlib import Path
 from typing import Iterator, Mapping
 
 
+def printable(text: str) -> str:
+    """``text`` with every character that is not printable (ESC, NUL, bidi overrides, …) written as its
+    escape (``\\x1b``): a message quoting a file or scene name never drives the terminal it is printed on."""
+    if text.isprintable():
+        return text
+    return "".join(ch if ch.isprintable() else f"\\x{ord(ch):02x}" if ord(ch) < 256 else f"\\u{ord(ch):04x}"
+                   for ch in text)
+
+
 class HarnessError(Exception):
     """An error with a one-line message. ``str(err)`` is the line the CLI prints after ``harness: ``.
 
@@ -24,8 +33,8 @@ class HarnessError(Exception):
     exit_status = 2
 
     def __init__(self, source: str | Path | None, problem: str):
-        self.source = None if source is None else str(source)
-        self.problem = " ".join(str(problem).split())  # always a single line
+        self.source = None if source is None else printable(str(source))
+        self.problem = printable(" ".join(str(problem).split()))  # always a single line
         super().__init__(self.problem if self.source is None else f"{self.source}: {self.problem}")
 
     def __reduce__(self):  # raised in a pool worker or Ray task, it travels back whole

@@ -60,25 +60,9 @@ class GaussianScene:
     meta: SceneMeta = field(default_factory=SceneMeta)
 
     def __post_init__(self) -> None:
-        n = len(self.means)
-        shapes = {
-            "means": (n, 3),
-            "scales_log": (n, 3),
-            "quats": (n, 4),
-            "opacity_logit": (n,),
-            "sh_dc": (n, 3),
-        }
-        for name, shape in shapes.items():
-            arr = getattr(self, name)
-            if arr.shape != shape:
-                raise ValueError(f"{name} has shape {arr.shape}, expected {shape}")
-        if self.sh_rest.ndim != 3 or self.sh_rest.shape[0] != n or self.sh_rest.shape[2] != 3:
-            raise ValueError(f"sh_rest has shape {self.sh_rest.shape}, expected ({n}, K, 3)")
-        if self.sh_rest.shape[1] not in _DEGREE_OF_REST:
-            raise ValueError(f"sh_rest has {self.sh_rest.shape[1]} coefficients; expected 0, 3, 8 or 15")
-        for name, arr in self.extra.items():
-            if arr.shape[:1] != (n,):
-                raise ValueError(f"extra property {name!r} has {arr.shape[0]} rows, expected {n}")
+        why = shape_problem(self)
+        if why:
+            raise ValueError(why)
 
     # ------------------------------------------------------------------ shape facts
     def __len__(self) -> int:
@@ -151,6 +135,34 @@ class GaussianScene:
 
 
 # ---------------------------------------------------------------------- activations
+#: the core arrays of a scene, in file order
+CORE = ("means", "scales_log", "quats", "opacity_logit", "sh_dc", "sh_rest")
+
+
+def shape_problem(scene: GaussianScene) -> str | None:
+    """Why the scene's arrays do not make one scene of ``len(scene.means)`` splats, or None: means
+    (N, 3), scales_log (N, 3), quats (N, 4), opacity_logit (N,), sh_dc (N, 3), sh_rest (N, K, 3)
+    with K in 0, 3, 8, 15, each extra property N rows. Checked when a scene is made, and again by
+    :func:`harness.core.validate.validate` on a scene whose arrays were replaced since."""
+    if not all(isinstance(getattr(scene, a, None), np.ndarray) for a in CORE):
+        bad = next(a for a in CORE if not isinstance(getattr(scene, a, None), np.ndarray))
+        return f"{bad} is a {type(getattr(scene, bad, None)).__name__}, not a numpy array"
+    n = len(scene.means)
+    shapes = {"means": (n, 3), "scales_log": (n, 3), "quats": (n, 4), "opacity_logit": (n,), "sh_dc": (n, 3)}
+    for name, shape in shapes.items():
+        arr = getattr(scene, name)
+        if arr.shape != shape:
+            return f"{name} has shape {arr.shape}, expected {shape}"
+    if scene.sh_rest.ndim != 3 or scene.sh_rest.shape[0] != n or scene.sh_rest.shape[2] != 3:
+        return f"sh_rest has shape {scene.sh_rest.shape}, expected ({n}, K, 3)"
+    if scene.sh_rest.shape[1] not in _DEGREE_OF_REST:
+        return f"sh_rest has {scene.sh_rest.shape[1]} coefficients; expected 0, 3, 8 or 15"
+    for name, arr in scene.extra.items():
+        if not isinstance(arr, np.ndarray) or arr.shape[:1] != (n,):
+            return f"extra property {name!r} must be an array of {n} rows, got shape {getattr(arr, 'shape', None)}"
+    return None
+
+
 def sigmoid(x: np.ndarray) -> np.ndarray:
     """Numerically stable logistic function, same dtype as ``x``."""
     x = np.asarray(x)

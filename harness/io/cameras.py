@@ -145,7 +145,7 @@ def write_3dgs_cameras(cameras: list[Camera], path: str | Path) -> None:
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(path, json.dumps(cameras_to_3dgs_json(cameras), indent=1))
+    atomic_write_text(path, json.dumps(cameras_to_3dgs_json(cameras), indent=1, allow_nan=False))
 
 
 # ------------------------------------------------------------------------------ NeRF transforms.json

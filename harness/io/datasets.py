@@ -202,7 +202,7 @@ def verify_copy(name: str, path: Path) -> None:
         from harness.io.files import atomic_write_text
 
         try:
-            atomic_write_text(_memo_path(), json.dumps(memo, sort_keys=True))
+            atomic_write_text(_memo_path(), json.dumps(memo, sort_keys=True, allow_nan=False))
         except (InputError, OSError):  # a read-only data folder: verified again next time
             pass
 

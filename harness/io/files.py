@@ -167,6 +167,24 @@ def probe_writable(folder: str | Path, source=None) -> None:
         raise InputError(source, f"cannot write there: {err.strerror or err}") from None
 
 
+def check_output_folder(folder: str | Path, source=None) -> None:
+    """What :func:`make_output_folder` checks, creating nothing: an existing ``folder`` must be a
+    folder that takes files; a missing one, creatable (its nearest existing ancestor a writable folder)."""
+    from harness.core.errors import InputError
+
+    folder = Path(folder)
+    source = folder if source is None else source
+    if folder.exists():
+        if not folder.is_dir():
+            raise InputError(source, "exists and is not a folder")
+        probe_writable(folder, source)
+        return
+    parent = next(p for p in folder.absolute().parents if p.exists())
+    if not parent.is_dir():
+        raise InputError(source, f"cannot create the folder: {parent} is not a folder")
+    probe_writable(parent, source)
+
+
 def make_output_folder(folder: str | Path, source=None) -> Path:
     """Create ``folder`` (and parents) for output and check that it takes files; InputError otherwise."""
     from harness.core.errors import InputError

@@ -97,12 +97,15 @@ def scale_of(photo: tuple[int, int], cam: Camera) -> float | None:
     return k if abs(short_c * k - short_p) <= 1.0 else None
 
 
-def check_photos(photos: dict[str, Path], cameras: dict[str, Camera]) -> tuple[int, int]:
-    """Every photo is its camera's image at one common scale (module docstring); returns the
+def check_photos(photos: dict[str, Path], cameras: dict[str, Camera], decode: bool = True) -> tuple[int, int]:
+    """Every photo is its camera's image at one common scale (module docstring) and, with ``decode``,
+    decodes (a truncated photo fails here, at load, not when its view is rendered); returns the
     (width, height) of the first photo."""
     first = None
     for name, path in photos.items():
         size, cam = photo_size(path), cameras[name]
+        if decode:
+            read_photo(path, *size)
         k = scale_of(size, cam)
         if k is None:
             raise InputError(path, f"photo is {size[0]}x{size[1]} (aspect {size[0] / size[1]:.3f}) but its camera "

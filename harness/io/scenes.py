@@ -29,8 +29,6 @@ from harness.core.scene import GaussianScene, bounding_box, opacities, scales
 
 log = logging.getLogger(__name__)
 
-_CORE = ("means", "scales_log", "quats", "opacity_logit", "sh_dc", "sh_rest")
-
 
 @dataclass
 class LoadResult:
@@ -53,30 +51,12 @@ def scene_extent(path: Path) -> Path:
     return path
 
 
-def _first_row(mask: np.ndarray) -> int:
-    return int(np.flatnonzero(mask)[0])
-
-
 def check_scene(scene: GaussianScene, source, *, drop_nonfinite: bool = False) -> tuple[GaussianScene, int]:
-    """Validate a freshly read scene; returns (scene, rows dropped for NaN/inf)."""
-    n = len(scene)
-    dropped = 0
-    if not all(np.isfinite(getattr(scene, attr)).all() for attr in _CORE):  # row masks only when needed
-        bad = np.zeros(n, bool)
-        for attr in _CORE:
-            bad |= ~np.isfinite(getattr(scene, attr).reshape(n, -1)).all(axis=1)
-        dropped = int(bad.sum())
-        if not drop_nonfinite:
-            row = _first_row(bad)
-            which = next(a for a in _CORE if not np.isfinite(getattr(scene, a)[row]).all())
-            raise InputError(source, f"{dropped} of {n} splats have NaN/inf values (first: row {row}, {which}); "
-                                     "use --drop-nonfinite to drop them")
-        scene = scene.subset(~bad)
-    zero = ~(scene.quats != 0).any(axis=1)
-    if zero.any():
-        raise InputError(source, f"{int(zero.sum())} splats have a zero-norm rotation quaternion "
-                                 f"(first: row {_first_row(zero)})")
-    return scene, dropped
+    """Validate a freshly read scene (:func:`harness.core.validate.validate`); returns (scene, rows
+    dropped for NaN/inf)."""
+    from harness.core.validate import validate
+
+    return validate(scene, source, drop_nonfinite=drop_nonfinite, hint="use --drop-nonfinite to drop them")
 
 
 def read_scene(path_or_name, *, lod: int | str | None = None, drop_nonfinite: bool = False) -> LoadResult:

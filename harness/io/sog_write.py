@@ -179,7 +179,7 @@ def encode_sog(scene: GaussianScene, source="scene") -> tuple[dict[str, bytes], 
         meta["shN"], centroids, labels = _sh_rest(s, source)
         files["shN_centroids.webp"] = webp(centroids)
         files["shN_labels.webp"] = texture(labels)
-    files["meta.json"] = json.dumps(meta, separators=(",", ":")).encode("utf-8")
+    files["meta.json"] = json.dumps(meta, separators=(",", ":"), allow_nan=False).encode("utf-8")
     return files, order
 
 

@@ -88,10 +88,15 @@ class DeviceSide:
 def batch_values(side: DeviceSide, images: torch.Tensor, masks: torch.Tensor | None) -> list[dict]:
     """The metrics of ``side`` (LPIPS aside) of each image of the batch against its reference, one
     dict per image (with ``occupancy`` % when an OM metric is asked for), as the CPU forms give them."""
-    from harness.metrics.mpeg_members import tool_members, tool_request
+    from harness.core.errors import InputError
+    from harness.metrics.mpeg_members import size_problem, tool_members, tool_request
     from harness.metrics.mpeg_torch import tool_metrics_batch
 
     n = len(images)
+    for fam, members in side.fams.items():
+        why = size_problem(*images.shape[1:3], members, TORCH_FAMILIES[fam])
+        if why:
+            raise InputError("images", why)
     rows: list[dict] = [{} for _ in range(n)]
     with torch.inference_mode():
         if side.clamped is not None:

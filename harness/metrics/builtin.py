@@ -89,9 +89,15 @@ def _tool_family(qmiv: bool):
         return ToolReference(reference, qmiv=qmiv)
 
     def compute(reference, test, names, mask=None) -> dict:
-        from harness.metrics.mpeg import tool_metrics
-        from harness.metrics.mpeg_members import tool_members, tool_request
+        import numpy as np
 
+        from harness.core.errors import InputError
+        from harness.metrics.mpeg import tool_metrics
+        from harness.metrics.mpeg_members import size_problem, tool_members, tool_request
+
+        why = size_problem(*np.shape(test)[:2], names, qmiv)
+        if why:
+            raise InputError("images", why)
         base, flags = tool_request(names, qmiv)
         return tool_members(tool_metrics(reference, test, mask, qmiv=qmiv, **flags), base, flags["om"])
 

@@ -27,3 +27,20 @@ def tool_members(r: dict, base: dict, om: bool) -> dict:
     if om:
         out["occupancy"] = float(r["occupancy"])
     return out
+
+
+#: the smallest image side each part of the tool is defined on: IV-SSIM sums 8×8 blocks (none fit a
+#: smaller image: NaN), the YUV-SSIM padding reads 5 columns beside the edge (the tool reads out of
+#: bounds on narrower images: an IndexError here); the PSNRs take any size
+MIN_SIDE = {"iv": 8, "ssim": 6}
+
+
+def size_problem(height: int, width: int, names, qmiv: bool) -> str | None:
+    """Why images of ``width`` × ``height`` have no value for the members ``names``, or None."""
+    base, flags = tool_request(names, qmiv)
+    for part, side in MIN_SIDE.items():
+        if flags[part] and min(height, width) < side:
+            which = ", ".join(n for n, b in base.items() if _TOOL_PART.get(b) == part)
+            what = "IV-SSIM's 8x8 blocks" if part == "iv" else "the tool's 11x11 SSIM window"
+            return f"{width}x{height} pixels is too small for {which} ({what}: at least {side} px per side)"
+    return None

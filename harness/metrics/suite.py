@@ -40,6 +40,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from harness.core.errors import InputError
 from harness.metrics import registry as _registry
 from harness.metrics.images import as_image, check_same_size, read_image
 from harness.metrics.pairs import pair_values, reference_sides
@@ -96,6 +97,24 @@ LPIPS = "lpips"
 GT_OCCUPANCY_ALPHA = 0.5
 
 
+def checked(values: dict, where: str) -> dict:
+    """``values`` when every registered metric among them has a number (finite; +inf only where the
+    metric is registered ``inf_if_identical``, PSNR's identical images), else InputError naming the
+    metric: a NaN from any metric — an MPEG member on a degenerate image, a plugin's — is never a
+    score, a table cell or a JSON value."""
+    import math
+
+    for name, v in values.items():
+        spec = _registry.spec(name)
+        if spec is None or v is None or math.isfinite(v):
+            continue
+        why = spec.problem(float(v))
+        if why:
+            raise InputError(f"metric {name}", f"gave {float(v)!r} for {where}; a metric's value must be a finite "
+                                               "number")
+    return values
+
+
 def _on_cuda(device) -> bool:
     """Does a suite on ``device`` score with the torch forms by default? On CUDA: on the CPU the
     numpy/numba forms are faster, and MPS has no float64 (torch is not imported to say so)."""
@@ -120,7 +139,7 @@ def compare_images(a, b, *, lpips_model: LpipsVGG | None = None, yuv: bool = Fal
         out.update(yuv_psnr(a, b))
     if model is not None:
         out[LPIPS] = model(a, b)
-    return out
+    return checked(out, f"these {a.shape[1]}x{a.shape[0]} images")
 
 
 class MetricSuite:
@@ -197,7 +216,7 @@ class MetricSuite:
 
     def photo_scores(self, view_key: str) -> dict:
         """The ``gt_`` metrics of the view's reference (the unpruned render) against its photo."""
-        return dict(self._photo_ref[str(view_key)])
+        return checked(dict(self._photo_ref[str(view_key)]), f"the photo of view {view_key}")
 
     def _stem(self, key: str) -> Path:
         return self.feature_dir / hashlib.sha256(str(key).encode()).hexdigest()[:24]
@@ -274,10 +293,15 @@ class MetricSuite:
 
     def score_many(self, view_key: str, images, alphas=None) -> list[dict]:
         """Metrics of each image against the reference of ``view_key`` (LPIPS batched); ``alphas``
-        (one per image, or None) give the OM metrics' occupancy together with the reference's."""
+        (one per image, or None) give the OM metrics' occupancy together with the reference's.
+        Every value is a number (:func:`checked`)."""
         key = str(view_key)
-        if self.torch_forms:
-            return self._score_on_device(key, images, alphas)
+        rows = self._score_on_device(key, images, alphas) if self.torch_forms else self._score_on_host(key, images,
+                                                                                                      alphas)
+        return [checked(row, f"image {i} of view {key}") for i, row in enumerate(rows)]
+
+    def _score_on_host(self, key: str, images, alphas) -> list[dict]:
+        """:meth:`score_many` with the CPU forms, image by image."""
         ref, feats = self._get(key)
         imgs = [as_image(im, f"image {i} of {key}") for i, im in enumerate(images)]
         for i, img in enumerate(imgs):

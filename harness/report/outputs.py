@@ -25,6 +25,12 @@ from harness.report.tabledata import Written
 from harness.report.tables import TABLES, write_tables
 from harness.report.views_csv import write_views
 
+#: what :func:`publish` writes into a run folder, and what it reads there besides the results (the
+#: page's renders and run records): the entries a command that rebuilds them stages and publishes
+#: (:class:`harness.io.owned.OwnedFolder`)
+PUBLISHED = ("tables", "plots", "views.csv.gz", "report.html")
+READS = ("images", "records")
+
 
 @dataclass
 class Published:
@@ -35,11 +41,17 @@ class Published:
 
 
 def chosen(meta: dict) -> tuple[list[str], list[str], str | None]:
-    """(tables, plots, BD anchor) a run record asks for; defaults: every table and plot."""
+    """(tables, plots, BD anchor) a run record asks for; a record that names none: every table and
+    plot (an empty list asks for none: ``plots: []`` draws nothing)."""
     config = meta.get("config") if isinstance(meta.get("config"), dict) else {}
     anchor = meta.get("anchor") or config.get("anchor")
-    return (list(meta.get("tables") or TABLES), list(meta.get("plots") or PLOTS),
-            anchor if isinstance(anchor, str) else None)
+    return _names(meta.get("tables"), TABLES), _names(meta.get("plots"), PLOTS), \
+        anchor if isinstance(anchor, str) else None
+
+
+def _names(value, every) -> list:
+    """A record's list of names (None: ``every``); anything else is handed on for the caller to refuse."""
+    return list(every) if value is None else list(value) if isinstance(value, (list, tuple)) else value
 
 
 def publish(run_dir: str | Path, df: pd.DataFrame, meta: dict, *, tables=None, plots=None,

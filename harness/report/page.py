@@ -4,8 +4,14 @@ Built only by :func:`harness.report.outputs.publish` from the tables it has just
 page shows the numbers of ``tables/`` — whichever of ``harness run``, ``harness tables`` or
 ``harness report`` wrote it. Order, summary first and the rest folded (``<details>``):
 
-* **Summary**: the ``claims`` table when the run has one, then per held-out view protocol the
-  headline table — the comparison's first metric (else the versus table's) — with its caption;
+* **Bottom line** (when a table leads the page: :mod:`harness.report.verdicts`, e.g. the study's
+  ``claims``): one paragraph from its verdicts under the main protocol — what holds, fails, is
+  mixed, inconclusive, underpowered, not testable, counted and named — and how each other protocol's
+  verdicts differ (:mod:`harness.report.pagelead`);
+* **Summary**: the lead table of the main protocol, its cells coloured by verdict, then the
+  protocol's headline table — the comparison's first metric (else the versus table's) — with its
+  caption; every other protocol's lead and headline folded under a line with its counts. Without a
+  lead table: per protocol the headline table;
 * **Tables**: every table of every protocol, each folded, titled with its protocol; each HTML table
   has a caption with ``n`` and the interval method (:mod:`harness.report.cells`) and scrolls inside
   its box when wider than the page;
@@ -21,114 +27,104 @@ Images are ``data:`` URIs; the only script is the slider's and the one opening a
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from harness.core import ratios
-from harness.report import catalog
+from harness.core import jsonout, ratios
+from harness.report import catalog, pagelead
 from harness.report.pagehtml import esc, html_table, kv_table
 from harness.report.pageimages import AMPLIFY, JPEG_QUALITY, file_uri, scene_images
+from harness.report.pagestyle import CSS, JS
 from harness.report.record import read_records, slug
 from harness.report.tabledata import Built, Missing, Table
 
-CSS = """
-:root{--w:240px}
-body{font:14px/1.45 system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:0;color:#1d2327;background:#fafafa}
-header{background:#22303c;color:#fff;padding:14px 24px}header h1{margin:0;font-size:20px}
-header p{margin:4px 0 0;color:#c9d3dc}nav{padding:6px 24px;background:#e9eef2;position:sticky;top:0;z-index:5}
-nav a{margin-right:16px;color:#22303c}main{padding:8px 24px 40px;max-width:100%;box-sizing:border-box}
-h2{border-bottom:2px solid #ccd5dd;padding-top:12px}h3{margin:14px 0 4px}h3 small{font-weight:400;color:#555}
-table{border-collapse:collapse;margin:6px 0 14px;font-size:12.5px;background:#fff}
-caption{caption-side:top;text-align:left;font-size:12px;color:#444;padding:2px 0 4px;white-space:normal}
-th,td{border:1px solid #d5dde3;padding:3px 7px;text-align:right;white-space:nowrap}
-th{background:#eef2f5;white-space:normal;min-width:3em;max-width:16em}td.k{text-align:left;font-weight:600}
-td small{color:#444}td.better{background:#dff3e1}td.worse{background:#f8dede}
-table.kv td{text-align:left;white-space:normal}
-table.wrap td{text-align:left;white-space:normal;min-width:5em}
-details.note{background:#eef4fb;border:1px solid #b9cde5;padding:8px 12px}
-.notes{color:#555;font-size:12px;margin:0 0 10px}.warn{background:#fff4d6;border:1px solid #e8c96b;padding:8px 12px}
-ul.warn{margin:8px 0;padding-left:28px}
-.scroll{overflow-x:auto;max-width:100%}.plots img{max-width:100%;border:1px solid #ddd;margin:4px 0;background:#fff}
-details{background:#fff;border:1px solid #d5dde3;margin:8px 0;padding:4px 10px;min-width:0}
-summary{font-weight:600;cursor:pointer}summary small{font-weight:400;color:#555}
-details,h2,h3{scroll-margin-top:44px}table.records td{white-space:normal;text-align:left}
-.index a{margin-right:14px}
-table.imgs td,table.imgs th{vertical-align:top;text-align:left;white-space:normal;background:#fff}
-table.imgs th{width:150px;max-width:150px;vertical-align:middle}table.imgs tr:first-child th{vertical-align:bottom}
-table.imgs td figure{vertical-align:top}.cmp{margin:0;width:var(--w)}
-.slider{position:relative;width:var(--w);background-size:100% 100%;border:1px solid #999;overflow:hidden}
-.slider img{position:absolute;inset:0;width:100%;height:100%;clip-path:inset(0 0 0 50%)}
-.slider .bar{position:absolute;top:0;bottom:0;left:50%;width:2px;background:#ffcc00;pointer-events:none}
-.slider input{position:absolute;left:0;right:0;bottom:4px;width:96%;margin:0 2%}
-.tag{position:absolute;top:3px;font-size:11px;background:rgba(0,0,0,.55);color:#fff;padding:0 4px}
-.tag.l{left:3px}.tag.r{right:3px}
-.diff{width:var(--w);display:block;image-rendering:pixelated;border:1px solid #999;margin-top:4px}
-figcaption{font-size:12px;color:#333}.refimg{width:150px;border:1px solid #999}
-pre{background:#fff;border:1px solid #ddd;padding:8px;overflow-x:auto;font-size:12px;max-height:420px}
-"""
-
-JS = """
-var w = document.getElementById('imgw');
-if (w) w.addEventListener('input', function () {
-  document.documentElement.style.setProperty('--w', w.value + 'px');
-});
-document.querySelectorAll('.slider input').forEach(function (s) {
-  function set() {
-    var box = s.parentNode, v = s.value + '%';
-    box.querySelector('img').style.clipPath = 'inset(0 0 0 ' + v + ')';
-    box.querySelector('.bar').style.left = v;
-  }
-  s.addEventListener('input', set);
-  set();
-});
-function openTarget() {
-  var t = location.hash && document.getElementById(decodeURIComponent(location.hash.slice(1)));
-  for (var e = t; e; e = e.parentElement) if (e.tagName === 'DETAILS') e.open = true;
-  if (t) t.scrollIntoView();
-}
-window.addEventListener('hashchange', openTarget);
-openTarget();
-"""
-
 
 # --------------------------------------------------------------------------- tables
+def _verdicts(name: str):
+    """The registered ``verdicts`` of table ``name`` (None: its cells are tinted by their intervals)."""
+    from harness.report.tables import TABLE_SPECS
+
+    return TABLE_SPECS.get(name).verdicts if name in TABLE_SPECS else None
+
+
 def table_html(b: Built, sections=None, cls: str = "", elsewhere: bool = False) -> str:
     """One table: warnings, its sections (each an HTML table with the caption), notes. A missing
     table made for another protocol (``elsewhere``) is a note: this protocol measured none of its
-    variants (a method entry's ``protocols:``)."""
+    variants (a method entry's ``protocols:``). A table of verdicts wraps its cells and colours
+    them by the verdict they state."""
     t = b.table
     if isinstance(t, Missing):
         if elsewhere:
             return f"<p class='notes'>Not measured under the {esc(b.protocol)} views: {esc(t.reason)}</p>"
         return f"<p class='warn'>Not made from these results: {esc(t.reason)}</p>"
+    verdicts = _verdicts(b.name)
+    cls = cls or ("wrap" if verdicts else "")
     out = [f"<p class='warn'>{esc(w)}</p>" for w in t.warnings]
     for sub, disp in sections if sections is not None else (t.sections or [("", t.disp)]):
         if sub:
             out.append(f"<h4>{esc(sub)}</h4>")
-        out.append(html_table(disp, sub, t.caption, cls))
+        out.append(html_table(disp, sub, t.caption, cls, verdicts))
     out += [f"<p class='notes'>{esc(n)}</p>" for n in t.notes]
     return "\n".join(out)
 
 
-def summary_html(built: dict[str, Built]) -> str:
-    """The claims table(s), then per protocol the headline table's first section."""
-    out = []
-    for b in built.values():
-        if b.name == "claims":  # its cells are sentences: wrapped, so the verdict column is in view
-            out += [f"<h3 id='s-{esc(b.key)}'>{esc(b.title)}</h3>", table_html(b, cls="wrap")]
+def headline_html(built: dict[str, Built], proto: str) -> str:
+    """A protocol's headline table: the comparison's first section, else the versus table's ("" if neither)."""
+    head = next((b for name in ("comparison", "versus") for b in built.values()
+                 if b.name == name and b.protocol == proto and isinstance(b.table, Table)), None)
+    if head is None:
+        return ""
+    first = (head.table.sections or [("", head.table.disp)])[:1]
+    return "\n".join([f"<h3>{esc(head.title)}</h3>", table_html(head, first),
+                      f"<p class='notes'><a href='#t-{esc(head.key)}'>every metric of this table</a></p>"])
+
+
+def _leads(built: dict[str, Built]) -> tuple[dict[str, tuple[Built, object, list]], str]:
+    """({protocol: (its lead table, the table's Lead, its items)} for the first table registered as a
+    lead that was made for some protocol, a problem): a lead whose items are not valid (a status
+    outside the vocabulary) leads nothing, and the problem says why."""
+    from harness.report.tables import TABLE_SPECS
+
+    made = [b for b in built.values() if isinstance(b.table, Table) and b.name in TABLE_SPECS
+            and TABLE_SPECS.get(b.name).lead is not None]
+    if not made:
+        return {}, ""
+    lead = TABLE_SPECS.get(made[0].name).lead
+    try:
+        return {b.protocol: (b, lead, list(lead.items(b.table))) for b in made if b.name == made[0].name}, ""
+    except ValueError as err:
+        return {}, f"the {made[0].name} table cannot lead this page: {err}"
+
+
+def summary_html(built: dict[str, Built]) -> tuple[str, str]:
+    """(bottom line, summary). With a lead table (:mod:`harness.report.pagelead`): the bottom line of
+    the main protocol, its lead table and headline, then every other protocol's folded; without
+    one, no bottom line and per protocol the headline table."""
+    from harness.views.protocols import notes
+
     protocols = list(dict.fromkeys(b.protocol for b in built.values()))
-    for proto in protocols:
-        head = next((b for name in ("comparison", "versus") for b in built.values()
-                     if b.name == name and b.protocol == proto and isinstance(b.table, Table)), None)
-        if head is None:
-            continue
-        first = (head.table.sections or [("", head.table.disp)])[:1]
-        out += [f"<h3>{esc(head.title)}</h3>", table_html(head, first),
-                f"<p class='notes'><a href='#t-{esc(head.key)}'>every metric of this table</a></p>"]
-    return "\n".join(out) or "<p class='warn'>no table could be made from these results</p>"
+    leads, problem = _leads(built)
+    if not leads:
+        out = "\n".join(h for h in (headline_html(built, p) for p in protocols) if h)
+        if problem:
+            return "", f"<p class='warn'>{esc(problem)}</p>" + out
+        return "", out or "<p class='warn'>no table could be made from these results</p>"
+    main = next(iter(leads))
+    b, lead, items = leads[main]
+    others = {p: leads[p][2] if p in leads else None for p in protocols if p != main}
+    bottom = pagelead.bottom_line(main, items, lead, others, notes)
+    out = [f"<h3 id='s-{esc(b.key)}'>{esc(b.title)}</h3>", pagelead.lead_table(items, lead, main, b.table.caption),
+           headline_html(built, main)]
+    if others:
+        out.append("<h3>The other held-out view protocols</h3>")
+    for p in others:
+        counted = pagelead.counts(leads[p][2], lead) if p in leads else "no verdicts"
+        body = (pagelead.lead_table(leads[p][2], lead, p, leads[p][0].table.caption) if p in leads else "")
+        out.append(f"<details id='s-{esc(slug(p))}'><summary>{esc(p)} views <small>({esc(notes(p))}): {counted}"
+                   f"</small></summary>{body}{headline_html(built, p)}</details>")
+    return bottom, "\n".join(out)
 
 
 def made_elsewhere(built: dict[str, Built]) -> set[str]:
@@ -155,7 +151,7 @@ def tables_html(built: dict[str, Built]) -> str:
                 " <small>(not measured under this protocol)</small>" if elsewhere
                 else " <small>(not made from these results)</small>")
             name = base_title(b.name) + (f" — {proto} views" if proto else "")
-            body = table_html(b, cls="wrap" if b.name == "claims" else "", elsewhere=elsewhere)
+            body = table_html(b, elsewhere=elsewhere)
             out.append(f"<details id='t-{esc(b.key)}'><summary>{esc(name)}{tag}</summary>{body}</details>")
     return "\n".join(out)
 
@@ -222,7 +218,7 @@ def images_html(scenes, protocol: str = "") -> str:
         f"PSNR: this 8-bit pair.</p><p><label>image width <input id='imgw' type='range' min='160' max='720' "
         f"value='240'></label></p>",
     ]
-    out += [_scene_html(s, f"ref-{slug(s.scene)}".replace(".", "_")) for s in scenes]
+    out += [_scene_html(s, f"ref-{i}") for i, s in enumerate(scenes)]  # a CSS class: any scene name, one class
     return "\n".join(out)
 
 
@@ -250,8 +246,8 @@ def _record_detail(meta: dict) -> str:
            kv_table([(k, f"{c.get('hits', 0)} / {c.get('misses', 0)}") for k, c in counts.items()])]
     for key, title in (("skipped", "Skipped"), ("errors", "Errors")):
         if meta.get(key):
-            out += [f"<h4>{title}</h4><pre>{esc(json.dumps(meta[key], indent=1, default=str))}</pre>"]
-    out += ["<h4>Config</h4>", f"<pre>{esc(json.dumps(meta.get('config', {}), indent=2, default=str))}</pre>"]
+            out += [f"<h4>{title}</h4><pre>{esc(jsonout.dumps(meta[key], indent=1))}</pre>"]
+    out += ["<h4>Config</h4>", f"<pre>{esc(jsonout.dumps(meta.get('config', {}), indent=2))}</pre>"]
     return "\n".join(out)
 
 
@@ -277,7 +273,7 @@ def records_html(records: list[dict], unreadable: list[str]) -> str:
 
 # --------------------------------------------------------------------------- the page
 def render_page(*, title: str, subtitle: str, warnings, summary: str, tables: str, plots: str, images: str,
-                records: str, notes=()) -> str:
+                records: str, notes=(), bottom: str = "") -> str:
     warn = ""
     if warnings:
         items = "".join(f"<li>{esc(w)}</li>" for w in warnings)
@@ -293,7 +289,7 @@ def render_page(*, title: str, subtitle: str, warnings, summary: str, tables: st
 <body><header><h1>{esc(title)}</h1><p>{esc(subtitle)}</p></header>
 <nav><a href="#summary">Summary</a><a href="#tables">Tables</a><a href="#plots">Curves &amp; figures</a>
 <a href="#images">Images</a><a href="#record">Run records</a></nav>
-<main>{warn}
+<main>{bottom}{warn}
 <h2 id="summary">Summary</h2>{summary}
 <h2 id="tables">Tables</h2>{tables}
 <h2 id="plots">Curves &amp; figures</h2>{plots}
@@ -313,7 +309,7 @@ def write_report(run_dir: str | Path, df: pd.DataFrame, meta: dict, built: dict[
     run_dir = Path(run_dir)
     warnings, notes = _problems(built, missing)
     scenes = list(dict.fromkeys(zip(df["scene"], df["label"])))
-    known = {slug(m): m for m in df["method"].unique()}
+    known = {slug(n): n for col in ("method", "variant") if col in df for n in df[col].dropna().unique()}
     protocols = list(dict.fromkeys(b.protocol for b in built.values() if b.protocol))  # the primary first
     images = images_html(scene_images(run_dir / "images", scenes, known), protocols[0] if protocols else "")
     records, unreadable = read_records(run_dir)
@@ -321,8 +317,9 @@ def write_report(run_dir: str | Path, df: pd.DataFrame, meta: dict, built: dict[
     subtitle = (f"{len(scenes)} scene(s), {ok['method'].nunique()} method(s), {len(ok)} measured image pairs"
                 + (f" under {len(protocols)} held-out view protocol(s) ({', '.join(protocols)})" if protocols else "")
                 + f"; commit {meta.get('commit', 'unknown')}; {meta.get('when', '')}")
+    bottom, summary = summary_html(built)
     page = render_page(title=f"harness run {meta.get('name') or run_dir.name}", subtitle=subtitle,
-                       warnings=warnings, summary=summary_html(built), tables=tables_html(built),
+                       warnings=warnings, bottom=bottom, summary=summary, tables=tables_html(built),
                        plots=plots_html(plots, protocols[0] if protocols else ""), images=images,
                        records=records_html(records, unreadable), notes=notes)
     path = run_dir / "report.html"

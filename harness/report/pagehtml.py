@@ -3,9 +3,11 @@
 A table cell is a display string of :mod:`harness.report.cells` (``62.85 (Δ +26.43 [+25.87, +27.00])``):
 its mean on the first line, Δ and CI on a second, smaller one; a cell whose CI excludes 0 is tinted
 green when it is better than the reference in the metric's direction (↑/↓ of its heading), red when
-worse. Markdown bold (``**63.87**``, the ablation's best of a row) becomes ``<strong>``: the page
-shows no markdown syntax. Every table sits in a box that scrolls sideways, so no table is wider
-than the page, and carries its ``caption`` (n and the interval method) as an HTML ``<caption>``.
+worse — except in a table of verdicts (``verdicts``: a cell's words -> its status,
+:mod:`harness.report.verdicts`), where a cell is coloured by the verdict it states and never by a
+sign. Markdown bold (``**63.87**``, the ablation's best of a row) becomes ``<strong>``: the page shows
+no markdown syntax. Every table sits in a box that scrolls sideways, so no table is wider than the page,
+and carries its ``caption`` (n and the interval method) as an HTML ``<caption>``.
 """
 
 from __future__ import annotations
@@ -40,6 +42,20 @@ def tint(text: str, heading: str) -> str:
     return "better" if up == ("↓" not in heading) else "worse"
 
 
+def status_class(status: str) -> str:
+    """``v v-<status>`` (spaces as dashes): the CSS class of a cell stating that verdict."""
+    return "v v-" + status.replace(" ", "-")
+
+
+def colour(text: str, heading: str, verdicts=None) -> str:
+    """A cell's class: its verdict's (``verdicts`` given: none for a cell that states no verdict),
+    else :func:`tint`."""
+    if verdicts is None:
+        return tint(text, heading)
+    status = verdicts(text)
+    return status_class(status) if status else ""
+
+
 def cell_html(text: str) -> str:
     """A cell's text, its Δ and CI on a second, smaller line (narrow columns)."""
     if " (Δ " in text and text.endswith(")"):
@@ -51,9 +67,10 @@ def cell_html(text: str) -> str:
     return text_html(text)
 
 
-def html_table(disp: pd.DataFrame, heading: str = "", caption: str = "", cls: str = "") -> str:
+def html_table(disp: pd.DataFrame, heading: str = "", caption: str = "", cls: str = "", verdicts=None) -> str:
     """A display frame as one scrolling HTML table (repeated row keys blanked, as in the .md);
-    ``cls``: the table's class (``wrap``: cells wrap, for tables of sentences)."""
+    ``cls``: the table's class (``wrap``: cells wrap, for tables of sentences); ``verdicts``: see
+    :func:`colour`."""
     names = [n or "" for n in disp.index.names]
     cols = [" · ".join(str(x) for x in c if str(x)) if isinstance(c, tuple) else str(c) for c in disp.columns]
     attr = f" class='{cls}'" if cls else ""
@@ -64,20 +81,20 @@ def html_table(disp: pd.DataFrame, heading: str = "", caption: str = "", cls: st
     prev = None
     for key, vals in zip(disp.index, disp.itertuples(index=False)):
         key = key if isinstance(key, tuple) else (key,)
-        out.append(_row_html(key, vals, prev, heading))
+        out.append(_row_html(key, vals, prev, heading, verdicts))
         prev = key
     out.append("</tbody></table></div>")
     return "".join(out)
 
 
-def _row_html(key: tuple, vals, prev: tuple | None, heading: str) -> str:
+def _row_html(key: tuple, vals, prev: tuple | None, heading: str, verdicts=None) -> str:
     """One row: its key cells (blank where they repeat the previous row's, but the last) and its values."""
     out = ["<tr>"]
     for i, k in enumerate(key):
         same = prev is not None and key[: i + 1] == prev[: i + 1] and i < len(key) - 1
         out.append(f"<td class='k'>{'' if same else esc(k)}</td>")
     for v in vals:
-        cls = tint(str(v), heading or str(key[0]))
+        cls = colour(str(v), heading or str(key[0]), verdicts)
         out.append(f"<td class='{cls}'>{cell_html(str(v))}</td>" if cls else f"<td>{cell_html(str(v))}</td>")
     out.append("</tr>")
     return "".join(out)

@@ -101,8 +101,8 @@ def _first_frame_dir(images: Path, scene: str) -> Path | None:
 
 
 def scene_images(images: Path, scenes: list[tuple[str, str]], known: dict) -> list[SceneImages]:
-    """Comparisons per scene; ``scenes`` = [(scene, label)], ``known`` maps a slugged method name to
-    the method (a file name carries the slug)."""
+    """Comparisons per scene; ``scenes`` = [(scene, label)], ``known`` maps the file name of a method
+    or variant to its name (a render's file name carries them as file names)."""
     from PIL import Image
 
     from harness.io.safe import open_image  # regular files, size-capped, pixel count checked first
@@ -123,8 +123,8 @@ def scene_images(images: Path, scenes: list[tuple[str, str]], known: dict) -> li
             if img.size != ref_img.size:
                 continue
             amp, psnr, mx = difference(ref, np.asarray(img))
-            method = known.get(key[0], key[0])
-            found.append(Comparison(method, key[1], key[2], data_uri(img, "JPEG"),
+            method, variant = known.get(key[0], key[0]), known.get(key[1], key[1])
+            found.append(Comparison(method, variant, key[2], data_uri(img, "JPEG"),
                                     data_uri(Image.fromarray(amp), "PNG"), psnr, mx))
         order = {m: i for i, m in enumerate(catalog.method_order([c.method for c in found]))}
         found.sort(key=lambda c: (order[c.method], c.variant != "default", c.variant, c.ratio))

@@ -90,14 +90,21 @@ def write_plots(df: pd.DataFrame, run_dir: str | Path, names) -> Written:
 
     protocol, _, primary = protocol_subsets(df)[0]
     w = Written()
-    for spec in (s for s in PLOT_SPECS if s.name in set(names)):
-        rows, ctx = (df, PlotContext(Path(run_dir))) if spec.rows == "all" else \
-            (primary, PlotContext(Path(run_dir), protocol))
-        got = spec.draw(rows, ctx)
-        if isinstance(got, Missing):
-            w.missing.append(f"plot {spec.name} not drawn: {got.reason}")
-        else:
-            w.paths += list(got)
+    specs = [s for s in PLOT_SPECS if s.name in set(names)]
+    if not specs:
+        return w
+    import matplotlib
+
+    # labels are text, never markup: a scene labelled '$\x$' is drawn as written, not parsed as TeX
+    with matplotlib.rc_context({"text.parse_math": False}):
+        for spec in specs:
+            rows, ctx = (df, PlotContext(Path(run_dir))) if spec.rows == "all" else \
+                (primary, PlotContext(Path(run_dir), protocol))
+            got = spec.draw(rows, ctx)
+            if isinstance(got, Missing):
+                w.missing.append(f"plot {spec.name} not drawn: {got.reason}")
+            else:
+                w.paths += list(got)
     return w
 
 

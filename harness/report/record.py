@@ -18,11 +18,12 @@ so ``harness tables RUN_DIR`` can rebuild tables and plots from ``results.parque
 
 from __future__ import annotations
 
-import json
 import os
 import time
 from pathlib import Path
 
+from harness.core import jsonout
+from harness.core.names import file_name
 from harness.io.files import atomic_write_bytes, atomic_write_text
 from harness.io.safe import read_bytes
 from harness.report.machine import (
@@ -32,13 +33,17 @@ from harness.report.machine import (
     time_calibration,
 )
 
-
-def slug(text: str) -> str:
-    return "".join(c if c.isalnum() or c in "-_." else "_" for c in str(text)) or "_"
+#: scene, method, variant and frame names in file names: the one injective map (:mod:`harness.core.names`)
+slug = file_name
 
 
 def image_name(method: str, variant: str, ratio: float) -> str:
-    return f"{method}.png" if method in ("input", "photo") else f"{slug(method)}__{slug(variant)}__r{ratio:.2f}.png"
+    """``<method>__<variant>__r<ratio>.png`` (``input.png``, ``photo.png``): the ratio to two decimals
+    when that is exact, else to nine (two ratios never share a file)."""
+    if method in ("input", "photo"):
+        return f"{method}.png"
+    r = f"{ratio:.2f}" if round(ratio, 2) == round(ratio, 9) else f"{ratio:.9g}"
+    return f"{file_name(method)}__{file_name(variant)}__r{r}.png"
 
 
 def copy_images(images: dict, out_dir: Path) -> Path:
@@ -110,7 +115,7 @@ def write_run_json(out_dir: Path, config, result, *, workers: int, cache_root: P
         "rows": {k: status.count(k) for k in ("ok", "skipped", "error")},
         "argv": argv or [],
     }
-    text = json.dumps(payload, indent=2, default=str) + "\n"
+    text = jsonout.dumps(payload, indent=2) + "\n"
     records = Path(out_dir) / "records"
     records.mkdir(exist_ok=True)
     path = records / f"{time.strftime('%Y%m%dT%H%M%S')}-{os.getpid()}.json"

@@ -37,6 +37,7 @@ from harness.io.files import atomic_write_text
 from harness.report import bd, catalog, cell_tables, photos, sensitivity
 from harness.report.summary import protocol_subsets, summarise
 from harness.report.tabledata import Built, Missing, Table, Written, as_table
+from harness.report.verdicts import Lead
 
 #: the runtime table's overhead percentage needs at least this many seconds in its denominator
 MIN_BASE_S = 1.0
@@ -90,13 +91,17 @@ class TableSpec:
     """A table a config or ``harness tables`` can name: ``build(data, **options) -> Table | Missing``
     (``data``: the per-view results, or with ``reads="summary"`` one row per cell, :func:`summarise`;
     options it names, such as ``reference=`` or ``anchor=``, are passed), its ``title``, and
-    ``with_photos``: it belongs to the held-out view protocols whose views have photos (when any has)."""
+    ``with_photos``: it belongs to the held-out view protocols whose views have photos (when any has).
+    A table that judges things gives the report page ``verdicts`` (a cell's words -> its status, so
+    the page colours verdicts, not signs) and may ``lead`` it (:mod:`harness.report.verdicts`)."""
 
     name: str
     build: Callable
     title: str
     reads: str = "results"
     with_photos: bool = False
+    verdicts: Callable | None = None
+    lead: Lead | None = None
 
 
 #: every table, in registration order (built-ins below; third-party ones through the ``harness.tables``
@@ -104,12 +109,14 @@ class TableSpec:
 TABLE_SPECS: Registry[TableSpec] = Registry("table", modules=(__name__,), group="harness.tables")
 
 
-def register_table(name: str, *, build: Callable, title: str, reads: str = "results",
-                   with_photos: bool = False) -> TableSpec:
-    """Register table ``name`` (:class:`TableSpec`)."""
+def register_table(name: str, *, build: Callable, title: str, reads: str = "results", with_photos: bool = False,
+                   verdicts: Callable | None = None, lead: Lead | None = None) -> TableSpec:
+    """Register table ``name`` (:class:`TableSpec`); ``lead`` needs ``verdicts``."""
     if reads not in ("results", "summary"):
         raise ValueError(f"table {name!r}: reads must be 'results' or 'summary', got {reads!r}")
-    spec = TableSpec(name, build, title, reads, with_photos)
+    if lead is not None and (verdicts is None or not isinstance(lead, Lead)):
+        raise ValueError(f"table {name!r}: lead must be a harness.report.verdicts.Lead, with verdicts= given")
+    spec = TableSpec(name, build, title, reads, with_photos, verdicts, lead)
     TABLE_SPECS.add(name, spec, same=lambda a, b: (a.title, a.build.__qualname__) == (b.title, b.build.__qualname__))
     return spec
 

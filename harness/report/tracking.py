@@ -7,8 +7,9 @@
   PSNR, SSIM, LPIPS) — with its sample standard deviation beside it (``psnr_std``, ``ssim_std``, ...;
   ddof = 1, null below two views); a metric that is +inf on identical renders (PSNR) is averaged
   over its *finite* values with the count of +inf views apart (``psnr_n_inf``); and the number of
-  measured views. A metric the run did not measure is null; one that is NaN on some measured views
-  (or infinite where it cannot be) is an error, never averaged over the others. Key
+  measured views. A metric the run did not measure (NaN on its every measured row) is null; one that
+  is NaN on some measured views — of a group, or of a whole group while others have values — (or
+  infinite where it cannot be) is an error, never averaged over the others. Key
   ``"scene|method[variant]|ratio"`` (``scene@protocol`` for a held-out view protocol other than the
   primary one).
 * ``run`` (the config's name) and ``protocols`` (the held-out view protocols, primary first): what
@@ -98,12 +99,13 @@ def summarize_groups(df: pd.DataFrame) -> dict[str, dict]:
         return out
     ok = df[df["status"] == "ok"]
     tracked = [m for m in registry.tracked() if m.name in df]
+    measured = _measured(ok, tracked)
     out: dict[str, dict] = {}
     for (scene, method, variant, ratio), g in ok.groupby(["scene", "method", "variant", "ratio"], sort=True):
         where = f"results of {scene} / {method}[{variant}]"
         out[group_key(scene, method, variant, ratio)] = {
             "scene": scene, "method": method, "variant": variant, "ratio": float(ratio), "n_views": len(g),
-            **{k: v for m in tracked for k, v in _metric_summary(g[m.name], m, where).items()},
+            **{k: v for m in tracked for k, v in _metric_summary(g[m.name], m, where, m.name in measured).items()},
         }
     # groups the run attempted but never measured (errors, skips) are listed with n_views = 0
     for (scene, method, variant, ratio), _ in df[df["status"] != "ok"].groupby(
@@ -116,13 +118,20 @@ def summarize_groups(df: pd.DataFrame) -> dict[str, dict]:
     return out
 
 
-def _metric_summary(values: pd.Series, m, where: str) -> dict:
+def _measured(ok: pd.DataFrame, tracked) -> set[str]:
+    """The metrics the run measured on some view: measured anywhere, measured everywhere (NaN on a
+    group's every view is an error too, not a metric left out)."""
+    return {m.name for m in tracked if pd.to_numeric(ok[m.name], errors="coerce").notna().any()}
+
+
+def _metric_summary(values: pd.Series, m, where: str, measured: bool) -> dict:
     """``{name: mean, name_std: sample std}`` (+ ``name_n_inf`` for a metric that is +inf on identical
     renders: its mean and std over the finite values) of one group's views; None where the run did
-    not measure it (every value NaN) or undefined (std below two)."""
+    not measure it (``measured`` False: NaN on every measured row of the run) or undefined (std below
+    two)."""
     v = pd.to_numeric(values, errors="coerce").to_numpy(np.float64)
     nan = np.isnan(v)
-    if nan.all():
+    if nan.all() and not measured:
         return {m.name: None, f"{m.name}_std": None} | ({f"{m.name}_n_inf": 0} if m.inf_if_identical else {})
     bad = nan | (np.isneginf(v) if m.inf_if_identical else np.isinf(v))
     if bad.any():

@@ -3,16 +3,19 @@ any API that runs a study): tidy results, the figures' images, contact sheets, t
 the tables, plots and report page through :func:`harness.report.outputs.publish` — the function
 ``harness tables`` and ``harness report`` end in too, so the three write the same files.
 
-A run that measured nothing (every scene optional and absent, or every stage failed) replaces
-nothing: the folder's earlier results, tables and page stay as they were, and only its record is
-added under ``records/``.
+Everything is written into the run folder's staging folder and published as one step
+(:mod:`harness.io.owned`): a reader, or a run killed half-way, never finds the results of one run
+beside the tables of another. A run that measured nothing (every scene optional and absent, or
+every stage failed) replaces nothing: the folder's earlier results, tables and page stay as they
+were, and only its record is added under ``records/``.
 """
 
 from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
-from pathlib import Path
+
+from harness.report.outputs import PUBLISHED as PAGE_OUTPUTS
 
 
 @dataclass
@@ -30,8 +33,14 @@ class Finished:
     notes: list[str] = field(default_factory=list)
 
 
-def finish_run(out_dir: Path, config, runner, result, *, workers: int, cache_root, argv) -> Finished:
-    """Write everything a finished run shows (module docstring); ``runner``: the
+#: what a run publishes into its folder, as one step (:class:`harness.io.owned.OwnedFolder`); the
+#: records of earlier runs are carried along, everything else is this run's alone
+PUBLISHED = ("results.parquet", "results.csv", "images", "contact_sheets", "run.json", "records") + PAGE_OUTPUTS
+
+
+def finish_run(folder, config, runner, result, *, workers: int, cache_root, argv) -> Finished:
+    """Write everything a finished run shows (module docstring) into the staging folder of ``folder``
+    (the run's :class:`harness.io.owned.OwnedFolder`) and publish it as one step; ``runner``: the
     :class:`harness.run.runner.Runner` that ran it (its items, cache and reference keys make the
     contact sheets)."""
     from harness.report.outputs import publish
@@ -39,21 +48,26 @@ def finish_run(out_dir: Path, config, runner, result, *, workers: int, cache_roo
     from harness.report.results import to_frame, write_results
 
     df = to_frame(result.rows)
+    stage = folder.stage(carry=("records",))
     if not (df["status"] == "ok").any():
-        record = write_run_json(out_dir, config, result, workers=workers, cache_root=cache_root, argv=argv,
+        record = write_run_json(stage, config, result, workers=workers, cache_root=cache_root, argv=argv,
                                 latest=False)
-        lines = summary_lines(result, df, {"run record": record})
-        lines.append(f"nothing measured: the earlier results, tables and page in {out_dir} are left as they were")
+        folder.publish(["records"])
+        lines = summary_lines(result, df, {"run record": folder.final(record)})
+        lines.append(f"nothing measured: the earlier results, tables and page in {folder.path} are left as they were")
         return Finished(df, lines, measured=False)
-    pq, csv = write_results(df, out_dir)
-    images = copy_images(result.images, out_dir)
-    sheets = contact_sheets(runner.items, runner.cache, runner.ref_key, out_dir, config.protocol.background)
-    run_json = write_run_json(out_dir, config, result, workers=workers, cache_root=cache_root, argv=argv)
-    published = publish(out_dir, df, json.loads(run_json.read_text()))
+    write_results(df, stage)
+    copy_images(result.images, stage)
+    sheets = contact_sheets(runner.items, runner.cache, runner.ref_key, stage, config.protocol.background)
+    run_json = write_run_json(stage, config, result, workers=workers, cache_root=cache_root, argv=argv)
+    published = publish(stage, df, json.loads(run_json.read_text()))
+    folder.publish(PUBLISHED)
+    out = folder.path
     coverage = "; ".join(f"{k} " + " ".join(f"{100 * c:.0f}%" for c in v) for k, v in sheets.items())
-    paths = {"results": pq, "results (csv)": csv, "tables": out_dir / "tables", "plots": out_dir / "plots",
-             "images": images, "contact sheets": f"{out_dir / 'contact_sheets'} (coverage per view: {coverage})",
-             "run record": run_json, "report page": published.page, "stage cache": cache_root}
+    paths = {"results": out / "results.parquet", "results (csv)": out / "results.csv", "tables": out / "tables",
+             "plots": out / "plots", "images": out / "images",
+             "contact sheets": f"{out / 'contact_sheets'} (coverage per view: {coverage})",
+             "run record": out / "run.json", "report page": out / "report.html", "stage cache": cache_root}
     written = published.written
     return Finished(df, summary_lines(result, df, paths), written.warnings + written.missing, len(written.paths),
                     notes=written.notes)

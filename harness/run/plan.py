@@ -24,23 +24,22 @@ capture's training cameras, the ``real`` protocol). Camera-aware pruners score o
 set (their score keys hold the cameras); the others score once — their keys do not depend on the
 training set, so the second set's entry is the first's.
 
-Scenes are resolved before any work (:func:`check_sources`): a scene the config does not mark
-``optional: true`` whose files are absent is an error naming it (a misspelt name gets "did you
-mean"); an optional one is recorded as skipped with the reason.
+Scenes are resolved before any work (:func:`harness.run.sources.check_sources`).
 """
 
 from __future__ import annotations
 
-import glob
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from harness.core.cameras import Camera
+from harness.core.cameras import COORD_MAX, Camera
+from harness.core.extent import MAX_BLUR, blur, check_extent, largest_coordinate
 from harness.run.cache import StageCache, digest_json
 from harness.run.cache.versions import Versions
 from harness.run.config import MethodVariant, RunConfig, SceneSpec
 from harness.run.config.keys import key_inputs
 from harness.run.scene_views import scene_views
+from harness.run.sources import Skip, cameras_missing, resolve_paths
 from harness.run.toolkit import Toolkit
 from harness.views.protocols import HeldOut
 
@@ -99,91 +98,6 @@ class SceneItem:
     @property
     def train_digest(self) -> str:
         return digest_json([c.to_dict() for c in self.train])
-
-
-@dataclass
-class Skip:
-    scene: str
-    frame: str
-    method: str
-    variant: str
-    reason: str
-    status: str = "skipped"  # or "error": the input exists but cannot be used (bad file, bad split)
-
-
-# --------------------------------------------------------------------------- resolving sources
-def resolve_paths(spec: SceneSpec, toolkit: Toolkit, base: Path) -> tuple[list[tuple[str, Path]], str | None]:
-    """[(frame, path)] for a scene, or ([], reason) when its files are absent."""
-    if spec.sequence is not None:
-        from harness.io.sequences import find_sequence
-
-        root = Path(spec.sequence) if Path(spec.sequence).is_absolute() else base / spec.sequence
-        seq, reason = find_sequence(root)
-        return ([(p.stem, p) for p in seq.frames], None) if seq else ([], reason)
-    if spec.frames is not None:
-        pattern = spec.frames if Path(spec.frames).is_absolute() else str(base / spec.frames)
-        files = sorted(Path(p) for p in glob.glob(pattern))
-        if not files:
-            return [], f"no frame files match {spec.frames}"
-        return [(p.stem, p) for p in files], None
-    src = spec.source
-    named = toolkit.resolve_dataset(src)
-    if named is not None:
-        if not Path(named).exists():
-            from harness.io.datasets import missing_reason
-
-            return [], missing_reason(src)
-        return [("", Path(named))], None
-    path = Path(src) if Path(src).is_absolute() else base / src
-    if not path.exists():
-        return [], f"file not found: {src}"
-    return [("", path)], None
-
-
-def _looks_like_name(text: str) -> bool:
-    """A bare word (``luigii``), not a path (``scenes/x.ply``, ``x.ply``): a misspelt dataset name."""
-    return "/" not in text and "\\" not in text and not Path(text).suffix
-
-
-def _explain(spec: SceneSpec, reason: str, toolkit: Toolkit) -> str:
-    """Why a scene cannot be found, with the dataset names close to a misspelt one."""
-    if spec.source is not None and toolkit.resolve_dataset(spec.source) is None and _looks_like_name(spec.source):
-        from harness.core.suggest import unknown
-        from harness.io.datasets import SCENES
-
-        return f"{unknown('scene name', spec.source, list(SCENES))}, and no file of that name in the working folder"
-    return reason
-
-
-def check_sources(config: RunConfig, toolkit: Toolkit, base: Path, *, names_only: bool = False) -> list[Skip]:
-    """Resolve every scene of ``config`` before any work: the optional ones whose files are absent
-    as skips; any other that cannot be found is an InputError naming each such scene (one line).
-    ``names_only`` (``harness plan``, which estimates absent data): only misspelt names fail."""
-    from harness.core.errors import InputError
-
-    skips, problems = [], []
-    for i, spec in enumerate(config.scenes):
-        _, reason = resolve_paths(spec, toolkit, base)
-        reason = reason or cameras_missing(spec, base)
-        if reason is None:
-            continue
-        if spec.optional:
-            skips.append(Skip(spec.name, "", "*", "*", reason))
-            continue
-        explained = _explain(spec, reason, toolkit)
-        if not names_only or explained != reason:
-            problems.append(f"scenes[{i}] {spec.name!r}: {explained}")
-    if problems:
-        raise InputError(config.source_path or "config", "; ".join(problems)
-                         + " (mark a scene that may be absent `optional: true` to skip it instead)")
-    return skips
-
-
-def cameras_missing(spec: SceneSpec, base: Path) -> str | None:
-    if spec.cameras is None:
-        return None
-    p = Path(spec.cameras.path)
-    return None if (p if p.is_absolute() else base / p).exists() else f"cameras not found: {spec.cameras.path}"
 
 
 class _LazyScene:
@@ -249,17 +163,21 @@ def _scene_items(spec, frames, config, cache, toolkit, versions, base, on_note=N
         scene = _LazyScene(toolkit, str(path), spec.lod)
         key = cache.key("load", scene=digest, code=versions.reader)
         info = cache.get_json("load", key, check=load_check())
-        if info is None or "ply_row" not in info:
+        if info is None or "blur" not in info:  # (entries of older code lack it)
             from harness.io.plysize import ply_size_model
 
             s = scene()
             size = ply_size_model(s)
-            info = {"n_splats": len(s), "sh_degree": int(s.sh_degree), "ply_base": size.base, "ply_row": size.row}
+            info = {"n_splats": len(s), "sh_degree": int(s.sh_degree), "ply_base": size.base, "ply_row": size.row,
+                    "largest_coordinate": largest_coordinate(s), "blur": blur(s)}
             cache.put_json("load", key, info)
         if not info["n_splats"]:  # an error of this scene (exit 1), not of the run
             from harness.core.errors import InputError
 
             raise InputError(path, "holds no splats: there is nothing to prune or render")
+        if info["largest_coordinate"] > COORD_MAX or info["blur"] > MAX_BLUR:  # beyond what the renders hold: an
+            # error of this scene (harness.core.extent)
+            check_extent(scene(), path)
         if views is None:  # the first frame's views serve the whole sequence
             views = scene_views(spec, scene, path, config.protocol, cache, toolkit, versions, digest, base)
             held = protocol_views(spec, scene, views, config, cache, toolkit, versions, digest, base, on_note)

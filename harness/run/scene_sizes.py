@@ -190,7 +190,7 @@ def _assumed(spec, config, assume: Assumptions, dataset, reason: str) -> SceneIn
 
 def scene_info(spec: SceneSpec, config: RunConfig, assume: Assumptions, toolkit=None, base: Path | None = None):
     """A scene as the estimate sees it: read (file headers, camera files) when present, else assumed."""
-    from harness.run.plan import cameras_missing, resolve_paths
+    from harness.run.sources import cameras_missing, resolve_paths
     from harness.run.toolkit import Toolkit
 
     toolkit, base = toolkit or Toolkit(), Path(base or ".")

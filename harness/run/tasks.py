@@ -214,6 +214,7 @@ def run_view(task: ViewTask, progress=None, scene=None, ref=None, keep_ref: bool
         alpha = om or task.photo is not None  # a photo's OM metrics: the reference's occupancy
         renders = ViewRenders(_renderer(task.toolkit, task.renderer, task.device), scene, cam, task.background, alpha)
         ref_img, ref_alpha = _reference(task, cache, renders, cam, ref, alpha and measure)
+        _refuse_empty(ref_img, task.background, cam.name, measure)
         if task.ref_png:
             put_png(cache, task.ref_key, ref_img)
         if keep_ref:
@@ -235,6 +236,14 @@ def run_view(task: ViewTask, progress=None, scene=None, ref=None, keep_ref: bool
         out["errors"].append((None, f"{type(err).__name__}: {err}"))
         out["trace"] = traceback.format_exc(limit=6)
     return out
+
+
+def _refuse_empty(ref_img: np.ndarray, background, view: str, measure: bool) -> None:
+    """ValueError when a view to be measured shows no splat: its identical empty renders would read
+    as a perfect score (PSNR +inf, SSIM 1)."""
+    if measure and np.array_equal(ref_img, np.broadcast_to(np.asarray(background, np.float32), ref_img.shape)):
+        raise ValueError(f"view {view!r} shows no splat (its unpruned render is all background): there is "
+                         "nothing to measure, and its identical empty renders would read as a perfect score")
 
 
 def _reference(task: ViewTask, cache: StageCache, renders: ViewRenders, cam: Camera, given, want_alpha: bool):

@@ -60,6 +60,10 @@ def load_check():
             v = rec.get(k)
             if v is not None and not (isinstance(v, int) and not isinstance(v, bool) and v > 0):
                 return f"{k} {v!r} is not a byte count"
+        for k in ("largest_coordinate", "blur"):  # harness.core.extent
+            v = rec.get(k)
+            if v is not None and not (isinstance(v, (int, float)) and not isinstance(v, bool) and v >= 0):
+                return f"{k} {v!r} is not a distance or share"
         return None
     return check
 

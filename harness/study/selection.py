@@ -11,7 +11,6 @@ out (``eligible``) are never run.
 
 from __future__ import annotations
 
-import json
 import subprocess
 import sys
 import time
@@ -22,6 +21,7 @@ from typing import Any, Callable, Mapping
 import pandas as pd
 import yaml
 
+from harness.core import jsonout
 from harness.core.paths import REPO_ROOT as REPO
 from harness.io.files import atomic_write_text
 from harness.report.results import read_results
@@ -106,7 +106,7 @@ def write_selection(out: Path, stem: str, config: Path, space: rs.SearchSpace, s
     md = rs.selection_markdown(space, steps, incumbents) + appendix
     chosen = rs.selected_values(space, incumbents)
     atomic_write_text(out / f"{stem}.md", md)
-    atomic_write_text(out / f"{stem}.json", json.dumps({
+    atomic_write_text(out / f"{stem}.json", jsonout.dumps({
         "config": str(config), "interval": space.interval,
         "selected": chosen if len(chosen) > 1 else chosen[space.method],
         "steps": [{"axis": s.axis, "method": s.method, "incumbent": s.current, "candidate": s.candidate,

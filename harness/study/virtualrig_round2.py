@@ -27,6 +27,7 @@ from pathlib import Path
 import yaml
 
 from harness.benchmarks._common import out_dir, tracked_note
+from harness.core import jsonout
 from harness.core.paths import REPO_ROOT as REPO
 from harness.io.files import atomic_write_text
 from harness.report.results import read_results
@@ -56,10 +57,10 @@ def select(args, out_sub: str) -> int:
                                         cache=args.cache)
     md = write_selection(out, "selection2", config, space, steps, chosen, times)
     values = rs.selected_values(space, chosen)["virtual-rig"]
-    atomic_write_text(out / "selected2.json", json.dumps({"start": dict(space.start), "selected": values},
+    atomic_write_text(out / "selected2.json", jsonout.dumps({"start": dict(space.start), "selected": values},
                                                          indent=2) + "\n")
     print(md)
-    print("selected:", json.dumps(values))
+    print("selected:", jsonout.dumps(values))
     print(f"wrote {out / 'selection2.md'}, .json and selected2.json{tracked_note(out)}")
     return 0
 
@@ -119,7 +120,7 @@ def confirm(args, out_sub: str) -> int:
     adopted = {k: (start[k] if k in revoked else v) for k, v in selected.items()}
     md = _report(raw, df, scenes, lines, start, selected, adopted, revoked)
     atomic_write_text(out / "confirmation2.md", md)
-    atomic_write_text(out / "adopted2.json", json.dumps({"start": start, "selected": selected, "adopted": adopted,
+    atomic_write_text(out / "adopted2.json", jsonout.dumps({"start": start, "selected": selected, "adopted": adopted,
                                                           "revoked": sorted(revoked)}, indent=2) + "\n")
     print(md)
     print(f"wrote {out / 'confirmation2.md'} and adopted2.json{tracked_note(out)}")
@@ -133,12 +134,12 @@ def _report(raw, df, scenes, lines, start, selected, adopted, revoked) -> str:
     md = [f"`{raw['name']}`: confirmation of the round-two selection (rule: ctc_configs/study/virtualrig2.yaml) "
           f"on scenes no choice was made on, {side} px, PSNR. D = mean paired per-view PSNR difference (dB) "
           "[95 % t interval] (views used/excluded).", "",
-          f"Start: `{json.dumps(start)}`; selected: `{json.dumps(selected)}`.", "",
+          f"Start: `{jsonout.dumps(start)}`; selected: `{jsonout.dumps(selected)}`.", "",
           f"## Adoption: non-inferiority of selected − start at {RATIO:.0%}, shifted and independent views pooled "
           f"(adopted unless the interval's lower bound is at or below −{MARGIN_DB:g} dB on a scene the value "
           "changes)", "", "| scene | selected − start [CI] (n/x) | values that change its cameras | verdict |",
           "|---|---|---|---|", *lines, "",
-          f"**Adopted**: `{json.dumps(adopted)}`" + (f" (revoked: {', '.join(sorted(revoked))})" if revoked else
+          f"**Adopted**: `{jsonout.dumps(adopted)}`" + (f" (revoked: {', '.join(sorted(revoked))})" if revoked else
                                                      " (every selected value)"), ""]
     ratios = sorted(set(float(r) for r in df["ratio"].dropna()))
     for proto in dict.fromkeys(df["protocol"].dropna()):
@@ -174,7 +175,7 @@ def rho(args, out_sub: str) -> int:
     md += [f"| {r['scene']} | {r['splats']:,} | {r['rho']:+.3f} | {'met' if r['met'] else 'not met'} |" for r in rows]
     md += ["", f"Every scene: {'met' if all(r['met'] for r in rows) else 'not met'}."]
     atomic_write_text(out / "rho.md", "\n".join(md) + "\n")
-    atomic_write_text(out / "rho.json", json.dumps(rows, indent=2) + "\n")
+    atomic_write_text(out / "rho.json", jsonout.dumps(rows, indent=2) + "\n")
     print("\n".join(md))
     print(f"wrote {out / 'rho.md'} and .json{tracked_note(out)}")
     return 0

@@ -148,7 +148,9 @@ def fit_distance(target, direction, points, *, up, width, height, fov_deg, fill)
     """Smallest distance putting the content points inside the central ``fill`` of the frame
     (99th percentile of the per-point bounds, module docstring)."""
     target = np.asarray(target, np.float64)
-    probe = look_from(target, direction, 1.0, up=up, width=width, height=height, fov_deg=fov_deg)
+    # the rotation alone matters, and it does not depend on where the camera stands: placed at the
+    # origin, the probe's direction is exact at any scale (at target + 1·u a target at 1e17 swallows u)
+    probe = look_from(np.zeros(3), direction, 1.0, up=up, width=width, height=height, fov_deg=fov_deg)
     q = (points - target) @ probe.rotation.T
     need = np.maximum.reduce([
         probe.fx * np.abs(q[:, 0]) / (fill * width / 2.0) - q[:, 2],

@@ -20,10 +20,13 @@ Outcomes:
   this machine (``mount --bind`` without the right to mount).
 
 Issue 15's families are below; issue 24's (aliases of inputs, cache locations, bounded reads,
-limits, one-line failures, named scenes, escaping) are in :mod:`tests.stress.cases_issue24`.
+limits, one-line failures, named scenes, escaping) are in :mod:`tests.stress.cases_issue24`; bounded
+memory (M) in :mod:`tests.stress.cases_memory`, plugins (P) in :mod:`tests.stress.cases_plugins`,
+finite numbers and the Python API (F, Y) in :mod:`tests.stress.cases_numbers`, the output folder,
+names and checks before the first write (O, U, W) in :mod:`tests.stress.cases_outputs`.
 
 Each case says which outcome it must have (``want``); :func:`run_case` is also what
-``tests/test_safety_cases.py`` runs, one test per case.
+``tests/stress/test_stress_cases.py`` runs, one test per case.
 """
 
 from __future__ import annotations
@@ -963,7 +966,7 @@ def main(argv=None) -> int:
 
 
 # the families of issue 24, family M and the plugins' (they register into CASES above)
-from tests.stress import cases_issue24, cases_memory, cases_plugins  # noqa: E402,F401
+from tests.stress import cases_issue24, cases_memory, cases_numbers, cases_outputs, cases_plugins  # noqa: E402,F401,I001
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -210,6 +210,25 @@ def _methods(d, default_ratios, scene_names, src, protocol_names=()) -> list[Met
     return methods
 
 
+def _check_names(scenes, methods, src) -> None:
+    """Every name the run prints or turns into a file name, before any work (:mod:`harness.core.names`:
+    length, control characters, two names that would share a file on a case-insensitive file system)."""
+    from harness.core.names import collisions, name_problem
+
+    named = [(f"scenes[{i}].{k}", getattr(s, k)) for i, s in enumerate(scenes) for k in ("name", "label")]
+    named += [(f"methods: {v.method} variant", v.variant) for v in methods]
+    for where, name in named:
+        if (why := name_problem(name)) is not None:
+            raise InputError(src, f"{where}: {why}")
+    groups = [[(f"scenes[{i}].name {s.name!r}", s.name) for i, s in enumerate(scenes)]]
+    groups += [[(f"{v.method} variant {v.variant!r}", v.variant) for v in methods if v.method == m]
+               for m in dict.fromkeys(v.method for v in methods)]
+    for group in groups:
+        if (clash := collisions(group)) is not None:
+            raise InputError(src, f"{clash[0]} and {clash[1]} differ only in case: on a case-insensitive file "
+                                  "system their files would be one")
+
+
 def parse_config(data: Any, source: str = "<config>") -> RunConfig:
     """Validate a parsed YAML document (its ``extends`` resolved) and expand method sweeps."""
     from harness.run.config.files import resolve
@@ -223,6 +242,7 @@ def parse_config(data: Any, source: str = "<config>") -> RunConfig:
     default_ratios = merge_ratios(top["ratios"], top["keep"])
     protocols = _protocols(d.get("protocols", ["rig"]), src)
     methods = _methods(d, default_ratios, {s.name for s in scenes}, src, [p.name for p in protocols])
+    _check_names(scenes, methods, src)
     name = top["name"] if top["name"] is not None else _str(Path(source).stem, "name", src)
     return RunConfig(
         name=name, output=top["output"] or f"runs/{name}", workers=top["workers"], protocol=protocol,

@@ -174,7 +174,7 @@ class SceneSpec:
     height: int | None = config_param(None, ge=1, le=MAX_SIDE, changes=("sequence_views",),
                                       doc="sequence: image height for header cameras without one")
     #: absent files are skipped with a message (MPEG content not everyone has); otherwise a scene
-    #: that cannot be found is an error before any work (:func:`harness.run.plan.check_sources`)
+    #: that cannot be found is an error before any work (:func:`harness.run.sources.check_sources`)
     optional: bool = config_param(False, changes=(), doc="skip the scene when its files are absent")
     #: the scene's capture (real cameras, split, photos; harness.io.capture) for the `real` protocol;
     #: None: a named scene's own (SCENE_CAPTURES), if any; False: none (`capture: false`)

@@ -26,7 +26,6 @@ homogeneity on real scenes (:mod:`harness.study.directions`) and writes
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,6 +33,7 @@ from pathlib import Path
 import yaml
 
 from harness.benchmarks._common import out_dir, tracked_note
+from harness.core import jsonout
 from harness.study import reading_search as rs
 from harness.study.selection import (
     add_stage_arguments,
@@ -103,7 +103,7 @@ def select(args) -> int:
     steps, incumbents, times = run_selection(config, raw, space, args.workers)
     md = write_selection(out, f"selection{rnd.suffix}", config, space, steps, incumbents, times)
     print(md)
-    print("selected:", json.dumps(rs.selected_values(space, incumbents)))
+    print("selected:", jsonout.dumps(rs.selected_values(space, incumbents)))
     print(f"wrote {out / f'selection{rnd.suffix}.md'} and .json{tracked_note(out)}")
     return 0
 
@@ -143,7 +143,7 @@ def directions(args) -> int:
         found = dirs.directions(load_scene(name))
         rows += [{"scene": name, **d.__dict__} for d in found]
         print(f"{name}: {time.perf_counter() - t0:.1f} s", flush=True)
-    (out / "directions.json").write_text(json.dumps(rows, indent=2) + "\n")
+    (out / "directions.json").write_text(jsonout.dumps(rows, indent=2) + "\n")
     md = directions_markdown(rows, scenes)
     (out / "directions.md").write_text(md)
     print(md)

@@ -19,13 +19,13 @@ paired differences against LightGS, opacity and the significance alone. Both wri
 
 from __future__ import annotations
 
-import json
 from dataclasses import replace
 from pathlib import Path
 
 import yaml
 
 from harness.benchmarks._common import out_dir, tracked_note
+from harness.core import jsonout
 from harness.io.files import atomic_write_text
 from harness.study import reading_search as rs
 from harness.study.selection import (
@@ -67,9 +67,9 @@ def select(args) -> int:
     appendix = "\n## betadesc-vr (on the selected rig)\n\n" + rs.selection_markdown(beta_space, b_steps, beta)
     md = write_selection(out, "selection", config, rig_space, steps, rig, {**times, **b_times}, appendix)
     summary = {**rs.selected_values(rig_space, rig), **rs.selected_values(beta_space, beta)}
-    atomic_write_text(out / "selected.json", json.dumps(summary, indent=2) + "\n")
+    atomic_write_text(out / "selected.json", jsonout.dumps(summary, indent=2) + "\n")
     print(md)
-    print("selected:", json.dumps(summary))
+    print("selected:", jsonout.dumps(summary))
     print(f"wrote {out / 'selection.md'}, .json and selected.json{tracked_note(out)}")
     return 0
 
