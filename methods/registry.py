@@ -8,6 +8,9 @@ A pruner is a function ``score(scene, ctx) -> float64 (N,)``, higher = keep. It 
   the resolved instance as ``ctx.params``.
 * ``needs``: what the context must hold (``"cameras"``: training views); a run skips a pruner whose
   needs a scene cannot meet and records why.
+* ``uses_device``: it computes with torch on ``ctx.device``; a run on a GPU sends its scoring to the
+  worker(s) that hold the device, and runs the others on the CPU workers (a pruner that uses the
+  device without saying so still works, on a CPU worker that then opens the device itself).
 * ``label`` (table/plot name), ``group`` (one of :data:`GROUPS`, the comparison table's column
   groups) and, for the paper's method and its ablations, ``ablation``: its cell of the
   descriptors × Beta grid (Table 2).
@@ -87,6 +90,8 @@ class PrunerSpec:
     #: a note for tables when these parameters make the pruner's numbers a bound of what it can do
     #: (e.g. ConfSplat trained for fewer iterations than its own default): "lower bound (100 iterations)"
     budget_note: Callable[[Params], str | None] = field(default=lambda p: None)
+    #: it computes with torch on ``ctx.device`` (module docstring)
+    uses_device: bool = False
 
     def parse_params(self, values: Mapping[str, Any] | Params | None = None) -> Params:
         """The resolved parameters (``ParamError`` naming the key for a bad one)."""
@@ -130,7 +135,7 @@ PRUNERS: Registry[PrunerSpec] = Registry("pruner", modules=BUILTIN_MODULES, grou
 def register_pruner(name: str, *, params: type[Params] = NoParams, needs=(), label: str | None = None,
                     group: str = "other", ablation: Ablation | None = None, summary: str | None = None,
                     uses_cameras: Callable[[Params], bool] | None = None,
-                    budget_note: Callable[[Params], str | None] | None = None):
+                    budget_note: Callable[[Params], str | None] | None = None, uses_device: bool = False):
     """Decorator registering ``fn(scene, ctx) -> scores`` under ``name`` with its metadata.
 
     ``summary`` defaults to the first line of the function's docstring, ``label`` to ``name``.
@@ -148,7 +153,7 @@ def register_pruner(name: str, *, params: type[Params] = NoParams, needs=(), lab
         spec = PrunerSpec(name=name, fn=fn, params=params, needs=frozenset(needs), label=label or name,
                           group=group, ablation=ablation, summary=summary or (doc[0] if doc else name),
                           uses_cameras=uses_cameras or (lambda p: False),
-                          budget_note=budget_note or (lambda p: None))
+                          budget_note=budget_note or (lambda p: None), uses_device=bool(uses_device))
         PRUNERS.add(name, spec, same=lambda old, new: old.fn.__qualname__ == new.fn.__qualname__
                     and old.fn.__module__ == new.fn.__module__)
         return fn

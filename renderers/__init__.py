@@ -11,7 +11,9 @@ A renderer declares what it can do beyond ``render`` in its class attribute ``ca
 (:func:`capabilities`): :data:`ALPHA` — ``render_with_alpha(scene, camera, background) -> (image,
 alpha)`` in one pass; :data:`PACK` — ``pack(scene, camera) -> view`` and ``draw(view or
 view.kept(mask), background, with_alpha)``: a view projected once and any subset of its splats drawn
-from it, bit for bit the render of that subset. Callers ask :func:`capabilities`, never ``hasattr``.
+from it, bit for bit the render of that subset; :data:`BATCH` — ``draw_many(views, background,
+with_alpha)``: several packed views drawn before the first is read back (one wait for the device per
+batch), each bit for bit its ``draw``. Callers ask :func:`capabilities`, never ``hasattr``.
 
 Renderers are registered lazily (``"module:Class"``: nothing heavy is imported until one is made);
 third parties add theirs through the ``harness.renderers`` entry-point group, whose modules call
@@ -44,6 +46,8 @@ class RendererSpec:
 ALPHA = "alpha"
 #: ``pack`` / ``draw``: a view projected once, its subsets drawn from it (module docstring)
 PACK = "pack"
+#: ``draw_many``: packed views drawn together, read back after the last draw (module docstring)
+BATCH = "batch"
 
 
 def capabilities(renderer) -> frozenset[str]:

@@ -80,96 +80,10 @@ import numpy as np
 
 from renderers.arrays import ops_for
 
+from renderers.gl_shaders import FRAGMENT_SHADER, VERTEX_SHADER
+
 log = logging.getLogger(__name__)
 
-_VERTEX_SHADER = """
-#version 330
-in vec2 in_corner;          // per vertex: (0, 2), (-sqrt3, -1), (sqrt3, -1)
-in vec4 in_mean_o_k;        // per instance: mean.xy, opacity, K = 2 ln(255 o)
-in vec4 in_conic_det;       // a, b, c, ac - b^2 (float64 on the CPU: no cancellation)
-in vec4 in_color_r;         // r, g, b, radius
-uniform vec2 u_origin;      // tile origin in pixels
-uniform vec2 u_size;        // tile size in pixels
-uniform vec2 u_image;       // image size in pixels
-uniform bool u_tiles;       // footprint "tile" (graphdeco getRect, 16-px tiles) instead of "box"
-flat out vec2 v_mean;
-flat out vec3 v_conic;
-flat out vec4 v_color_o;
-flat out vec4 v_bounds;     // tile footprint: pixel indices [x0, x1) x [y0, y1)
-
-void main() {
-    vec2 mean = in_mean_o_k.xy;
-    float k = in_mean_o_k.w;
-    float a = in_conic_det.x, b = in_conic_det.y, c = in_conic_det.z, det = in_conic_det.w;
-    float r = in_color_r.w;
-    const float grow = 1.001;
-    const float pad = 0.01;
-    // Semi-axes h1, h2 along the eigenvectors e1, e2 of the ellipse d'Qd <= K (mu2 = det/mu1: no cancellation).
-    float half_tr = 0.5 * (a + c);
-    float mu1 = half_tr + sqrt(max(half_tr * half_tr - det, 0.0));
-    float mu2 = det / mu1;
-    vec2 e1 = abs(b) > 1e-12 * mu1 ? normalize(vec2(b, mu1 - a)) : (a >= c ? vec2(1.0, 0.0) : vec2(0.0, 1.0));
-    vec2 e2 = vec2(-e1.y, e1.x);
-    float h1 = sqrt(k / mu1) * grow + pad;
-    float h2 = sqrt(k / mu2) * grow + pad;
-    // graphdeco getRect: tiles [floor((m - r)/16), floor((m + r + 15)/16)) clamped to the grid.
-    vec2 grid = ceil(u_image / 16.0);
-    vec2 t0 = clamp(floor((mean - r) / 16.0), vec2(0.0), grid);
-    vec2 t1 = clamp(floor((mean + r + 15.0) / 16.0), vec2(0.0), grid);
-    v_bounds = vec4(t0, t1) * 16.0;
-    // Axis-aligned box of the same ellipse, clipped to the footprint and to the image.
-    vec2 ext = sqrt(k * vec2(c, a) / det) * grow + pad;
-    vec2 lo = mean - (u_tiles ? ext : min(ext, vec2(r + pad)));
-    vec2 hi = mean + (u_tiles ? ext : min(ext, vec2(r + pad)));
-    if (u_tiles) {
-        lo = max(lo, v_bounds.xy - 0.5);
-        hi = min(hi, v_bounds.zw - 0.5);
-    }
-    lo = max(lo, vec2(-0.5));
-    hi = min(hi, u_image - 0.5);
-    vec2 box = max(hi - lo, vec2(0.0));
-    // One triangle per splat: the one circumscribing the unit circle, (0, 2), (±sqrt3, -1), mapped onto
-    // the ellipse (area 3 sqrt3 h1 h2), or the right triangle lo, lo + (2w, 0), lo + (0, 2h) around the
-    // clipped box (area 2 w h), whichever is smaller.
-    vec2 pos;
-    if (5.196153 * h1 * h2 < 2.0 * box.x * box.y) {
-        pos = mean + in_corner.x * h1 * e1 + in_corner.y * h2 * e2;
-    } else {
-        vec2 t = vec2(in_corner.x > 0.5 ? 2.01 : 0.0, in_corner.y > 1.5 ? 2.01 : 0.0);
-        pos = lo + t * box;
-    }
-    // 3DGS frame -> window (pixel centre i at i + 0.5) -> tile NDC.
-    gl_Position = vec4((pos + 0.5 - u_origin) / u_size * 2.0 - 1.0, 0.0, 1.0);
-    v_mean = mean;
-    v_conic = in_conic_det.xyz;
-    v_color_o = vec4(in_color_r.rgb, in_mean_o_k.z);
-    if (!u_tiles) v_bounds = vec4(r);
-}
-"""
-
-_FRAGMENT_SHADER = """
-#version 330
-flat in vec2 v_mean;
-flat in vec3 v_conic;
-flat in vec4 v_color_o;
-flat in vec4 v_bounds;
-uniform vec2 u_origin;
-uniform bool u_tiles;
-out vec4 f_color;
-
-void main() {
-    vec2 pix = gl_FragCoord.xy - 0.5 + u_origin;
-    vec2 d = pix - v_mean;
-    if (u_tiles) {
-        if (any(lessThan(pix, v_bounds.xy)) || any(greaterThanEqual(pix, v_bounds.zw))) discard;
-    } else if (any(greaterThan(abs(d), v_bounds.xy))) discard;   // v_bounds = radius here
-    float power = -0.5 * (v_conic.x * d.x * d.x + v_conic.z * d.y * d.y) - v_conic.y * d.x * d.y;
-    if (power > 0.0) discard;
-    float alpha = min(0.99, v_color_o.a * exp(power));
-    if (alpha < 1.0 / 255.0) discard;
-    f_color = vec4(v_color_o.rgb * alpha, alpha);
-}
-"""
 
 
 def _load_triton_first() -> None:
@@ -266,7 +180,7 @@ class GLRenderer:
     """
 
     #: what it can do beyond ``render`` (:func:`renderers.capabilities`)
-    capabilities = frozenset({"alpha", "pack"})
+    capabilities = frozenset({"alpha", "pack", "batch"})
 
     name = "gl"
 
@@ -278,11 +192,11 @@ class GLRenderer:
         self.preload_triton = True
         self._max_tile_arg = max_tile
         self.ctx = None
-        self._fbo = None
-        self._fbo_rb = None
-        self._fbo_size = None
-        self._instances = None
-        self._vao = None
+        #: per slot (a view of a batch in flight): its framebuffer and renderbuffer, all of one size
+        self._targets: list[tuple] = []
+        self._target_size = None
+        #: per slot: its instance buffer and vertex array
+        self._slots: list[tuple] = []
 
     # ------------------------------------------------------------------ context
     def _ensure_context(self) -> None:
@@ -299,7 +213,7 @@ class GLRenderer:
         self.ctx = ctx
         self._moderngl = moderngl
         with ctx:
-            self._prog = ctx.program(vertex_shader=_VERTEX_SHADER, fragment_shader=_FRAGMENT_SHADER)
+            self._prog = ctx.program(vertex_shader=VERTEX_SHADER, fragment_shader=FRAGMENT_SHADER)
             corners = np.array([0.0, 2.0, -math.sqrt(3.0), -1.0, math.sqrt(3.0), -1.0], dtype=np.float32)
             self._corners = ctx.buffer(corners.tobytes())
             vx, rb = ctx.info["GL_MAX_VIEWPORT_DIMS"], ctx.info["GL_MAX_RENDERBUFFER_SIZE"]
@@ -307,32 +221,42 @@ class GLRenderer:
         if self._max_tile_arg is not None:
             self.max_tile = int(min(self.max_tile, self._max_tile_arg))
 
-    def _framebuffer(self, width: int, height: int):
-        if self._fbo_size != (width, height):
-            if self._fbo is not None:
-                self._fbo.release()
-                self._fbo_rb.release()
-            self._fbo_rb = self.ctx.renderbuffer((width, height), components=4, dtype="f4")
-            self._fbo = self.ctx.framebuffer(color_attachments=[self._fbo_rb])
-            self._fbo_size = (width, height)
-        return self._fbo
+    def _framebuffer(self, width: int, height: int, slot: int = 0):
+        """Slot ``slot``'s RGBA32F framebuffer of ``width × height`` (all slots are resized together)."""
+        if self._target_size != (width, height):
+            self._release(self._targets)
+            self._targets, self._target_size = [], (width, height)
+        while len(self._targets) <= slot:
+            rb = self.ctx.renderbuffer((width, height), components=4, dtype="f4")
+            self._targets.append((self.ctx.framebuffer(color_attachments=[rb]), rb))
+        return self._targets[slot][0]
 
-    def _upload(self, records: np.ndarray):
+    def _upload(self, records: np.ndarray, slot: int = 0):
+        """``records`` into slot ``slot``'s instance buffer (grown when too small); its vertex array."""
         data = memoryview(np.ascontiguousarray(records)).cast("B")
-        if self._instances is None or self._instances.size < len(data):
-            if self._vao is not None:
-                self._vao.release()
-                self._instances.release()
-            self._instances = self.ctx.buffer(reserve=max(len(data), 1 << 16))
-            self._vao = self.ctx.vertex_array(
+        while len(self._slots) <= slot:
+            self._slots.append((None, None))
+        buf, vao = self._slots[slot]
+        if buf is None or buf.size < len(data):
+            self._release([(vao, buf)])
+            buf = self.ctx.buffer(reserve=max(len(data), 1 << 16))
+            vao = self.ctx.vertex_array(
                 self._prog,
                 [
                     (self._corners, "2f", "in_corner"),
-                    (self._instances, "4f 4f 4f/i", "in_mean_o_k", "in_conic_det", "in_color_r"),
+                    (buf, "4f 4f 4f/i", "in_mean_o_k", "in_conic_det", "in_color_r"),
                 ],
             )
-        self._instances.write(data)
-        return self._vao
+            self._slots[slot] = (buf, vao)
+        buf.write(data)
+        return vao
+
+    @staticmethod
+    def _release(pairs) -> None:
+        for pair in pairs:
+            for obj in pair:
+                if obj is not None:
+                    obj.release()
 
     # ------------------------------------------------------------------ rendering
     def render(self, scene, camera, background=(0.0, 0.0, 0.0)) -> np.ndarray:
@@ -380,32 +304,67 @@ class GLRenderer:
             image, alpha = self._draw(view.records, view.width, view.height, bg, with_alpha)
         return (image, alpha) if with_alpha else image
 
-    def _draw(self, records: np.ndarray, width: int, height: int, bg: np.ndarray, with_alpha: bool = False):
-        """Draw the records tile by tile; each tile's (Σ cᵢαᵢTᵢ, T) becomes ``C + T·bg`` (and 1 − T)."""
-        tile = min(self.max_tile, max(width, height))
-        fbo = self._framebuffer(min(tile, width), min(tile, height))
-        vao = self._upload(records) if len(records) else None
+    def draw_many(self, views: list[PackedView], background=(0.0, 0.0, 0.0), with_alpha: bool = False) -> list:
+        """:meth:`draw` of each view (bit for bit), every draw queued before the first read-back: the
+        device is waited for once per batch, not once per image (each view has its own instance
+        buffer and framebuffer, so no upload waits for an earlier draw). Views of different sizes, or
+        larger than one tile, are drawn one by one."""
+        sizes = {(v.width, v.height) for v in views}
+        self._ensure_context()
+        if len(views) <= 1 or len(sizes) > 1 or max(next(iter(sizes))) > self.max_tile:
+            return [self.draw(v, background, with_alpha) for v in views]
+        (width, height), bg = next(iter(sizes)), np.asarray(background, dtype=np.float32).reshape(3)
+        out = []
+        with self.ctx:
+            self._begin(width, height, 0, 0, width, height)
+            for i, v in enumerate(views):
+                self._draw_tile(self._framebuffer(width, height, i), self._upload(v.records, i) if len(v.records)
+                                else None, len(v.records), width, height)
+            for i in range(len(views)):
+                image, alpha = self._composed(self._targets[i][0], width, height, bg, with_alpha)
+                out.append((image, alpha) if with_alpha else image)
+        return out
+
+    def _begin(self, width: int, height: int, x0: int, y0: int, w: int, h: int) -> None:
+        """Blending (front to back: colour += T·cα, T ·= 1 − α) and the uniforms of an image's tile."""
         ctx, mgl, prog = self.ctx, self._moderngl, self._prog
         ctx.enable(mgl.BLEND)
         ctx.blend_func = mgl.DST_ALPHA, mgl.ONE, mgl.ZERO, mgl.ONE_MINUS_SRC_ALPHA
         ctx.blend_equation = mgl.FUNC_ADD
         prog["u_image"].value = (float(width), float(height))
         prog["u_tiles"].value = self.footprint == "tile"
+        prog["u_origin"].value = (float(x0), float(y0))
+        prog["u_size"].value = (float(w), float(h))
+
+    def _draw_tile(self, fbo, vao, count: int, w: int, h: int) -> None:
+        """Clear ``fbo`` to (0, 0, 0, T = 1) and draw ``count`` instances of ``vao`` into it."""
+        fbo.use()
+        fbo.viewport = (0, 0, w, h)
+        fbo.clear(0.0, 0.0, 0.0, 1.0, viewport=(0, 0, w, h))
+        if vao is not None:
+            vao.render(self._moderngl.TRIANGLES, vertices=3, instances=count)
+
+    @staticmethod
+    def _composed(fbo, w: int, h: int, bg: np.ndarray, with_alpha: bool):
+        """A tile's (Σ cᵢαᵢTᵢ, T) read back as ``C + T·bg`` (and 1 − T, or None)."""
+        rgbt = np.frombuffer(fbo.read(viewport=(0, 0, w, h), components=4, dtype="f4"), dtype=np.float32)
+        rgbt = rgbt.reshape(h, w, 4)
+        return rgbt[..., :3] + rgbt[..., 3:4] * bg, (np.float32(1.0) - rgbt[..., 3]) if with_alpha else None
+
+    def _draw(self, records: np.ndarray, width: int, height: int, bg: np.ndarray, with_alpha: bool = False):
+        """Draw the records tile by tile; each tile's (Σ cᵢαᵢTᵢ, T) becomes ``C + T·bg`` (and 1 − T)."""
+        tile = min(self.max_tile, max(width, height))
+        fbo = self._framebuffer(min(tile, width), min(tile, height))
+        vao = self._upload(records) if len(records) else None
         image = np.empty((height, width, 3), dtype=np.float32)
         alpha = np.empty((height, width), dtype=np.float32) if with_alpha else None
-        fbo.use()
         for x0, y0, w, h in tiles(width, height, tile):
-            fbo.viewport = (0, 0, w, h)
-            fbo.clear(0.0, 0.0, 0.0, 1.0, viewport=(0, 0, w, h))
-            if vao is not None:
-                prog["u_origin"].value = (float(x0), float(y0))
-                prog["u_size"].value = (float(w), float(h))
-                vao.render(mgl.TRIANGLES, vertices=3, instances=len(records))
-            raw = fbo.read(viewport=(0, 0, w, h), components=4, dtype="f4")
-            rgbt = np.frombuffer(raw, dtype=np.float32).reshape(h, w, 4)
-            image[y0 : y0 + h, x0 : x0 + w] = rgbt[..., :3] + rgbt[..., 3:4] * bg
+            self._begin(width, height, x0, y0, w, h)
+            self._draw_tile(fbo, vao, len(records), w, h)
+            img, a = self._composed(fbo, w, h, bg, with_alpha)
+            image[y0 : y0 + h, x0 : x0 + w] = img
             if with_alpha:
-                alpha[y0 : y0 + h, x0 : x0 + w] = np.float32(1.0) - rgbt[..., 3]
+                alpha[y0 : y0 + h, x0 : x0 + w] = a
         return image, alpha
 
     def close(self) -> None:
@@ -413,11 +372,9 @@ class GLRenderer:
         if self.ctx is None:
             return
         with self.ctx:
-            for obj in (self._vao, self._instances, self._fbo, self._fbo_rb, self._corners, self._prog):
-                if obj is not None:
-                    obj.release()
+            self._release([*self._slots, *self._targets, (self._corners, self._prog)])
         self.ctx.release()
-        self.ctx = self._fbo = self._fbo_rb = self._fbo_size = self._instances = self._vao = None
+        self.ctx, self._targets, self._target_size, self._slots = None, [], None, []
 
     def __enter__(self) -> Self:
         return self

@@ -2,7 +2,8 @@
 
 Importing this module registers the pruners ``fake-norm`` (camera-agnostic, score = −‖mean‖; its
 ``unused`` parameter does not change the scores, so two variants give identical keep masks),
-``fake-aware`` (needs cameras), ``fake-broken`` (always raises), and for the executor tests
+``fake-aware`` (needs cameras), ``fake-device`` (declares ``uses_device``: fake-norm's scores), ``fake-broken``
+(always raises), and for the executor tests
 ``fake-slow`` (fake-norm's scores after ``seconds`` of sleep) and ``fake-raise`` (raises); these two
 append ``<pid>`` to the file ``marker`` at every attempt, so a test in another process sees each
 attempt and which worker runs it. Call counters live in :data:`CALLS` (meaningful for in-process runs).
@@ -42,6 +43,13 @@ def fake_aware(scene, ctx):
     """Camera-aware stand-in: opacity."""
     CALLS["score:fake-aware"] += 1
     return opacities(scene).astype(np.float64)
+
+
+@register_pruner("fake-device", uses_device=True)
+def fake_device(scene, ctx):
+    """A pruner that computes on the run's device (here: fake-norm's scores, on any device)."""
+    CALLS["score:fake-device"] += 1
+    return -np.linalg.norm(scene.means.astype(np.float64), axis=1)
 
 
 @register_pruner("fake-broken")
@@ -131,6 +139,13 @@ class PointRenderer:
 
 def make_renderer(name: str, device: str):
     return PointRenderer()
+
+
+def cpu_metrics(names, device: str):
+    """The metric suite on the CPU whatever the run's device (a GPU run's routing, tested on the CPU)."""
+    from harness.run.toolkit import make_metrics
+
+    return make_metrics(names, "cpu")
 
 
 def make_rig(rig, scene, *, kind, dataset, n_train, n_test, longest_side, aspect, seed):

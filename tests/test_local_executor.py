@@ -36,3 +36,35 @@ def test_a_dead_worker_is_recorded_and_the_pool_replaced(tmp_path):
         after = ex.run([Stage("next", fakes.pid_task, [fakes.MarkerTask("", "x"), fakes.MarkerTask("", "y")])],
                        Bars())[0]
         assert len(after) == 2 and all("pid" in r for r in after)
+
+
+def _on_device(task) -> bool:
+    return task.label.startswith("dev")
+
+
+def test_device_tasks_run_in_the_one_device_worker_and_the_rest_on_the_cpu_workers(tmp_path):
+    tasks = [fakes.MarkerTask("", f"{'dev' if i % 3 == 0 else 'cpu'}{i}") for i in range(9)]
+    with LocalExecutor(2, fakes.toolkit(), threads=1, device="cuda", device_workers=1) as ex:
+        (res,) = ex.run([Stage("s", fakes.pid_task, tasks, on_device=_on_device)], Bars())
+        dev = [r for r in res if r["label"].startswith("dev")]
+        cpu = [r for r in res if r["label"].startswith("cpu")]
+        assert len(dev) == 3 and len(cpu) == 6
+        # the summary names the process that computed it, and the pools hold those processes
+        assert all(r["worker"] == f"device {r['pid']}" for r in dev) and len(_pids(dev)) == 1
+        assert all(r["worker"] == f"cpu {r['pid']}" for r in cpu)
+        assert _pids(dev) <= set(ex._pools["device"]._processes) and len(ex._pools["device"]._processes) == 1
+        assert _pids(cpu) <= set(ex._pools["cpu"]._processes) and not _pids(cpu) & _pids(dev)
+        assert ex.describe()["device_workers"] == 1 and ex.describe()["tasks"] == {"s": {"cpu": 6, "device": 3}}
+        # one task of a GPU run still goes to its worker (the driver never opens the device)
+        (one,) = ex.run([Stage("t", fakes.pid_task, tasks[:1], on_device=_on_device)], Bars())
+        assert one[0]["worker"].startswith("device ")
+    assert ex._pools == {}
+
+
+def test_on_the_cpu_there_is_one_pool_and_no_device_worker(tmp_path):
+    tasks = [fakes.MarkerTask("", f"dev{i}") for i in range(4)]
+    with LocalExecutor(2, fakes.toolkit(), threads=1, device="cpu", device_workers=3) as ex:
+        (res,) = ex.run([Stage("s", fakes.pid_task, tasks, on_device=_on_device)], Bars())
+        assert ex.device_workers == 0 and set(ex._pools) == {"cpu"}
+        assert all(r["worker"].startswith("cpu ") for r in res)
+        assert ex.describe() == {"name": "local", "workers": 2, "threads": 1}

@@ -125,12 +125,16 @@ def test_renderer_contract(spec, small_view):
         empty = r.render(scene.subset(np.zeros(len(scene), bool)), cam, background=(0.2, 0.4, 0.6))
         np.testing.assert_allclose(empty, np.broadcast_to([0.2, 0.4, 0.6], empty.shape), atol=1e-6)
         caps = capabilities(r)
-        assert caps <= {"alpha", "pack"}
+        assert caps <= {"alpha", "pack", "batch"} and ("batch" not in caps or "pack" in caps)
         if "alpha" in caps:
             image, alpha = r.render_with_alpha(scene, cam, (0.0, 0.0, 0.0))
             assert alpha.shape == (cam.height, cam.width) and 0 <= alpha.min() and alpha.max() <= 1 + 1e-6
         if "pack" in caps:
             np.testing.assert_array_equal(r.draw(r.pack(scene, cam), (0.2, 0.4, 0.6)), img)
+        if "batch" in caps:
+            packed = r.pack(scene, cam)
+            for got in r.draw_many([packed, packed.kept(np.zeros(len(scene), bool))], (0.2, 0.4, 0.6))[:1]:
+                np.testing.assert_array_equal(got, img)
     finally:
         r.close()
 

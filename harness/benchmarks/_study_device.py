@@ -128,7 +128,8 @@ def _study(here: Path, config: Path, folder: Path, workers: int | None, device: 
     return {"wall_s": wall, "cpu_s": cpu, "stage_wall_s": stages, "images": images,
             "images_per_s": images / wall if wall else None,
             "render_metrics_images_per_s": images / rm if rm else None,
-            "gpu_memory_mib": mem.used_mib, "gpu_memory_peak_mib": mem.peak, "workers": record.get("workers")}
+            "gpu_memory_mib": mem.used_mib, "gpu_memory_peak_mib": mem.peak, "workers": record.get("workers"),
+            "executor": record.get("executor")}
 
 
 def _images(out: Path) -> int:
@@ -203,6 +204,14 @@ def _fmt(v, unit="") -> str:
     return (f"{v:,.0f}" if abs(v) >= 100 else f"{v:.3g}") + unit
 
 
+def _device_workers(executor: dict) -> list[str]:
+    """The row of a GPU run's device workers and where each stage's tasks ran (none on the CPU)."""
+    if not executor.get("device_workers"):
+        return []
+    where = "; ".join(f"{stage} {t['cpu']} CPU / {t['device']} device" for stage, t in executor["tasks"].items())
+    return [f"| device workers (tasks per stage) | {executor['device_workers']} ({where}) |"]
+
+
 def _markdown(config: str, device: str, res: dict) -> str:
     s = res["study"]
     lines = [f"# harness bench study --device {device} ({config}, {res['device_name']})", "",
@@ -214,7 +223,7 @@ def _markdown(config: str, device: str, res: dict) -> str:
     lines += [f"| images measured | {s['images']:,} |", f"| images/s (whole run) | {_fmt(s['images_per_s'])} |",
               f"| images/s (render+metrics stage) | {_fmt(s['render_metrics_images_per_s'])} |",
               f"| GPU memory in use, peak over the run's start (MiB) | {_fmt(s['gpu_memory_mib'])} |",
-              f"| workers | {s['workers']} |"]
+              f"| workers | {s['workers']} |"] + _device_workers(s.get("executor") or {})
     goal = GOALS.get(Path(config).stem)
     if goal is not None:
         met = "met" if s["wall_s"] <= goal else "missed"

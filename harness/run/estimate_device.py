@@ -6,14 +6,19 @@ The counts are :func:`harness.run.estimate.estimate`'s, costed twice: with the G
 render and metric passes, seconds of the device) and with the CPU's (reading, selection and
 camera-free scoring stay on the CPU). The model, stage by stage as the runner runs them:
 
+as the local pool runs a GPU run: CPU tasks on the CPU workers, the device's tasks on its device
+workers (:mod:`harness.run.executors.device`), the two pools side by side:
+
 * ``load`` and ``prune`` in the driver, serial, CPU units;
-* ``score``: camera-free pruners on the cores (``core_s / (cores · e)``) and camera-aware ones on the
-  GPU, one after another there (their training renders at the GPU's render units × the CPU
-  benchmark's multiple ``k_m`` of a training render: an assumption, the note says so); the stage
-  takes the longer of the two;
-* ``render_ref`` and ``render+metrics`` on the GPU, serial (every image's render and metric passes
-  at the GPU's units, per view its reference features): the device does one thing at a time, so
-  the workers feeding it overlap only their CPU share, which this leaves out;
+* ``score``: camera-free pruners on the CPU workers, i.e. the cores (``core_s / (cores · e)``), and
+  camera-aware ones on the device worker(s), one after another on the GPU (their training renders at
+  the GPU's render units × the CPU benchmark's multiple ``k_m`` of a training render: an assumption,
+  the note says so); the pools run together, so the stage takes the longer of the two. A camera-free
+  pruner that computes on the device (the virtual rig) is costed at its CPU units on the cores: an
+  upper bound, the calibration has no unit for it;
+* ``render_ref`` and ``render+metrics`` on the device worker(s), serial on the GPU (every image's
+  render and metric passes at the GPU's units, per view its reference features): the device does one
+  thing at a time, so several device workers overlap only their CPU share, which this leaves out;
 
 plus :data:`harness.run.estimate.STARTUP_S` per pool stage.
 """

@@ -78,6 +78,12 @@ class RunResult:
     executor: dict = field(default_factory=dict)  # where the work ran (run.json)
 
 
+def _renders(task: ViewTask) -> bool:
+    """A view task renders (the GL renderer draws on the GPU) and measures with the metrics' torch
+    forms on the run's device: on a GPU run it belongs to a device worker."""
+    return True
+
+
 def _where(item: SceneItem) -> str:
     """``scene`` or ``scene/frame``: how messages and task names point at a (scene, frame)."""
     return f"{item.spec.name}/{item.frame}" if item.frame else item.spec.name
@@ -100,7 +106,8 @@ class Runner:
         self.base = Path(base_dir) if base_dir else Path.cwd()
         self.primary = config.protocols[0].name  # the run's first protocol: its views are the figures'
         #: where the work units run (the caller closes an executor it passed; ours is closed by run())
-        self.executor = executor or LocalExecutor(self.workers, self.toolkit)
+        self.executor = executor or LocalExecutor(self.workers, self.toolkit, device=config.protocol.device,
+                                                  device_workers=config.executor.device_workers)
         self._own_executor = executor is None
         self.threads = getattr(self.executor, "threads", max(1, (os.cpu_count() or 1) // self.workers))
         self.stage_s: dict[str, float] = {}
@@ -111,9 +118,9 @@ class Runner:
         """Run the stages' tasks on the executor (one pipeline when it can), advancing their bars."""
         return self.executor.run(stages, Bars(self.progress))
 
-    def _map(self, stage: str, fn, tasks: list, weight=lambda t: 1):
+    def _map(self, stage: str, fn, tasks: list, weight=lambda t: 1, on_device=lambda t: False):
         """Run ``fn`` over ``tasks`` on the executor, advancing the stage's bar."""
-        return self._stages(Stage(stage, fn, tasks, weight))[0]
+        return self._stages(Stage(stage, fn, tasks, weight, on_device))[0]
 
     def _timed(self, stage: str, fn, *args):
         t0 = time.perf_counter()
@@ -198,7 +205,7 @@ class Runner:
         if self.executor.parallel:  # camera-aware (rendering) and big scenes first, so the pool ends together
             cost = {k: items[ik[0][0]].n_splats * (10 if t.train else 1) for t, (k, ik) in zip(tasks, pending.items())}
             tasks.sort(key=lambda t: -cost[t.key])
-        for res in self._map("score", run_score, tasks):
+        for res in self._map("score", run_score, tasks, on_device=lambda t: get_pruner(t.method).uses_device):
             rec = self._stored_scores(res, items[pending[res["key"]][0][0]].n_splats, items, pending[res["key"]])
             for ik in pending[res["key"]]:
                 out[ik] = (res["key"], rec)
@@ -330,8 +337,9 @@ class Runner:
             chunks.sort(key=lambda ct: -ct[0])
         # one call: an executor that pipelines (Ray) starts a view's pruned sets once its reference is
         # rendered; the local one runs the two stages one after the other
-        done = self._stages(Stage("render_ref", run_view, refs),
-                            Stage("render+metrics", run_view, [t for _, t in chunks], weight=lambda t: len(t.masks)))
+        done = self._stages(Stage("render_ref", run_view, refs, on_device=_renders),
+                            Stage("render+metrics", run_view, [t for _, t in chunks], weight=lambda t: len(t.masks),
+                                  on_device=_renders))
         for res in done[0] + done[1]:
             for key, err in res["errors"]:
                 what = views.get(res["ref_key"], res["ref_key"][:12])
@@ -388,7 +396,8 @@ class Runner:
     def _split_views(self, chunks: list) -> list[tuple[float, ViewTask]]:
         """``(cost, task)`` per view, or per chunk of a view when there are too few views to fill the
         workers (:func:`view_parts`); the view's ``gt`` measurement goes with its first chunk."""
-        slots = BALANCE * self.workers if self.executor.parallel else 1
+        # on a GPU run the views go to the device workers only: fill those
+        slots = BALANCE * (getattr(self.executor, "device_workers", 0) or self.workers) if self.executor.parallel else 1
         n_views = len(chunks)
         return [(cost * max(len(part), 1) / max(len(jobs), 1), task(part, gt=gt if c == 0 else None))
                 for cost, jobs, task, gt in chunks

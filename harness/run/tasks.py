@@ -29,7 +29,7 @@ from harness.core.cameras import Camera
 from harness.core.params import Params
 from harness.run.cache import StageCache
 from harness.run.toolkit import Toolkit
-from renderers import ALPHA, PACK, capabilities
+from harness.run.view_renders import ViewRenders
 
 _STATE: dict = {}
 
@@ -192,56 +192,6 @@ class ViewTask:
         return {"ref_key": self.ref_key, "errors": [(None, message)], "done": 0}
 
 
-def render_alpha(renderer, scene, cam: Camera, background) -> tuple[np.ndarray, np.ndarray]:
-    """(image, alpha) of a render; a renderer without the :data:`renderers.ALPHA` capability renders
-    twice (black and white backgrounds: image(bg) = C + (1 − alpha)·bg)."""
-    if ALPHA in capabilities(renderer):
-        img, alpha = renderer.render_with_alpha(scene, cam, background=background)
-        return np.asarray(img, np.float32), np.asarray(alpha, np.float32)
-    img = np.asarray(renderer.render(scene, cam, background=background), np.float32)
-    black = np.asarray(renderer.render(scene, cam, background=(0.0, 0.0, 0.0)), np.float64)
-    white = np.asarray(renderer.render(scene, cam, background=(1.0, 1.0, 1.0)), np.float64)
-    return img, (1.0 - (white - black).mean(axis=2)).astype(np.float32)
-
-
-class ViewRenders:
-    """Renders of one view of a scene, whole or pruned: ``self(keep)`` -> ``(image, alpha or None)``
-    (``keep``: bool per splat, None = every splat; alpha when ``with_alpha``).
-
-    A renderer that packs views (the :data:`renderers.PACK` capability: the GL renderer) projects, sorts and packs the
-    scene once, on first use, and draws each pruned set as its splats filtered from that packing,
-    bit for bit the render of ``scene.subset(keep)`` (:meth:`renderers.gl.PackedView.kept`); others
-    render every subset. ``pack_s``: seconds the packing took (0 before :meth:`prepare`).
-    """
-
-    def __init__(self, renderer, scene, cam: Camera, background, with_alpha: bool):
-        self.renderer, self.scene, self.cam = renderer, scene, cam
-        self.background, self.with_alpha = background, with_alpha
-        self._packed = None
-        self.pack_s = 0.0
-
-    def prepare(self) -> None:
-        """Pack the view now (when the renderer packs views; once)."""
-        r = self.renderer
-        if self._packed is None and PACK in capabilities(r):
-            t0 = time.perf_counter()
-            self._packed = r.pack(self.scene, self.cam)
-            self.pack_s = time.perf_counter() - t0
-
-    def __call__(self, keep: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
-        r = self.renderer
-        self.prepare()
-        if self._packed is not None:
-            out = r.draw(self._packed if keep is None else self._packed.kept(keep), self.background,
-                         with_alpha=self.with_alpha)
-            img, alpha = out if self.with_alpha else (out, None)
-            return np.asarray(img, np.float32), None if alpha is None else np.asarray(alpha, np.float32)
-        scene = self.scene if keep is None else self.scene.subset(keep)
-        if self.with_alpha:
-            return render_alpha(r, scene, self.cam, self.background)
-        return np.asarray(r.render(scene, self.cam, background=self.background), dtype=np.float32), None
-
-
 def run_view(task: ViewTask, progress=None, scene=None, ref=None, keep_ref: bool = False) -> dict:
     """Reference render of one view (cached), then each not-yet-measured pruned set of it.
 
@@ -344,17 +294,32 @@ def _register_reference(task: ViewTask, cache: StageCache, cam: Camera, ref, ref
 
 def _render_sets(task: ViewTask, cache: StageCache, renders: ViewRenders, jobs: list[MaskJob]) -> tuple[list, dict]:
     """([(job, image, alpha, render seconds)] of the pruned sets rendered, {id(job): error} of the
-    others: a mask missing or failing verification, or a render that raised)."""
+    others: a mask missing or failing verification, or a render that raised). The sets are drawn
+    as one batch (:meth:`ViewRenders.many`: one read-back) with its seconds shared among them; a
+    batch that raises is drawn again set by set, so that a failing set fails alone."""
     from harness.run.verify import mask_check
 
-    done, failed = [], {}
+    keeps, failed = [], {}
     for job in jobs:
         try:
             packed = cache.get_array("masks", job.mask_key, count=False,
                                      check=mask_check(task.n_splats, digest=job.mask_key))
             if packed is None:
                 raise RuntimeError(f"mask {job.mask_key[:12]} is missing or failed verification")
-            keep = np.unpackbits(packed, count=task.n_splats).astype(bool)
+            keeps.append((job, np.unpackbits(packed, count=task.n_splats).astype(bool)))
+        except Exception as err:
+            failed[id(job)] = f"{type(err).__name__}: {err}"
+    if len(keeps) > 1:
+        try:
+            t0 = time.perf_counter()
+            outs = renders.many([keep for _, keep in keeps])
+            each = (time.perf_counter() - t0) / len(keeps)
+            return [(job, img, alpha, each) for (job, _), (img, alpha) in zip(keeps, outs)], failed
+        except Exception:  # find which set fails: one by one below
+            pass
+    done = []
+    for job, keep in keeps:
+        try:
             t0 = time.perf_counter()
             img, img_alpha = renders(keep)
             done.append((job, img, img_alpha, time.perf_counter() - t0))

@@ -79,7 +79,8 @@ def normalise(significance: np.ndarray, how: str) -> np.ndarray:
     raise ValueError(f"unknown vr_norm {how!r}; known: rank, log-minmax")
 
 
-@register_pruner("betadesc-vr", params=BetaDescVRParams, label="BetaDesc + virtual rig", group="camera-free")
+@register_pruner("betadesc-vr", params=BetaDescVRParams, label="BetaDesc + virtual rig", group="camera-free",
+                 uses_device=True)
 def betadesc_vr(scene, ctx: PruneContext):
     """BetaDescPrune with the virtual-rig significance as retention evidence (no cameras)."""
     from methods.betadesc import pipeline

@@ -52,7 +52,7 @@ def _budget(p: ConfSplatParams) -> str | None:
 
 
 @register_pruner("confsplat", params=ConfSplatParams, needs=("cameras",), label="ConfSplatPrune",
-                 group="camera-aware", budget_note=_budget)
+                 group="camera-aware", budget_note=_budget, uses_device=True)
 def confsplat_score(scene, ctx: PruneContext) -> np.ndarray:
     """Confident Splatting Beta confidence α/(α+β), learned with frozen geometry to match the unpruned render."""
     from methods.confsplat.train import optimise_confidence

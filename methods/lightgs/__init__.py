@@ -18,7 +18,8 @@ class LightGSParams(Params):
     threads: int = param(1, ge=0, doc="torch intra-op threads while scoring (0 = unchanged)")
 
 
-@register_pruner("lightgs", params=LightGSParams, needs=("cameras",), label="LightGSPrune", group="camera-aware")
+@register_pruner("lightgs", params=LightGSParams, needs=("cameras",), label="LightGSPrune", group="camera-aware",
+                 uses_device=True)
 def lightgs_score(scene, ctx: PruneContext) -> np.ndarray:
     """LightGaussian global significance Σ o·T over training views × (V/V_ref)^0.1."""
     from methods.lightgs.significance import significance, volume_factor

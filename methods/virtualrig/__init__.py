@@ -107,7 +107,8 @@ def virtual_significance(scene, p: VirtualRigParams, device: str = "cpu") -> np.
         return significance(scene, cams, longest_side=0, early_stop=p.early_stop, device=device, backend="auto")
 
 
-@register_pruner("virtual-rig", params=VirtualRigParams, label="Virtual rig", group="camera-free")
+@register_pruner("virtual-rig", params=VirtualRigParams, label="Virtual rig", group="camera-free",
+                 uses_device=True)
 def virtual_rig_score(scene, ctx: PruneContext) -> np.ndarray:
     """LightGS significance over a rig synthesised from the splats alone × (V/V_ref)^0.1 (no cameras)."""
     from methods.lightgs.significance import volume_factor

@@ -27,20 +27,33 @@ class ExecutorSpec:
         doc="ray: CPUs (= threads) per task; default cores // workers locally, 1 on a cluster")
     gpus_per_task: float = config_param(
         1.0, ge=0.01, le=64, changes=(),
-        doc="ray: GPU share of a render/metrics/camera-aware task when protocol.device is CUDA"
+        doc="ray: GPU share of a task that computes on the device (renders, metrics, uses_device pruners) "
+            "when protocol.device is CUDA"
     )
     max_retries: int = config_param(
         2, ge=0, le=100, changes=(),
         doc="ray: re-runs of a task whose worker process died (never of a task that raised)")
+    device_workers: int = config_param(
+        0, ge=0, le=64, changes=(),
+        doc="local, protocol.device CUDA: worker processes that run the device's tasks beside the CPU workers "
+            "(0: one per 12 GiB of free device memory, 1 to 4)")
+
+
+#: keys of ``executor:`` that only the Ray executor reads
+RAY_KEYS = frozenset({"address", "cpus_per_task", "gpus_per_task", "max_retries"})
 
 
 def parse_executor(v, src) -> ExecutorSpec:
-    """``executor: local|ray`` or a mapping ``{name: ray, address: ..., cpus_per_task: ..., ...}``."""
+    """``executor: local|ray`` or a mapping ``{name: ray, address: ..., cpus_per_task: ..., ...}``
+    (``{name: local, device_workers: k}`` for a GPU run on the local pool)."""
     if v is None:
         return ExecutorSpec()
     if isinstance(v, str):
         v = {"name": v}
     d = mapping(v, "executor", src)
-    if d.get("name", "local") == "local" and set(d) - {"name"}:
-        raise InputError(src, f"executor: {', '.join(sorted(set(d) - {'name'}, key=str))} go with `name: ray`")
+    if d.get("name", "local") == "local" and set(d) & RAY_KEYS:
+        raise InputError(src, f"executor: {', '.join(sorted(set(d) & RAY_KEYS, key=str))} go with `name: ray`")
+    if d.get("name") == "ray" and "device_workers" in d:
+        raise InputError(src, "executor: device_workers goes with the local executor (Ray shares the GPU by "
+                              "gpus_per_task)")
     return ExecutorSpec(**read_section(ExecutorSpec, d, "executor", src))

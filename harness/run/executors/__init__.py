@@ -7,8 +7,10 @@ and store their results in the content-addressed stage cache, which is what make
 interchangeable: the rows of a run are read from the cache afterwards.
 
 * :class:`LocalExecutor` (the default): one worker computes in-process; more workers are a spawned
-  :class:`~concurrent.futures.ProcessPoolExecutor` per stage (``cores // workers`` threads each,
-  killed with the driver). Stages run one after the other.
+  :class:`~concurrent.futures.ProcessPoolExecutor` kept for the run (``cores // workers`` threads
+  each, killed with the driver). Stages run one after the other. On a GPU run the tasks that compute
+  on the device (a stage's ``on_device``) go to a few device workers of their own, the rest to the
+  CPU workers, which never open the device (:mod:`harness.run.executors.device`).
 * :class:`RayExecutor` (``harness run --executor ray [--address ...]``): every task is a Ray task
   with a resource request (``cpus_per_task`` CPUs; a GPU share when ``protocol.device`` is CUDA and
   the cluster has GPUs). Stages given together (the reference renders and the pruned renders of
@@ -55,4 +57,4 @@ def make_executor(spec, workers: int, *, toolkit=None, device: str = "cpu", cach
         return RayExecutor(workers, toolkit, address=spec.address, cpus_per_task=threads or spec.cpus_per_task,
                            gpus_per_task=spec.gpus_per_task, max_retries=spec.max_retries, device=device,
                            cache_location=cache_location, log=log)
-    return LocalExecutor(workers, toolkit, threads=threads)
+    return LocalExecutor(workers, toolkit, threads=threads, device=device, device_workers=spec.device_workers)

@@ -12,14 +12,21 @@ def _one(task) -> int:
     return 1
 
 
+def _never(task) -> bool:
+    return False
+
+
 @dataclass
 class Stage:
-    """Tasks of one stage: ``fn(task) -> summary dict``, each worth ``weight(task)`` progress units."""
+    """Tasks of one stage: ``fn(task) -> summary dict``, each worth ``weight(task)`` progress units;
+    ``on_device(task)``: the task computes on the run's device (a GPU run sends it to a worker that
+    holds the device, :mod:`harness.run.executors.device`)."""
 
     name: str
     fn: Callable
     tasks: list
     weight: Callable[[Any], int] = _one
+    on_device: Callable[[Any], bool] = _never
 
 
 class Bars:

@@ -266,11 +266,12 @@ class RayExecutor(Executor):
         return [jobs[i] for i in order]
 
     def options(self, job: _Job) -> dict:
-        """Resources of a task: CPUs always; a GPU share for renders/metrics and camera-aware scores
-        when the run's device is CUDA (camera-agnostic scoring is numpy/numba: CPU only)."""
+        """Resources of a task: CPUs always; a GPU share for the tasks that compute on the device
+        (``stage.on_device``: renders/metrics, scores of pruners that declare ``uses_device``) when
+        the run's device is CUDA (the other pruners are numpy/numba: CPU only)."""
         o = {"num_cpus": self.threads, "max_retries": self.max_retries, "retry_exceptions": False,
              "name": f"{job.stage.name}[{getattr(job.task, 'label', '') or '?'}]"}
-        if self._use_gpu and (job.stage.fn is run_view or getattr(job.task, "train", None)):
+        if self._use_gpu and job.stage.on_device(job.task):
             o["num_gpus"] = self.gpus_per_task
         return o
 
