@@ -79,7 +79,6 @@ from typing import Self
 import numpy as np
 
 from renderers.arrays import ops_for
-
 from renderers.gl_shaders import FRAGMENT_SHADER, VERTEX_SHADER
 
 log = logging.getLogger(__name__)
