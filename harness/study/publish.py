@@ -68,7 +68,8 @@ def _run_lines(run: dict, rules: tuple[str, str]) -> list[str]:
     order = {True: "descends from it", False: "does NOT descend from it", None: "(git could not tell)"}[after]
     later = when.replace("T", " ") > rules_when
     return [
-        f"* **Run**: `harness {' '.join(run.get('argv', ['run', run.get('config_path', '?')]))}` at {when} UTC, "
+        f"* **Run**: `harness {' '.join(run.get('argv', ['run', run.get('config_path', '?')]))}`, finished {when} "
+        "(the machine's local clock), "
         f"code of commit `{run.get('commit', '?')[:12]}`; "
         + ("**cold** stage cache" if cold else f"stage cache with {hits:,} hits and {misses:,} misses (not cold)")
         + f"; {run.get('workers', '?')} worker(s) on {machine.get('cpus', '?')} CPU(s) ({cpu}), "
