@@ -285,3 +285,28 @@ def test_evaluate_logs_and_prints_nothing_the_command_shows_the_same_lines(tmp_p
     assert [ln for ln in err if ln.endswith(" to compute")] == stages
     harness.evaluate(config, out=tmp_path / "again", cache=cache)  # after the command: still silent
     assert capfd.readouterr() == ("", "")
+
+
+@pytest.mark.gl
+def test_a_cached_rerun_into_the_same_folder_keeps_its_tables_and_plots(tmp_path, monkeypatch):
+    """The run stages its outputs and publishes them in one step: the memo and the tables it keeps must
+    reach the staging folder, or every cached rerun rebuilds every table."""
+    from harness.report import memo, outputs
+
+    require_gl()
+    scenes = fakes.write_two_scenes(tmp_path)
+    doc = {"name": "tiny", "protocol": {"longest_side": 16, "metrics": ["psnr"], "n_train": 2, "n_test": 1},
+           "ratios": [0.3], "scenes": [{"name": k, "source": v} for k, v in list(scenes.items())[:1]],
+           "methods": ["opacity", "random"], "tables": ["comparison"], "plots": ["curves"]}
+    out, cache = tmp_path / "out", str(tmp_path / "cache")
+    harness.evaluate(doc, out=out, cache=cache)
+    assert (out / memo.FOLDER / memo.NAME).is_file()
+    table = (out / "tables" / "comparison.md").read_bytes()
+
+    def fail(*a, **k):
+        raise AssertionError("rebuilt although nothing changed")
+
+    monkeypatch.setattr(outputs, "write_tables", fail)
+    monkeypatch.setattr(outputs, "write_plots", fail)
+    harness.evaluate(doc, out=out, cache=cache)
+    assert (out / "tables" / "comparison.md").read_bytes() == table and (out / memo.FOLDER / memo.NAME).is_file()

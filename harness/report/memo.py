@@ -112,10 +112,12 @@ def frame_to_json(df: pd.DataFrame) -> dict:
 
 
 def frame_from_json(d: dict) -> pd.DataFrame:
-    columns = _from_index(d["columns"])
-    data = {j: pd.array([_uncell(v) for v in values], dtype=dtype)
+    columns, index = _from_index(d["columns"]), _from_index(d["index"])
+    # each column a Series of its stored dtype: a frame built from bare arrays re-infers an object
+    # column of strings as pandas' string dtype, which no longer equals the table it came from
+    data = {j: pd.Series(pd.array([_uncell(v) for v in values], dtype=dtype), index=index, dtype=dtype)
             for j, (values, dtype) in enumerate(zip(d["data"], d["dtypes"]))}
-    out = pd.DataFrame(data, index=_from_index(d["index"]))
+    out = pd.DataFrame(data, index=index)
     out.columns = columns
     return out
 

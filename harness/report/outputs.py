@@ -31,7 +31,9 @@ from harness.report.views_csv import write_views
 #: what :func:`publish` writes into a run folder, and what it reads there besides the results (the
 #: page's renders and run records): the entries a command that rebuilds them stages and publishes
 #: (:class:`harness.io.owned.OwnedFolder`)
-PUBLISHED = ("tables", "plots", "views.csv.gz", "report.html")
+#: what a publication owns in a run folder; the memo (``.outputs``, :mod:`harness.report.memo`) with the
+#: tables and plots it keeps, so a cached rerun that stages them finds them
+PUBLISHED = ("tables", "plots", "views.csv.gz", "report.html", ".outputs")
 READS = ("images", "records")
 
 

@@ -48,7 +48,8 @@ def finish_run(folder, config, runner, result, *, workers: int, cache_root, argv
     from harness.report.results import to_frame, write_results
 
     df = to_frame(result.rows)
-    stage = folder.stage(carry=("records",))
+    # the earlier records, and the earlier tables, plots and memo: unchanged inputs keep them (memo)
+    stage = folder.stage(carry=("records",) + PAGE_OUTPUTS)
     if not (df["status"] == "ok").any():
         record = write_run_json(stage, config, result, workers=workers, cache_root=cache_root, argv=argv,
                                 latest=False)
