@@ -49,7 +49,7 @@ table.lead td.v{font-weight:600}table.lead td.v small{font-weight:400}
 span.v{padding:0 4px;border-radius:3px;font-weight:600}b.m-holds{color:#137a2e}b.m-fails{color:#b3191b}
 table.lead{width:100%;table-layout:fixed}
 table.lead td,table.lead th{text-align:left;white-space:normal;vertical-align:top}
-table.lead th.what{width:23%}table.lead th.v{width:7em;font-weight:600}table.lead th.ev{width:auto}
+table.lead th.what{width:23%}table.lead th.v{width:8.5em;font-weight:600}table.lead th.ev{width:auto}
 table.lead td.what a{font-weight:600;color:#22303c}table.lead td.ev p{margin:0 0 2px}table.lead td{line-height:1.38}
 table.lead .c{white-space:nowrap}table.lead .why{font-style:italic;color:#444}
 details.untestable{background:#f6f6f6;font-size:12.5px}details.untestable summary{font-weight:400}
