@@ -310,3 +310,20 @@ def test_a_cached_rerun_into_the_same_folder_keeps_its_tables_and_plots(tmp_path
     monkeypatch.setattr(outputs, "write_plots", fail)
     harness.evaluate(doc, out=out, cache=cache)
     assert (out / "tables" / "comparison.md").read_bytes() == table and (out / memo.FOLDER / memo.NAME).is_file()
+
+
+@pytest.mark.gl
+def test_a_rerun_with_fewer_tables_leaves_none_of_the_earlier_ones(tmp_path):
+    """The rerun stages the earlier outputs (for the memo); when it rebuilds, a table its config no longer
+    names is not carried into the new publication."""
+    require_gl()
+    scenes = fakes.write_two_scenes(tmp_path)
+    doc = {"name": "tiny", "protocol": {"longest_side": 16, "metrics": ["psnr"], "n_train": 2, "n_test": 1},
+           "ratios": [0.3], "scenes": [{"name": k, "source": v} for k, v in list(scenes.items())[:1]],
+           "methods": ["opacity", "random"], "tables": ["comparison", "runtime"], "plots": ["curves"]}
+    out, cache = tmp_path / "out", str(tmp_path / "cache")
+    harness.evaluate(doc, out=out, cache=cache)
+    assert (out / "tables" / "runtime.md").is_file() and any((out / "plots").iterdir())
+    harness.evaluate({**doc, "tables": ["comparison"], "plots": []}, out=out, cache=cache)
+    assert (out / "tables" / "comparison.md").is_file() and not (out / "tables" / "runtime.md").exists()
+    assert not (out / "plots").exists() or not any((out / "plots").iterdir()), list((out / "plots").iterdir())

@@ -17,6 +17,7 @@ changed (:mod:`harness.report.memo`); the page is always redrawn (it shows every
 
 from __future__ import annotations
 
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -60,8 +61,10 @@ def _names(value, every) -> list:
 
 
 def publish(run_dir: str | Path, df: pd.DataFrame, meta: dict, *, tables=None, plots=None,
-            reference: str | None = None) -> Published:
-    """Write a run folder's tables, plots and ``report.html`` from its results and run record."""
+            reference: str | None = None, replace: bool = False) -> Published:
+    """Write a run folder's tables, plots and ``report.html`` from its results and run record.
+    ``replace``: when the memo does not hold them, the folder's earlier tables and plots go first (a
+    run's outputs are exactly what its config names; ``harness tables`` keeps those it does not rebuild)."""
     from harness.report import memo
     from harness.report.page import write_report
 
@@ -76,6 +79,10 @@ def publish(run_dir: str | Path, df: pd.DataFrame, meta: dict, *, tables=None, p
             written, drawn = kept
         else:
             memo.forget(run_dir)
+            if replace:  # emptied, not removed: an entry absent from a staging folder is left as it was
+                for sub in ("tables", "plots"):
+                    shutil.rmtree(run_dir / sub, ignore_errors=True)
+                    (run_dir / sub).mkdir()
             drawn = write_plots(df, run_dir, plots)
             written = write_tables(df, run_dir, tables, reference=reference, anchor=anchor) + drawn
             written.paths.append(write_views(df, run_dir))

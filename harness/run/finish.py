@@ -61,7 +61,7 @@ def finish_run(folder, config, runner, result, *, workers: int, cache_root, argv
     copy_images(result.images, stage)
     sheets = contact_sheets(runner.items, runner.cache, runner.ref_key, stage, config.protocol.background)
     run_json = write_run_json(stage, config, result, workers=workers, cache_root=cache_root, argv=argv)
-    published = publish(stage, df, json.loads(run_json.read_text()))
+    published = publish(stage, df, json.loads(run_json.read_text()), replace=True)
     folder.publish(PUBLISHED)
     out = folder.path
     coverage = "; ".join(f"{k} " + " ".join(f"{100 * c:.0f}%" for c in v) for k, v in sheets.items())
