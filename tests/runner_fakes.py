@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from collections import Counter
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -112,6 +113,23 @@ def crashing_task(task, scene=None):
 
     _attempt(task.path)
     os._exit(3)
+
+
+def disk_full_task(task, scene=None):
+    """A stage function whose output write finds the disk full (ENOSPC from the writer)."""
+    import errno
+
+    from harness.core.errors import task_error
+    from harness.io.files import atomic_write_with
+
+    def full(tmp):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    try:
+        atomic_write_with(Path(task.path) / f"{task.label}.bin", full)
+    except Exception as err:  # as the run's tasks record their errors
+        return task.failed(task_error(err))
+    return {"label": task.label}
 
 
 class PointRenderer:

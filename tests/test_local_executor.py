@@ -68,3 +68,27 @@ def test_on_the_cpu_there_is_one_pool_and_no_device_worker(tmp_path):
         assert ex.device_workers == 0 and set(ex._pools) == {"cpu"}
         assert all(r["worker"].startswith("cpu ") for r in res)
         assert ex.describe() == {"name": "local", "workers": 2, "threads": 1}
+
+
+def test_a_full_disk_ends_the_run_instead_of_failing_one_task(tmp_path):
+    """Every later write would fail too: the error reaches the caller (the CLI's one line, exit 2),
+    with one worker and with a pool, rather than being recorded against each task in turn."""
+    import errno
+
+    import pytest
+
+    from harness.core.errors import StorageFull, task_error
+    from harness.io.files import atomic_write_with
+
+    def full(tmp):
+        raise OSError(errno.EFBIG, "File too large")
+
+    with pytest.raises(StorageFull, match=r"out\.bin: cannot write: File too large \(the storage is full"):
+        atomic_write_with(tmp_path / "out.bin", full)
+    assert not list(tmp_path.iterdir())  # no temporary left behind
+    assert task_error(ValueError("x")) == "ValueError: x"  # any other error is the task's own
+    tasks = [fakes.MarkerTask(str(tmp_path), f"t{i}") for i in range(2)]
+    for workers in (1, 2):
+        with LocalExecutor(workers, fakes.toolkit(), threads=1) as ex, \
+                pytest.raises(StorageFull, match="No space left on device"):
+            ex.run([Stage("score", fakes.disk_full_task, tasks)], Bars())

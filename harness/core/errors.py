@@ -45,6 +45,24 @@ class InputError(HarnessError):
     """Bad user input (file, config, argument)."""
 
 
+class StorageFull(InputError):
+    """A write failed because the storage is full (no space, a file-size limit, a quota): every later
+    write would fail too, so a run stops at the first one instead of recording it against one task;
+    what was stored before stays (the stage cache keeps it for the rerun)."""
+
+
+#: errno values that say the storage, not the file, is the problem
+STORAGE_ERRNOS = frozenset({28, 27, 122})  # ENOSPC, EFBIG, EDQUOT
+
+
+def task_error(err: BaseException) -> str:
+    """``"<type>: <message>"``, how a task records an error of its own and goes on — except
+    :class:`StorageFull`, re-raised: a full disk is the run's end, not one task's failure."""
+    if isinstance(err, StorageFull):
+        raise err
+    return f"{type(err).__name__}: {err}"
+
+
 @contextmanager
 def naming(names: Mapping[str, str]) -> Iterator[None]:
     """Errors raised inside whose source is a key of ``names`` are re-raised naming ``names[source]``

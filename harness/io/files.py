@@ -205,7 +205,7 @@ def make_output_folder(folder: str | Path, source=None) -> Path:
 def atomic_write_with(path: str | Path, writer: Callable[[Path], None]) -> Path:
     """Let ``writer(tmp_path)`` produce the file (pandas ``to_parquet``, ``fig.savefig`` ...), fsync
     it and rename it into place; returns ``path``. The parent folder is created when missing."""
-    from harness.core.errors import InputError
+    from harness.core.errors import STORAGE_ERRNOS, InputError, StorageFull
 
     path = Path(path)
     refuse_inputs(path)
@@ -222,6 +222,9 @@ def atomic_write_with(path: str | Path, writer: Callable[[Path], None]) -> Path:
     except OSError as err:
         if tmp is not None:
             tmp.unlink(missing_ok=True)
+        if err.errno in STORAGE_ERRNOS:
+            full = f"cannot write: {_reason(err)} (the storage is full or limits file sizes)"
+            raise StorageFull(path, full) from None
         raise InputError(
             path, "is a folder" if isinstance(err, IsADirectoryError) else f"cannot write: {_reason(err)}"
         ) from None

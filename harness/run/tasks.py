@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from harness.core.cameras import Camera
+from harness.core.errors import task_error
 from harness.core.params import Params
 from harness.run.cache import StageCache
 from harness.run.toolkit import Toolkit
@@ -150,7 +151,7 @@ def run_score(task: ScoreTask, scene=None) -> dict:
         cache.put_json("score", task.key, {"seconds": seconds, "n": len(scores)})
         out["seconds"] = seconds
     except Exception as err:  # a pruner failing on one scene is recorded, the run goes on
-        out["error"] = f"{type(err).__name__}: {err}"
+        out["error"] = task_error(err)
         out["trace"] = traceback.format_exc(limit=6)
     return out
 
@@ -233,7 +234,7 @@ def run_view(task: ViewTask, progress=None, scene=None, ref=None, keep_ref: bool
                     if progress:
                         progress(1)
     except Exception as err:
-        out["errors"].append((None, f"{type(err).__name__}: {err}"))
+        out["errors"].append((None, task_error(err)))
         out["trace"] = traceback.format_exc(limit=6)
     return out
 
@@ -308,7 +309,7 @@ def _render_sets(task: ViewTask, cache: StageCache, renders: ViewRenders, jobs: 
                 raise RuntimeError(f"mask {job.mask_key[:12]} is missing or failed verification")
             keeps.append((job, np.unpackbits(packed, count=task.n_splats).astype(bool)))
         except Exception as err:
-            failed[id(job)] = f"{type(err).__name__}: {err}"
+            failed[id(job)] = task_error(err)
     if len(keeps) > 1:
         try:
             t0 = time.perf_counter()
@@ -324,7 +325,7 @@ def _render_sets(task: ViewTask, cache: StageCache, renders: ViewRenders, jobs: 
             img, img_alpha = renders(keep)
             done.append((job, img, img_alpha, time.perf_counter() - t0))
         except Exception as err:
-            failed[id(job)] = f"{type(err).__name__}: {err}"
+            failed[id(job)] = task_error(err)
     return done, failed
 
 
@@ -345,7 +346,7 @@ def _measure_sets(task: ViewTask, cache: StageCache, suite, renders: ViewRenders
         rows = suite.score_many(task.ref_key, images, [a for _, _, a, _ in done]) if om else \
             suite.score_many(task.ref_key, images)
     except Exception as err:
-        result.update({id(job): f"{type(err).__name__}: {err}" for job, *_ in done})
+        result.update({id(job): task_error(err) for job, *_ in done})
         return in_order()
     metrics_s = (time.perf_counter() - t1) / len(done)
     for (job, img, _, render_s), values in zip(done, rows):
@@ -358,5 +359,5 @@ def _measure_sets(task: ViewTask, cache: StageCache, suite, renders: ViewRenders
             cache.put_json("metrics", job.metrics_key, rec)
             result[id(job)] = None
         except Exception as err:
-            result[id(job)] = f"{type(err).__name__}: {err}"
+            result[id(job)] = task_error(err)
     return in_order()

@@ -8,6 +8,7 @@ from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from multiprocessing import get_context
 
+from harness.core.errors import task_error
 from harness.run.executors.base import Bars, Executor, Stage
 from harness.run.executors.device import device_worker_count
 from harness.run.tasks import init_worker, run_view
@@ -148,7 +149,7 @@ class LocalExecutor(Executor):
                 try:
                     results.append(fut.result())
                 except Exception as err:  # a worker died (e.g. killed, segfault): record, go on
-                    results.append(futures[fut].failed(f"worker failed: {type(err).__name__}: {err}"))
+                    results.append(futures[fut].failed(f"worker failed: {task_error(err)}"))
                 bars.advance(stage.name, stage.weight(futures[fut]))
         except BaseException:  # SIGTERM / Ctrl-C / an error here: the workers go with the run
             pools, self._pools = self._pools, {}

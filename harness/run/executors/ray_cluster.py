@@ -310,11 +310,15 @@ class RayExecutor(Executor):
     def _result(self, ray, ref, job: _Job) -> dict:
         from ray.exceptions import RayTaskError, TaskCancelledError
 
+        from harness.core.errors import StorageFull
+
         what = f"{job.stage.name} {getattr(job.task, 'label', '') or ''}".strip()
         try:
             return ray.get(ref)
         except RayTaskError as err:  # an exception escaped the stage function (or the scene load): not retried
             cause = getattr(err, "cause", None) or err
+            if isinstance(cause, StorageFull):  # a full disk on a node: the run's end, as on one machine
+                raise cause from None
             first = _ANSI.sub("", str(cause)).strip().splitlines()
             return job.task.failed(f"{what}: {type(cause).__name__}: {first[-1] if first else ''}")
         except TaskCancelledError:
