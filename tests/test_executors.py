@@ -163,6 +163,13 @@ def test_escaping_exception_fails_the_task_once_with_its_name(cluster, tmp_path)
     assert res["error"].startswith("score s0 broken[x]: KeyError"), res
 
 
+def test_a_full_disk_on_a_node_ends_the_run(cluster, tmp_path):
+    from harness.core.errors import StorageFull
+
+    with _ray() as ex, pytest.raises(StorageFull, match="No space left on device"):
+        ex.run([Stage("score", fakes.disk_full_task, [fakes.MarkerTask(str(tmp_path), "s0 full[x]")])], Bars())
+
+
 def test_worker_dying_at_every_attempt_fails_after_the_retries(cluster, tmp_path):
     marker = tmp_path / "attempts"
     with _ray(max_retries=1) as ex:
