@@ -34,7 +34,9 @@ capped so that the block holds at most ``budget`` elements — peak memory is bo
 (~10 float temporaries of that size). Transmittance inside a block is a cumulative product along k,
 carried between rounds. With autograd on, big renders checkpoint every round (recomputed in
 backward), so only the per-round inputs are kept. Big CPU renders without autograd run the block step through
-``torch.compile`` (see :func:`rasterize`).
+``torch.compile`` (see :func:`rasterize`). :func:`composite_views` stacks the tiles of several views of
+one size into the same rounds (a GPU runs a batch of views in the kernel launches of one); on CUDA
+:func:`device_budget` sizes the blocks by free memory and :func:`views_per_call` the batch.
 """
 
 from __future__ import annotations
@@ -202,10 +204,40 @@ def _run_step(step, eager, args, grad: bool, ckpt: bool):
         return eager(*args)
 
 
+#: device memory one evaluation of a block takes at most (~10 float32 temporaries, bool masks, stats)
+BYTES_PER_EVALUATION = 96
+#: evaluations of one block by default (~1.6 GB of temporaries at most)
+DEFAULT_BUDGET = 1 << 24
+#: most evaluations of one block however much memory the device has
+MAX_BUDGET = 1 << 28
+#: most views one :func:`composite_views` call of :func:`views_per_call` stacks (each keeps its image
+#: and per-splat statistics until the call returns)
+MAX_VIEWS = 16
+
+
+def device_budget(device) -> int:
+    """Evaluations of one block on ``device``: :data:`DEFAULT_BUDGET` off CUDA; on CUDA as many as a
+    quarter of its free memory holds at :data:`BYTES_PER_EVALUATION` each, between the default and
+    :data:`MAX_BUDGET`."""
+    dev = torch.device(device)
+    if dev.type != "cuda":
+        return DEFAULT_BUDGET
+    free, _ = torch.cuda.mem_get_info(dev)
+    return int(min(MAX_BUDGET, max(DEFAULT_BUDGET, free // 4 // BYTES_PER_EVALUATION)))
+
+
+def views_per_call(width: int, height: int, budget: int = DEFAULT_BUDGET, tile: int = 8) -> int:
+    """Views of ``width × height`` that :func:`composite_views` takes at once: as many as keep all
+    their tiles in one group whose blocks are ≥ 8 entries deep within ``budget`` (the call then
+    runs the rounds of one view, not of several groups), at least 1, at most :data:`MAX_VIEWS`."""
+    n_tiles = ((width + tile - 1) // tile) * ((height + tile - 1) // tile)
+    return int(max(1, min(MAX_VIEWS, budget // (8 * tile * tile * n_tiles))))
+
+
 def rasterize(scene, camera: Camera, background=(0, 0, 0), *, device=None,
               opacities: torch.Tensor | None = None, stats: bool = False,
               early_stop: bool = False, footprint: str = "box", tile: int | None = None,
-              budget: int = 1 << 24, compiled: bool | None = None,
+              budget: int = DEFAULT_BUDGET, compiled: bool | None = None,
               checkpoint: bool | None = None) -> RasterOutput:
     """Render ``scene`` (a :class:`GaussianScene` or :class:`SplatTensors`) from ``camera``.
 
@@ -232,16 +264,41 @@ def rasterize(scene, camera: Camera, background=(0, 0, 0), *, device=None,
 
 def composite(proj: Projected, n_splats: int, background=(0, 0, 0), *, stats: bool = False,
               early_stop: bool = False, footprint: str = "box", tile: int | None = None,
-              budget: int = 1 << 24, compiled: bool | None = None,
+              budget: int = DEFAULT_BUDGET, compiled: bool | None = None,
               checkpoint: bool | None = None) -> RasterOutput:
     """Rasterize already projected splats (see :func:`rasterize`); statistics are indexed by scene id
     (``n_splats`` long)."""
+    return composite_views([proj], n_splats, background, stats=stats, early_stop=early_stop, footprint=footprint,
+                           tile=tile, budget=budget, compiled=compiled, checkpoint=checkpoint)[0]
+
+
+def composite_views(projs: list[Projected], n_splats: int, background=(0, 0, 0), *, stats: bool = False,
+                    early_stop: bool = False, footprint: str = "box", tile: int | None = None,
+                    budget: int = DEFAULT_BUDGET, compiled: bool | None = None,
+                    checkpoint: bool | None = None) -> list[RasterOutput]:
+    """:func:`composite` of several views of one size in one pass: their tiles are stacked (view v's
+    tile t is tile ``v·n_tiles + t``) and every round evaluates a block over the active tiles of all
+    of them, so a batch costs the rounds of its longest tile list, not the sum over views.
+
+    Each view's result equals its own :func:`composite` to float rounding (bit for bit for a single
+    view): only the block depth k, chosen over all the batch's tiles, changes where the
+    transmittance's running product is carried between rounds, and the order of the statistics' sums."""
+    sizes = {(p.width, p.height) for p in projs}
+    if len(sizes) != 1:
+        raise ValueError(f"composite_views needs views of one size, got {sorted(sizes)}")
     tile = tile or (TILE if footprint == "tile" else 8)
-    dev, dtype = proj.means2d.device, proj.means2d.dtype
-    w, h, npix = proj.width, proj.height, tile * tile
-    bins = bin_splats(proj, footprint, tile)
+    first = projs[0]
+    dev, dtype = first.means2d.device, first.means2d.dtype
+    w, h, npix = first.width, first.height, tile * tile
+    per_view = [bin_splats(p, footprint, tile) for p in projs]
+    gx, gy = per_view[0].gx, per_view[0].gy
+    n_tiles, lens = gx * gy, [len(p) for p in projs]
+    offsets = np.concatenate([[0], np.cumsum(lens)]).tolist()
+    entries = torch.cat([b.entries + off for b, off in zip(per_view, offsets)])
+    count = torch.cat([b.count for b in per_view])
+    bins = _Bins(entries, torch.cumsum(count, 0) - count, count, gx, gy)
     grad = torch.is_grad_enabled() and any(
-        t.requires_grad for t in (proj.means2d, proj.conics, proj.colors, proj.opacities))
+        t.requires_grad for p in projs for t in (p.means2d, p.conics, p.colors, p.opacities))
     if compiled is None:
         compiled = (dev.type == "cpu" and not grad and not _COMPILE_BROKEN
                     and len(bins.entries) * npix >= AUTO_COMPILE_MIN)
@@ -249,17 +306,17 @@ def composite(proj: Projected, n_splats: int, background=(0, 0, 0), *, stats: bo
         checkpoint = len(bins.entries) * npix >= AUTO_CHECKPOINT_MIN
     eager = _step_function(early_stop, footprint == "box", stats, compiled=False)
     step = _step_function(early_stop, footprint == "box", stats, compiled=bool(compiled) and not grad)
-    packed = torch.cat([proj.means2d, -0.5 * proj.conics[:, :1], -proj.conics[:, 1:2],
-                        -0.5 * proj.conics[:, 2:], proj.opacities[:, None], proj.radii[:, None].to(dtype),
-                        proj.colors], 1)
-    acc = torch.zeros(3, len(proj), dtype=dtype, device=dev) if stats else None
+    packed = torch.cat([torch.cat([p.means2d, -0.5 * p.conics[:, :1], -p.conics[:, 1:2], -0.5 * p.conics[:, 2:],
+                                   p.opacities[:, None], p.radii[:, None].to(dtype), p.colors], 1) for p in projs])
+    acc = torch.zeros(3, len(packed), dtype=dtype, device=dev) if stats else None
 
     lin = torch.arange(tile, device=dev)
 
     def run_tiles(act):
         """Composite the tiles ``act`` to the end of their lists; returns [(tiles, colour, T)]."""
-        cols = ((act % bins.gx)[:, None] * tile + lin).to(dtype)
-        rows = (torch.div(act, bins.gx, rounding_mode="floor")[:, None] * tile + lin).to(dtype)
+        local = act % n_tiles  # the tile within its view
+        cols = ((local % bins.gx)[:, None] * tile + lin).to(dtype)
+        rows = (torch.div(local, bins.gx, rounding_mode="floor")[:, None] * tile + lin).to(dtype)
         ok = ((rows < h)[:, :, None] & (cols < w)[:, None, :]).flatten(1)
         t_act = torch.ones(len(act), npix, dtype=dtype, device=dev)
         done = ~ok if early_stop else torch.zeros_like(ok)  # graphdeco: pixels outside the image are done
@@ -297,23 +354,28 @@ def composite(proj: Projected, n_splats: int, background=(0, 0, 0), *, stats: bo
     group = max(1, budget // (8 * npix))
     fin = [f for g in range(0, len(tiles_all), group) for f in run_tiles(tiles_all[g:g + group])]
 
-    n_tiles = bins.gx * bins.gy
-    color = torch.zeros(n_tiles, 3, npix, dtype=dtype, device=dev)
-    trans = torch.ones(n_tiles, npix, dtype=dtype, device=dev)
+    color = torch.zeros(len(projs) * n_tiles, 3, npix, dtype=dtype, device=dev)
+    trans = torch.ones(len(projs) * n_tiles, npix, dtype=dtype, device=dev)
     if fin:
         tiles = torch.cat([f[0] for f in fin])
         color = color.index_copy(0, tiles, torch.cat([f[1] for f in fin]))
         trans = trans.index_copy(0, tiles, torch.cat([f[2] for f in fin]))
     bg = torch.as_tensor(np.asarray(background, dtype=np.float64), dtype=dtype, device=dev)
     color = color + trans[:, None, :] * bg[None, :, None]
-    image = color.reshape(bins.gy, bins.gx, 3, tile, tile).permute(0, 3, 1, 4, 2)
-    image = image.reshape(bins.gy * tile, bins.gx * tile, 3)[:h, :w]
-    alpha = (1.0 - trans).reshape(bins.gy, bins.gx, tile, tile).permute(0, 2, 1, 3)
-    alpha = alpha.reshape(bins.gy * tile, bins.gx * tile)[:h, :w]
-    if not stats:
-        return RasterOutput(image, alpha=alpha)
-    full = torch.zeros(3, n_splats, dtype=dtype, device=dev).index_copy(1, proj.ids, acc)
-    return RasterOutput(image, full[0], full[1], full[2].round().long(), alpha=alpha)
+    outs = []
+    for v, proj in enumerate(projs):
+        view = slice(v * n_tiles, (v + 1) * n_tiles)
+        image = color[view].reshape(gy, gx, 3, tile, tile).permute(0, 3, 1, 4, 2)
+        image = image.reshape(gy * tile, gx * tile, 3)[:h, :w]
+        alpha = (1.0 - trans[view]).reshape(gy, gx, tile, tile).permute(0, 2, 1, 3)
+        alpha = alpha.reshape(gy * tile, gx * tile)[:h, :w]
+        if not stats:
+            outs.append(RasterOutput(image, alpha=alpha))
+            continue
+        sums = acc[:, offsets[v]:offsets[v + 1]]
+        full = torch.zeros(3, n_splats, dtype=dtype, device=dev).index_copy(1, proj.ids, sums)
+        outs.append(RasterOutput(image, full[0], full[1], full[2].round().long(), alpha=alpha))
+    return outs
 
 
 class ReferenceRenderer:

@@ -35,8 +35,10 @@ The accumulation is :func:`significance`, shared with the camera-free ``virtual-
 * ``pairs``: :mod:`renderers.pixel_pairs`, the reference rasterizer's projection and α tests
   compositing over enumerated (pixel, splat) pairs (numba, CPU; on CUDA only the projection runs on
   the GPU);
-* ``reference``: the reference rasterizer's own per-splat statistics (:func:`renderers.reference.composite`),
-  torch on the context's device, so on CUDA the whole pass runs on the GPU.
+* ``reference``: the reference rasterizer's own per-splat statistics, torch on the context's device,
+  so on CUDA the whole pass runs on the GPU: each view projected, then views of one size composited
+  together (:func:`renderers.reference.composite_views`, as many per call as the device's memory
+  allows), the sum kept on the device and read back once.
 
 ``pairs`` and ``reference`` agree to float rounding (the reference retires a tile once every pixel
 has T < 1e-7 without early stop: effects below 1e-7). Measured on bonsai-7k-mini, 256×192 views, one
@@ -68,33 +70,51 @@ def resolve_backend(backend: str, device) -> str:
 
 
 def significance(scene: GaussianScene, cameras, *, longest_side: int = 512, early_stop: bool = True,
-                 device: str = "cpu", backend: str = "auto") -> np.ndarray:
-    """I_j = Σ_views Σ_pixels o_j·T_j over ``cameras`` (float64, (N,)); ``backend`` as in the module doc."""
+                 device: str = "cpu", backend: str = "auto", views_per_call: int | None = None) -> np.ndarray:
+    """I_j = Σ_views Σ_pixels o_j·T_j over ``cameras`` (float64, (N,)); ``backend`` as in the module doc.
+
+    ``views_per_call``: views the ``reference`` backend composites together (views of one size,
+    :func:`renderers.reference.composite_views`); None sizes the batch by the device's memory
+    (:func:`renderers.reference.views_per_call`). The sum equals the view-by-view one to float rounding."""
     use = resolve_backend(backend, device)
+    views = [cam.resized(longest_side) if longest_side else cam for cam in cameras]
     if use == "sweep":
         if torch.device(device).type != "cpu":
             raise ValueError(f"the sweep backend runs on the CPU, not {device!r}")
         geom, total = sweep.Geometry(scene), np.zeros(len(scene), np.float64)
-        for cam in cameras:
-            ids, sums = sweep.opacity_transmittance(geom, cam.resized(longest_side) if longest_side else cam,
-                                                    early_stop=early_stop)
+        for view in views:
+            ids, sums = sweep.opacity_transmittance(geom, view, early_stop=early_stop)
             total[ids] += sums
         return total
     st = SplatTensors.from_scene(scene, device=device)
+    if use == "reference":
+        return _reference_sums(st, views, early_stop, views_per_call)
     total = np.zeros(len(scene), np.float64)
-    acc = torch.zeros(len(scene), dtype=torch.float64, device=st.device) if use == "reference" else None
-    for cam in cameras:
-        view = cam.resized(longest_side) if longest_side else cam
+    for view in views:
         with torch.no_grad():
-            proj = project_gaussians(st, view)
-            if use == "reference":
-                out = reference.composite(proj, len(scene), stats=True, early_stop=early_stop)
-                acc += out.opacity_t.to(torch.float64)
-                continue
-        pairs = build_pairs(proj)
+            pairs = build_pairs(project_gaussians(st, view))
         out = composite(pairs, early_stop=early_stop, stats=True)
         total[pairs.ids] += out.opacity_t  # a view lists each visible splat once
-    return acc.cpu().numpy() if acc is not None else total
+    return total
+
+
+def _reference_sums(st: SplatTensors, views, early_stop: bool, views_per_call: int | None) -> np.ndarray:
+    """The ``reference`` backend: views grouped by size (in their order), each group composited
+    ``views_per_call`` at a time on the tensors' device, the sum kept there in float64."""
+    acc = torch.zeros(len(st), dtype=torch.float64, device=st.device)
+    by_size: dict[tuple[int, int], list] = {}
+    for view in views:
+        by_size.setdefault((int(view.width), int(view.height)), []).append(view)
+    budget = reference.device_budget(st.device)
+    for (width, height), group in by_size.items():
+        step = views_per_call or reference.views_per_call(width, height, budget)
+        for start in range(0, len(group), step):
+            with torch.no_grad():
+                projs = [project_gaussians(st, view) for view in group[start:start + step]]
+                for out in reference.composite_views(projs, len(st), stats=True, early_stop=early_stop,
+                                                     budget=budget):
+                    acc += out.opacity_t.to(torch.float64)
+    return acc.cpu().numpy()
 
 
 def volume_factor(scales_log: np.ndarray, v_pow: float = 0.1) -> np.ndarray:
