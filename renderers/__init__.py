@@ -13,7 +13,9 @@ alpha)`` in one pass; :data:`PACK` — ``pack(scene, camera) -> view`` and ``dra
 view.kept(mask), background, with_alpha)``: a view projected once and any subset of its splats drawn
 from it, bit for bit the render of that subset; :data:`BATCH` — ``draw_many(views, background,
 with_alpha)``: several packed views drawn before the first is read back (one wait for the device per
-batch), each bit for bit its ``draw``. Callers ask :func:`capabilities`, never ``hasattr``.
+batch), each bit for bit its ``draw``; :data:`DEVICE_BATCH` — ``draw_many_on(views, device, background,
+with_alpha) -> (images, alphas)``: the same batch as torch tensors on ``device``, copied there once
+(:mod:`renderers.readback`). Callers ask :func:`capabilities`, never ``hasattr``.
 
 Renderers are registered lazily (``"module:Class"``: nothing heavy is imported until one is made);
 third parties add theirs through the ``harness.renderers`` entry-point group, whose modules call
@@ -48,6 +50,8 @@ ALPHA = "alpha"
 PACK = "pack"
 #: ``draw_many``: packed views drawn together, read back after the last draw (module docstring)
 BATCH = "batch"
+#: ``draw_many_on``: a batch of packed views as tensors on a torch device (module docstring)
+DEVICE_BATCH = "device_batch"
 
 
 def capabilities(renderer) -> frozenset[str]:

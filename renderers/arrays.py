@@ -56,6 +56,10 @@ class NumpyOps:
         return np.asarray(x)
 
     @staticmethod
+    def to_host(*xs) -> list[np.ndarray]:
+        return [np.asarray(x) for x in xs]
+
+    @staticmethod
     def cast(x, dtype):
         return x.astype(dtype, copy=False)
 
@@ -92,6 +96,18 @@ class TorchOps:
     @staticmethod
     def to_numpy(x) -> np.ndarray:
         return x.detach().cpu().numpy()
+
+    def to_host(self, *xs) -> list[np.ndarray]:
+        """numpy copies of ``xs``; from a CUDA device each is copied into page-locked host memory
+        without waiting, and the device is waited for once, after the last copy."""
+        if not any(x.device.type == "cuda" for x in xs):
+            return [self.to_numpy(x) for x in xs]
+        host = []
+        for x in xs:
+            buf = self.lib.empty(x.shape, dtype=x.dtype, pin_memory=x.device.type == "cuda")
+            host.append(buf.copy_(x.detach(), non_blocking=True))
+        self.lib.cuda.synchronize()
+        return [h.numpy() for h in host]
 
     @staticmethod
     def cast(x, dtype):

@@ -73,13 +73,12 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass
 from typing import Self
 
 import numpy as np
 
-from renderers.arrays import ops_for
 from renderers.gl_shaders import FRAGMENT_SHADER, VERTEX_SHADER
+from renderers.packing import PackedView, pack_instances
 
 log = logging.getLogger(__name__)
 
@@ -111,53 +110,6 @@ class GLUnavailable(RuntimeError):
     """No EGL OpenGL 3.3 context could be created on this machine."""
 
 
-@dataclass(frozen=True)
-class PackedView:
-    """A scene packed for one camera, ready to draw: the instance records ``(M, 12)`` of its drawable
-    splats front to back (:func:`pack_instances`) and each one's index in the scene (``ids``)."""
-
-    records: np.ndarray
-    ids: np.ndarray
-    width: int
-    height: int
-
-    def kept(self, keep: np.ndarray) -> PackedView:
-        """The records of the splats with ``keep[id]`` (bool, one per scene splat), in the same order.
-
-        Exactly what ``scene.subset(keep)`` packs to: a splat's record depends on that splat alone
-        (:mod:`renderers.projection`), and the depth sort is stable with ties in scene order, so
-        removing splats leaves the others' order as sorting the subset gives it.
-        """
-        sel = np.asarray(keep, bool)[self.ids]
-        return PackedView(self.records[sel], self.ids[sel], self.width, self.height)
-
-
-def pack_instances(projected) -> PackedView:
-    """Depth-sorted (front to back) float32 instance records ``(M, 12)`` for the shaders.
-
-    Columns: ``mean_x, mean_y, o, K, a, b, c, ac − b², r, g, b, radius`` with ``K = 2 ln(255 o)``.
-    Splats with ``o < 1/255`` are left out (exact: they never pass the α test). Computed in the
-    projection's library and on its device (one stable sort, one row gather), then copied to the
-    host once.
-    """
-    ops = ops_for(projected.opacities)
-    xp = ops.lib
-    f32 = lambda t: ops.cast(ops.detach(t), ops.float32)
-    op = f32(projected.opacities).reshape(-1, 1)
-    conics = f32(projected.conics)
-    c64 = ops.cast(conics, ops.float64)
-    det = ops.cast(xp.clip(c64[:, 0] * c64[:, 2] - c64[:, 1] * c64[:, 1], 1e-30, None), ops.float32)
-    packed = xp.concatenate(
-        [f32(projected.means2d), op, 2.0 * xp.log(255.0 * op), conics, det[:, None],
-         f32(projected.colors), f32(projected.radii).reshape(-1, 1)],
-        1,
-    )
-    keep = ops.flatnonzero(op[:, 0] >= 1.0 / 255.0)
-    order = keep[ops.argsort_stable(f32(projected.depths).reshape(-1)[keep])]
-    return PackedView(ops.to_numpy(packed[order]), ops.to_numpy(projected.ids[order]),
-                      int(projected.width), int(projected.height))
-
-
 def tiles(width: int, height: int, max_tile: int):
     """Tile rectangles ``(x0, y0, w, h)`` covering a ``width × height`` image, row-major."""
     for y0 in range(0, height, max_tile):
@@ -179,7 +131,7 @@ class GLRenderer:
     """
 
     #: what it can do beyond ``render`` (:func:`renderers.capabilities`)
-    capabilities = frozenset({"alpha", "pack", "batch"})
+    capabilities = frozenset({"alpha", "pack", "batch", "device_batch"})
 
     name = "gl"
 
@@ -308,21 +260,56 @@ class GLRenderer:
         device is waited for once per batch, not once per image (each view has its own instance
         buffer and framebuffer, so no upload waits for an earlier draw). Views of different sizes, or
         larger than one tile, are drawn one by one."""
-        sizes = {(v.width, v.height) for v in views}
         self._ensure_context()
-        if len(views) <= 1 or len(sizes) > 1 or max(next(iter(sizes))) > self.max_tile:
+        if len(views) <= 1 or not self._stackable(views):
             return [self.draw(v, background, with_alpha) for v in views]
-        (width, height), bg = next(iter(sizes)), np.asarray(background, dtype=np.float32).reshape(3)
+        (width, height), bg = (views[0].width, views[0].height), np.asarray(background, dtype=np.float32).reshape(3)
         out = []
         with self.ctx:
-            self._begin(width, height, 0, 0, width, height)
-            for i, v in enumerate(views):
-                self._draw_tile(self._framebuffer(width, height, i), self._upload(v.records, i) if len(v.records)
-                                else None, len(v.records), width, height)
+            self._queue(views)
             for i in range(len(views)):
                 image, alpha = self._composed(self._targets[i][0], width, height, bg, with_alpha)
                 out.append((image, alpha) if with_alpha else image)
         return out
+
+    def draw_many_on(self, views: list[PackedView], device, background=(0.0, 0.0, 0.0), with_alpha: bool = False):
+        """:meth:`draw_many` as ``(images (N, H, W, 3), alphas (N, H, W) or None)`` torch tensors on
+        ``device``, each image bit for bit its :meth:`draw`: the batch's frames are read into one
+        host buffer (pinned for CUDA) and copied to the device once (:mod:`renderers.readback`).
+        Views must share one size; views larger than one tile are drawn one by one and stacked."""
+        import torch
+
+        from renderers import readback
+
+        if len({(v.width, v.height) for v in views}) != 1:
+            raise ValueError("draw_many_on needs packed views of one size")
+        self._ensure_context()
+        width, height = views[0].width, views[0].height
+        if not self._stackable(views):
+            outs = [self.draw(v, background, with_alpha=True) for v in views]
+            images = torch.from_numpy(np.stack([o[0] for o in outs])).to(device)
+            return images, torch.from_numpy(np.stack([o[1] for o in outs])).to(device) if with_alpha else None
+        rgbt = readback.host_buffer(len(views), height, width, device)
+        host, frame = rgbt.numpy(), width * height * 16
+        with self.ctx:
+            self._queue(views)
+            for i in range(len(views)):
+                self._targets[i][0].read_into(host, viewport=(0, 0, width, height), components=4, dtype="f4",
+                                              write_offset=i * frame)
+        return readback.to_device(rgbt, device, background, with_alpha)
+
+    def _stackable(self, views: list[PackedView]) -> bool:
+        """Whether ``views`` share one size that fits one framebuffer (drawn in one go each)."""
+        sizes = {(v.width, v.height) for v in views}
+        return len(sizes) == 1 and max(next(iter(sizes))) <= self.max_tile
+
+    def _queue(self, views: list[PackedView]) -> None:
+        """Draw each view into its own slot's framebuffer (context current, views :meth:`_stackable`)."""
+        width, height = views[0].width, views[0].height
+        self._begin(width, height, 0, 0, width, height)
+        for i, v in enumerate(views):
+            self._draw_tile(self._framebuffer(width, height, i), self._upload(v.records, i) if len(v.records)
+                            else None, len(v.records), width, height)
 
     def _begin(self, width: int, height: int, x0: int, y0: int, w: int, h: int) -> None:
         """Blending (front to back: colour += T·cα, T ·= 1 − α) and the uniforms of an image's tile."""

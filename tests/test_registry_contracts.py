@@ -125,7 +125,8 @@ def test_renderer_contract(spec, small_view):
         empty = r.render(scene.subset(np.zeros(len(scene), bool)), cam, background=(0.2, 0.4, 0.6))
         np.testing.assert_allclose(empty, np.broadcast_to([0.2, 0.4, 0.6], empty.shape), atol=1e-6)
         caps = capabilities(r)
-        assert caps <= {"alpha", "pack", "batch"} and ("batch" not in caps or "pack" in caps)
+        assert caps <= {"alpha", "pack", "batch", "device_batch"} and ("batch" not in caps or "pack" in caps)
+        assert "device_batch" not in caps or "pack" in caps
         if "alpha" in caps:
             image, alpha = r.render_with_alpha(scene, cam, (0.0, 0.0, 0.0))
             assert alpha.shape == (cam.height, cam.width) and 0 <= alpha.min() and alpha.max() <= 1 + 1e-6
@@ -135,6 +136,9 @@ def test_renderer_contract(spec, small_view):
             packed = r.pack(scene, cam)
             for got in r.draw_many([packed, packed.kept(np.zeros(len(scene), bool))], (0.2, 0.4, 0.6))[:1]:
                 np.testing.assert_array_equal(got, img)
+        if "device_batch" in caps:
+            images, _ = r.draw_many_on([r.pack(scene, cam)], "cpu", (0.2, 0.4, 0.6))
+            np.testing.assert_array_equal(images[0].numpy(), img)
     finally:
         r.close()
 

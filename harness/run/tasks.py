@@ -30,7 +30,7 @@ from harness.core.errors import task_error
 from harness.core.params import Params
 from harness.run.cache import StageCache
 from harness.run.toolkit import Toolkit
-from harness.run.view_renders import ViewRenders
+from harness.run.view_renders import ViewRenders, host_array, stacked
 
 _STATE: dict = {}
 
@@ -213,7 +213,8 @@ def run_view(task: ViewTask, progress=None, scene=None, ref=None, keep_ref: bool
             scene = _scene(task.toolkit, task.path, task.lod, task.scene_digest)
         om = needs_alpha(task.metrics)  # OM metrics: occupancy from both renders (stored with the reference)
         alpha = om or task.photo is not None  # a photo's OM metrics: the reference's occupancy
-        renders = ViewRenders(_renderer(task.toolkit, task.renderer, task.device), scene, cam, task.background, alpha)
+        renders = ViewRenders(_renderer(task.toolkit, task.renderer, task.device), scene, cam, task.background, alpha,
+                              task.device)
         ref_img, ref_alpha = _reference(task, cache, renders, cam, ref, alpha and measure)
         _refuse_empty(ref_img, task.background, cam.name, measure)
         if task.ref_png:
@@ -293,11 +294,13 @@ def _register_reference(task: ViewTask, cache: StageCache, cam: Camera, ref, ref
     return suite, feat_s
 
 
-def _render_sets(task: ViewTask, cache: StageCache, renders: ViewRenders, jobs: list[MaskJob]) -> tuple[list, dict]:
+def _render_sets(task: ViewTask, cache: StageCache, renders: ViewRenders, jobs: list[MaskJob],
+                 on_device: bool = False) -> tuple[list, dict]:
     """([(job, image, alpha, render seconds)] of the pruned sets rendered, {id(job): error} of the
     others: a mask missing or failing verification, or a render that raised). The sets are drawn
     as one batch (:meth:`ViewRenders.many`: one read-back) with its seconds shared among them; a
-    batch that raises is drawn again set by set, so that a failing set fails alone."""
+    batch that raises is drawn again set by set, so that a failing set fails alone. ``on_device``:
+    the batch's images and alphas are tensors on the study's device (:meth:`ViewRenders.many_on_device`)."""
     from harness.run.verify import mask_check
 
     keeps, failed = [], {}
@@ -310,10 +313,14 @@ def _render_sets(task: ViewTask, cache: StageCache, renders: ViewRenders, jobs: 
             keeps.append((job, np.unpackbits(packed, count=task.n_splats).astype(bool)))
         except Exception as err:
             failed[id(job)] = task_error(err)
-    if len(keeps) > 1:
+    if len(keeps) > 1 or (on_device and keeps):
         try:
             t0 = time.perf_counter()
-            outs = renders.many([keep for _, keep in keeps])
+            if on_device:
+                images, alphas = renders.many_on_device([keep for _, keep in keeps])
+                outs = [(images[i], None if alphas is None else alphas[i]) for i in range(len(keeps))]
+            else:
+                outs = renders.many([keep for _, keep in keeps])
             each = (time.perf_counter() - t0) / len(keeps)
             return [(job, img, alpha, each) for (job, _), (img, alpha) in zip(keeps, outs)], failed
         except Exception:  # find which set fails: one by one below
@@ -336,14 +343,15 @@ def _measure_sets(task: ViewTask, cache: StageCache, suite, renders: ViewRenders
     when asked). Returns each job with its error (None: stored); a job whose mask or render fails
     is left out of the batch, a batch whose scoring fails fails all of its jobs.
     ``metrics_s`` of an entry is its share of the batch's scoring."""
-    done, result = _render_sets(task, cache, renders, jobs)  # result: id(job) -> its error (None: stored)
+    on_device = bool(getattr(suite, "torch_forms", False)) and renders.frames_on_device()
+    done, result = _render_sets(task, cache, renders, jobs, on_device)  # result: id(job) -> error (None: stored)
     in_order = lambda: [(job, result[id(job)]) for job in jobs]  # noqa: E731
     if not done:
         return in_order()
     t1 = time.perf_counter()
     try:
-        images = [img for _, img, _, _ in done]
-        rows = suite.score_many(task.ref_key, images, [a for _, _, a, _ in done]) if om else \
+        images = stacked([img for _, img, _, _ in done])
+        rows = suite.score_many(task.ref_key, images, stacked([a for _, _, a, _ in done])) if om else \
             suite.score_many(task.ref_key, images)
     except Exception as err:
         result.update({id(job): task_error(err) for job, *_ in done})
@@ -352,7 +360,7 @@ def _measure_sets(task: ViewTask, cache: StageCache, suite, renders: ViewRenders
     for (job, img, _, render_s), values in zip(done, rows):
         try:
             if job.png:
-                put_png(cache, job.metrics_key, img)
+                put_png(cache, job.metrics_key, host_array(img))
             rec = {k: float(values[k]) for k in (*task.metrics, *task.gt, "occupancy") if k in values}
             # render_s: this set's own render (its share of the view's projection is view_pack_s)
             rec.update(render_s=render_s, metrics_s=metrics_s, ref_features_s=feat_s, view_pack_s=renders.pack_s)

@@ -9,7 +9,7 @@ import time
 import numpy as np
 
 from harness.core.cameras import Camera
-from renderers import ALPHA, BATCH, PACK, capabilities
+from renderers import ALPHA, BATCH, DEVICE_BATCH, PACK, capabilities
 
 
 def render_alpha(renderer, scene, cam: Camera, background) -> tuple[np.ndarray, np.ndarray]:
@@ -32,11 +32,15 @@ class ViewRenders:
     scene once, on first use, and draws each pruned set as its splats filtered from that packing,
     bit for bit the render of ``scene.subset(keep)`` (:meth:`renderers.gl.PackedView.kept`); others
     render every subset. ``pack_s``: seconds the packing took (0 before :meth:`prepare`).
+
+    ``device``: the study's torch device. On CUDA, with a renderer that reads a batch into one
+    tensor (:data:`renderers.DEVICE_BATCH`), :meth:`many_on_device` hands the batch to the metrics
+    there (:meth:`frames_on_device`); elsewhere the frames are host arrays, as they always were.
     """
 
-    def __init__(self, renderer, scene, cam: Camera, background, with_alpha: bool):
+    def __init__(self, renderer, scene, cam: Camera, background, with_alpha: bool, device: str | None = None):
         self.renderer, self.scene, self.cam = renderer, scene, cam
-        self.background, self.with_alpha = background, with_alpha
+        self.background, self.with_alpha, self.device = background, with_alpha, device
         self._packed = None
         self.pack_s = 0.0
 
@@ -66,6 +70,24 @@ class ViewRenders:
         outs = r.draw_many([self._packed.kept(keep) for keep in keeps], self.background, with_alpha=self.with_alpha)
         return [self._arrays(out) for out in outs]
 
+    def frames_on_device(self) -> bool:
+        """Whether :meth:`many_on_device` applies: the renderer packs views and reads a batch into a
+        tensor, and the device is CUDA (:func:`renderers.readback.on_cuda`; the CPU is answered
+        without importing torch)."""
+        caps = capabilities(self.renderer)
+        if self.device in (None, "cpu") or PACK not in caps or DEVICE_BATCH not in caps:
+            return False
+        from renderers.readback import on_cuda
+
+        return on_cuda(self.device)
+
+    def many_on_device(self, keeps: list[np.ndarray]):
+        """``(images (N, H, W, 3), alphas (N, H, W) or None)``, torch tensors on the device, of the
+        pruned sets ``keeps``: each image bit for bit ``self(keep)``, the batch copied there once."""
+        self.prepare()
+        views = [self._packed.kept(keep) for keep in keeps]
+        return self.renderer.draw_many_on(views, self.device, self.background, with_alpha=self.with_alpha)
+
     def _arrays(self, out) -> tuple[np.ndarray, np.ndarray | None]:
         img, alpha = out if self.with_alpha else (out, None)
         return np.asarray(img, np.float32), None if alpha is None else np.asarray(alpha, np.float32)
@@ -77,3 +99,18 @@ class ViewRenders:
         if self.with_alpha:
             return render_alpha(r, scene, self.cam, self.background)
         return np.asarray(r.render(scene, self.cam, background=self.background), dtype=np.float32), None
+
+
+def stacked(frames: list):
+    """Frames of a batch as the metrics take them: device tensors (:meth:`ViewRenders.many_on_device`)
+    stacked into one ``(N, ...)`` tensor, host arrays left a list."""
+    if frames and frames[0] is not None and not isinstance(frames[0], np.ndarray):
+        import torch
+
+        return torch.stack(frames)
+    return frames
+
+
+def host_array(frame) -> np.ndarray:
+    """A frame as a host array (a device tensor copied back: for its PNG)."""
+    return frame if isinstance(frame, np.ndarray) else frame.cpu().numpy()
