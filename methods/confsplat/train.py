@@ -51,7 +51,14 @@ Readings decided here:
   :func:`harness.metrics.ssim.ssim_map` with a differentiable banded-matmul blur (:func:`blur_matmul`),
   on unclamped images as their training loss.
 * One view per step (their batch size 1), in a fixed order: one permutation of the training views per
-  epoch from ``numpy.random.default_rng(seed)``. ``iterations`` steps; no wall-clock budget by default.
+  epoch from ``numpy.random.default_rng(seed)``. Views are **not** batched per step, on any device:
+  their ``Config`` has ``batch_size: int = 1`` ("Learning rates are scaled automatically"), and
+  ``create_splats_with_optimizers`` turns a batch of B into another optimiser — lr·√B, eps 1e-15/√B,
+  betas (1 − B·0.1, 1 − B·0.001) — with the comment "this would not make the training exactly
+  equivalent"; the rank loss's saliency would also be summed per batch, not per view. So B > 1 is a
+  different method from the one the study compares, and no parameter offers it. (The optimisation
+  runs on the CPU's pixel pairs, :mod:`renderers.pixel_pairs`; only the set-up's projection uses
+  the context's device.) ``iterations`` steps; no wall-clock budget by default.
   With ``time_budget_s`` set, fewer if the optimisation loop (set-up excluded) exceeds it: the result
   then records ``stopped_by_budget`` and the ``iterations`` done (a lower bound; logged as a warning).
 * A splat invisible from every training view never enters a rendered pair, so its image gradient is
