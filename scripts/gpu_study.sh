@@ -38,7 +38,8 @@ harness() { python3 -m harness.cli "$@"; }
 tests() {
   timeout 300 python3 -m pytest -q -p no:cacheprovider -rs tests/test_metrics_torch_forms.py \
     tests/test_batched_views.py tests/test_metrics_mpeg.py tests/test_metrics_ssim.py tests/test_metrics_lpips.py \
-    tests/test_gl_renderer.py tests/test_gl_batch.py tests/test_device_workers.py tests/test_local_executor.py 2>&1 | tee "$OUT/bench/tests.txt" | tail -15
+    tests/test_gl_renderer.py tests/test_gl_batch.py tests/test_device_workers.py tests/test_local_executor.py \
+    tests/test_significance_batched.py tests/test_virtualrig.py 2>&1 | tee "$OUT/bench/tests.txt" | tail -15
 }
 default() {
   timeout 120 harness bench calibrate --device cuda --out "$OUT/bench"
