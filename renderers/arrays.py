@@ -106,7 +106,8 @@ class TorchOps:
         for x in xs:
             buf = self.lib.empty(x.shape, dtype=x.dtype, pin_memory=x.device.type == "cuda")
             host.append(buf.copy_(x.detach(), non_blocking=True))
-        self.lib.cuda.synchronize()
+        for dev in {x.device for x in xs if x.device.type == "cuda"}:
+            self.lib.cuda.synchronize(dev)
         return [h.numpy() for h in host]
 
     @staticmethod
