@@ -3,9 +3,9 @@
 Pipeline (graphdeco ``FORWARD::render`` semantics):
 
 1. :func:`renderers.projection.project_gaussians` → visible splats (means2d, conic, colour, opacity, radius).
-2. Binning: splats are sorted front-to-back by view depth (stable, ties by scene index), every
-   (tile, splat) pair whose footprint touches the tile is listed, and the list is stably sorted by tile,
-   so each tile holds its splats in depth order.
+2. Binning (:mod:`renderers.binning`): splats are sorted front-to-back by view depth (stable, ties by
+   scene index), every (tile, splat) pair whose footprint touches the tile is listed, and the list is
+   stably sorted by tile, so each tile holds its splats in depth order.
 3. Per pixel p with centre (i, j) and d = (i, j) − means2d (pixel-centre convention: see
    :mod:`renderers.projection`), front to back:
    ``power = −½(a dx² + c dy²) − b dx dy`` (skip if > 0), ``α = min(0.99, o·exp(power))`` (skip if
@@ -50,13 +50,13 @@ import torch
 from torch.utils import checkpoint as ckpt_util
 
 from harness.core.cameras import Camera
+from renderers.binning import FOOTPRINTS, Bins, bin_splats
 from renderers.projection import (
     TILE,
     Projected,
     SplatTensors,
     default_device,
     project_gaussians,
-    tile_rects,
 )
 
 log = logging.getLogger(__name__)
@@ -65,7 +65,6 @@ ALPHA_MAX = 0.99
 ALPHA_MIN = 1.0 / 255.0
 T_EARLY_STOP = 1e-4
 T_RETIRE = 1e-7
-FOOTPRINTS = ("box", "tile")
 
 
 @dataclass
@@ -75,55 +74,6 @@ class RasterOutput:
     opacity_t: torch.Tensor | None = None  # (N,) Σ_pixels o_i T_i
     hits: torch.Tensor | None = None  # (N,) pixels where splat i passed the α tests
     alpha: torch.Tensor | None = None  # (H, W) accumulated opacity 1 − T of each pixel
-
-
-@dataclass
-class _Bins:
-    entries: torch.Tensor  # (E,) index into the Projected arrays, grouped by tile, depth order inside
-    start: torch.Tensor  # (n_tiles,) first entry of each tile
-    count: torch.Tensor  # (n_tiles,) number of entries
-    gx: int
-    gy: int
-
-
-def bin_splats(proj: Projected, footprint: str = "box", tile: int = TILE) -> _Bins:
-    """Tile lists in depth order. ``box``: tiles containing a pixel centre of the ±r box;
-    ``tile``: graphdeco's ``getRect`` rectangle (16-px tiles only)."""
-    w, h = proj.width, proj.height
-    gx, gy = (w + tile - 1) // tile, (h + tile - 1) // tile
-    dev = proj.means2d.device
-    order = torch.sort(proj.depths.detach(), stable=True).indices
-    m2d, r = proj.means2d.detach()[order], proj.radii.detach()[order]
-    if footprint == "tile":
-        if tile != TILE:
-            raise ValueError("footprint='tile' reproduces graphdeco and needs 16-px tiles")
-        x0, x1, y0, y1 = tile_rects(m2d, r, w, h)
-    elif footprint == "box":
-        def rng(c, size):
-            lo = torch.ceil(c - r).clamp(min=0)
-            hi = torch.floor(c + r).clamp(max=size - 1)
-            empty = lo > hi
-            a = torch.div(lo.clamp(max=size - 1), tile, rounding_mode="floor").long()
-            b = torch.div(hi.clamp(min=0), tile, rounding_mode="floor").long() + 1
-            return a, torch.where(empty, a, b)
-
-        x0, x1 = rng(m2d[:, 0], w)
-        y0, y1 = rng(m2d[:, 1], h)
-    else:
-        raise ValueError(f"footprint must be one of {FOOTPRINTS}, got {footprint!r}")
-    wx = (x1 - x0).clamp(min=0)
-    n_per = wx * (y1 - y0).clamp(min=0)
-    total = int(n_per.sum())
-    splat = torch.repeat_interleave(torch.arange(len(order), device=dev), n_per)
-    first = torch.cumsum(n_per, 0) - n_per
-    off = torch.arange(total, device=dev) - first[splat]
-    wx_s = wx[splat]
-    tiles = (y0[splat] + torch.div(off, wx_s, rounding_mode="floor")) * gx + x0[splat] + off % wx_s
-    tiles, perm = torch.sort(tiles, stable=True)
-    entries = order[splat[perm]]
-    count = torch.bincount(tiles, minlength=gx * gy)
-    start = torch.cumsum(count, 0) - count
-    return _Bins(entries, start, count, gx, gy)
 
 
 def _composite_step(ent, valid, cols, rows, col_ok, row_ok, t_in, done_in, early_stop: bool, box: bool, stats: bool):
@@ -296,7 +246,7 @@ def composite_views(projs: list[Projected], n_splats: int, background=(0, 0, 0),
     offsets = np.concatenate([[0], np.cumsum(lens)]).tolist()
     entries = torch.cat([b.entries + off for b, off in zip(per_view, offsets)])
     count = torch.cat([b.count for b in per_view])
-    bins = _Bins(entries, torch.cumsum(count, 0) - count, count, gx, gy)
+    bins = Bins(entries, torch.cumsum(count, 0) - count, count, gx, gy)
     grad = torch.is_grad_enabled() and any(
         t.requires_grad for p in projs for t in (p.means2d, p.conics, p.colors, p.opacities))
     if compiled is None:

@@ -10,8 +10,9 @@ from the free space of a room. Nothing here imports the harness's test rigs (``h
 the pruner cannot mirror the protocols that score it (``tests/test_virtualrig.py`` checks the import
 graph).
 
-Computed with the significance function's ``auto`` backend: exact pixel pairs (numba) on the CPU,
-the reference rasterizer's statistics on the context's torch device elsewhere (CUDA).
+Computed with the significance function's ``auto`` backend: the exact numba sweep on the CPU, the
+reference rasterizer's statistics on the context's torch device elsewhere (CUDA), the rig's views
+composited together there (:func:`renderers.reference.composite_views`).
 """
 
 from __future__ import annotations
