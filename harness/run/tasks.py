@@ -316,11 +316,7 @@ def _render_sets(task: ViewTask, cache: StageCache, renders: ViewRenders, jobs: 
     if len(keeps) > 1 or (on_device and keeps):
         try:
             t0 = time.perf_counter()
-            if on_device:
-                images, alphas = renders.many_on_device([keep for _, keep in keeps])
-                outs = [(images[i], None if alphas is None else alphas[i]) for i in range(len(keeps))]
-            else:
-                outs = renders.many([keep for _, keep in keeps])
+            outs = _draw_batch(renders, [keep for _, keep in keeps], on_device)
             each = (time.perf_counter() - t0) / len(keeps)
             return [(job, img, alpha, each) for (job, _), (img, alpha) in zip(keeps, outs)], failed
         except Exception:  # find which set fails: one by one below
@@ -334,6 +330,15 @@ def _render_sets(task: ViewTask, cache: StageCache, renders: ViewRenders, jobs: 
         except Exception as err:
             failed[id(job)] = task_error(err)
     return done, failed
+
+
+def _draw_batch(renders: ViewRenders, keeps: list[np.ndarray], on_device: bool) -> list[tuple]:
+    """``(image, alpha or None)`` of each pruned set drawn as one batch: host arrays, or with
+    ``on_device`` views into the batch's tensors on the study's device."""
+    if not on_device:
+        return renders.many(keeps)
+    images, alphas = renders.many_on_device(keeps)
+    return [(images[i], None if alphas is None else alphas[i]) for i in range(len(keeps))]
 
 
 def _measure_sets(task: ViewTask, cache: StageCache, suite, renders: ViewRenders, jobs: list[MaskJob],
