@@ -73,37 +73,37 @@ def global_colour_shift(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _shift_compensate(ref, tst, shift, weights, out):
     """``xShftCompPic::xGenShftCompPic`` on planar pictures (3, H, W); ``ref`` is padded by MARGIN
-    (edge-replicated). The 25 candidates are visited in the tool's order (dy outer, dx inner), each
-    over whole rows (vectorisable); a strictly smaller error replaces the best, so the first minimum
-    wins, as in ``xFindBestPixelWithinBlock``."""
+    (edge-replicated). Per pixel the 25 candidates are visited in the tool's order (dy outer, dx
+    inner) and a strictly smaller error replaces the best, so the first minimum wins, as in
+    ``xFindBestPixelWithinBlock``. Where the centre candidate's error is 0 (positive weights: every
+    component matches) the search is skipped: whichever candidate wins then has error 0 too, so it
+    holds the same values, and the output is the same."""
     h, w = tst.shape[1], tst.shape[2]
     side = 2 * SEARCH + 1
-    best = np.full((h, w), np.int32(2147483647), np.int32)
-    best_k = np.zeros((h, w), np.int32)
-    t0, t1, t2 = tst[0] + shift[0], tst[1] + shift[1], tst[2] + shift[2]
     w0, w1, w2 = weights[0], weights[1], weights[2]
-    k = 0
-    for dy in range(-SEARCH, SEARCH + 1):
-        for dx in range(-SEARCH, SEARCH + 1):
-            for y in range(h):
-                r0 = ref[0, y + MARGIN + dy, MARGIN + dx:MARGIN + dx + w]
-                r1 = ref[1, y + MARGIN + dy, MARGIN + dx:MARGIN + dx + w]
-                r2 = ref[2, y + MARGIN + dy, MARGIN + dx:MARGIN + dx + w]
-                a0, a1, a2, b, bk = t0[y], t1[y], t2[y], best[y], best_k[y]
-                for x in range(w):
-                    d0, d1, d2 = a0[x] - r0[x], a1[x] - r1[x], a2[x] - r2[x]
-                    err = d0 * d0 * w0 + d1 * d1 * w1 + d2 * d2 * w2
-                    better = err < b[x]
-                    b[x] = err if better else b[x]
-                    bk[x] = k if better else bk[x]
-            k += 1
+    exact = w0 > 0 and w1 > 0 and w2 > 0
     for y in range(h):
         for x in range(w):
-            yy = y + MARGIN + best_k[y, x] // side - SEARCH
-            xx = x + MARGIN + best_k[y, x] % side - SEARCH
+            a0, a1, a2 = tst[0, y, x] + shift[0], tst[1, y, x] + shift[1], tst[2, y, x] + shift[2]
+            best_k = SEARCH * side + SEARCH
+            if not (exact and a0 == ref[0, y + MARGIN, x + MARGIN] and a1 == ref[1, y + MARGIN, x + MARGIN]
+                    and a2 == ref[2, y + MARGIN, x + MARGIN]):
+                best = np.int32(2147483647)
+                k = 0
+                for dy in range(-SEARCH, SEARCH + 1):
+                    for dx in range(-SEARCH, SEARCH + 1):
+                        yy, xx = y + MARGIN + dy, x + MARGIN + dx
+                        d0, d1, d2 = a0 - ref[0, yy, xx], a1 - ref[1, yy, xx], a2 - ref[2, yy, xx]
+                        err = d0 * d0 * w0 + d1 * d1 * w1 + d2 * d2 * w2
+                        if err < best:
+                            best = err
+                            best_k = k
+                        k += 1
+            yy = y + MARGIN + best_k // side - SEARCH
+            xx = x + MARGIN + best_k % side - SEARCH
             for c in range(3):
                 v = ref[c, yy, xx] - shift[c]
                 out[y, x, c] = 0 if v < 0 else (255 if v > 255 else v)
