@@ -54,8 +54,7 @@ import math
 
 import numpy as np
 
-from harness.io.codecs import round_half_away
-from harness.metrics import ivssim, mpeg_ssim
+from harness.metrics import ivssim, mpeg_pixels, mpeg_ssim
 
 PEAK = 255.0
 CAP = 999.99
@@ -69,33 +68,24 @@ YUV_ROUNDING = {"float32": (True, True, True), "gcc-o3": (False, False, True)}
 
 
 def quantize(image) -> np.ndarray:
-    """8-bit RGB ``(H, W, 3)`` as the tool makes it from a float render; uint8 input is kept as is."""
+    """8-bit RGB ``(H, W, 3)`` as the tool makes it from a float render; uint8 input is kept as is.
+    ``std::round`` is half away from zero: floor(p + 0.5) would send 0.49999997 to 1
+    (:func:`.mpeg_pixels.quantize_f32`)."""
     a = np.asarray(image)
     if a.dtype == np.uint8:
         return np.ascontiguousarray(a[..., :3])
-    p = np.asarray(a[..., :3], np.float32) * np.float32(255.0)  # float32 product, as `c.x * scale`
-    with np.errstate(invalid="ignore"):
-        r = round_half_away(p)  # std::round; floor(p + 0.5) would send 0.49999997 to 1
-    return np.clip(np.nan_to_num(r, nan=0.0), 0, 255).astype(np.uint8)
+    return mpeg_pixels.quantize_f32(np.asarray(a[..., :3], np.float32))  # float32 product, as `c.x * scale`
 
 
 def yuv_default(rgb: np.ndarray, rounding=(True, True, True)) -> np.ndarray:
-    """Image::getYuv of uint8 RGB: float64 planes (H, W, 3), each rounded to float32 where asked."""
-    c = rgb.astype(np.float64)
-    r, g, b = c[..., 0], c[..., 1], c[..., 2]
-    y = _COEF[0, 0] * r + _COEF[0, 1] * g + _COEF[0, 2] * b  # exact in double (< 40 significant bits)
-    u = _COEF[1, 0] * r + _COEF[1, 1] * g + _COEF[1, 2] * b + 128.0
-    v = _COEF[2, 0] * r + _COEF[2, 1] * g + _COEF[2, 2] * b + 128.0
-    return np.stack([p.astype(np.float32).astype(np.float64) if rnd else p for p, rnd in zip((y, u, v), rounding)], -1)
+    """Image::getYuv of uint8 RGB: float64 planes (H, W, 3), each rounded to float32 where asked
+    (exact in double before that: < 40 significant bits)."""
+    return mpeg_pixels.yuv_default(rgb, _COEF, tuple(bool(r) for r in rounding))
 
 
 def yuv_qmiv(rgb: np.ndarray) -> np.ndarray:
     """Image::getYuvQmiv of uint8 RGB: integer BT.709 (int64 planes, H, W, 3)."""
-    r, g, b = (rgb[..., i].astype(np.int64) for i in range(3))
-    y = np.clip((13933 * r + 46871 * g + 4732 * b + 32768) >> 16, 0, 255)
-    u = np.clip(((-7509 * r - 25259 * g + (b << 15) + 32768) >> 16) + 128, 0, 255)
-    v = np.clip((((r << 15) - 29763 * g - 3005 * b + 32768) >> 16) + 128, 0, 255)
-    return np.stack([y, u, v], -1)
+    return mpeg_pixels.yuv_qmiv(rgb)
 
 
 def occupancy_mask(alpha_ref, alpha_test=None) -> np.ndarray:
