@@ -86,38 +86,45 @@ def _planar(img):
 
 
 @nb.njit(cache=True, nogil=True)
-def _shift_compensate(ref, tst, shift, weights):
-    """``xShftCompPic::xGenShftCompPic`` on planar int32 pictures ``(3, H, W)``, planar out. ``ref`` is
-    read at clamped coordinates: PMBB's ExtendMargin replicates the edges by MARGIN ≥ SEARCH pixels.
-    Per pixel the 25 candidates are visited in the tool's order (dy outer, dx inner) and a strictly
-    smaller error replaces the best, so the first minimum wins, as in ``xFindBestPixelWithinBlock``.
-    Where the centre candidate's error is 0 (positive weights: every component matches) the search
-    is skipped: whichever candidate wins then has error 0 too, holds the same values, gives the same output."""
+def _shift_row(ref, tst, shift, weights, y, out):
+    """Row y of :func:`_shift_compensate`."""
     h, w = tst.shape[1], tst.shape[2]
-    out = np.empty((3, h, w), np.int32)
     w0, w1, w2 = weights[0], weights[1], weights[2]
     exact = w0 > 0 and w1 > 0 and w2 > 0
-    for y in range(h):
-        for x in range(w):
-            a0, a1, a2 = tst[0, y, x] + shift[0], tst[1, y, x] + shift[1], tst[2, y, x] + shift[2]
-            by, bx = y, x
-            if not (exact and a0 == ref[0, y, x] and a1 == ref[1, y, x] and a2 == ref[2, y, x]):
-                best = np.int32(2147483647)
-                for dy in range(-SEARCH, SEARCH + 1):
-                    yy = min(max(y + dy, 0), h - 1)
-                    for dx in range(-SEARCH, SEARCH + 1):
-                        xx = min(max(x + dx, 0), w - 1)
-                        d0, d1, d2 = a0 - ref[0, yy, xx], a1 - ref[1, yy, xx], a2 - ref[2, yy, xx]
-                        err = d0 * d0 * w0 + d1 * d1 * w1 + d2 * d2 * w2
-                        if err < best:
-                            best, by, bx = err, yy, xx
-            for c in range(3):
-                v = ref[c, by, bx] - shift[c]
-                out[c, y, x] = 0 if v < 0 else (255 if v > 255 else v)
+    for x in range(w):
+        a0, a1, a2 = tst[0, y, x] + shift[0], tst[1, y, x] + shift[1], tst[2, y, x] + shift[2]
+        by, bx = y, x
+        if not (exact and a0 == ref[0, y, x] and a1 == ref[1, y, x] and a2 == ref[2, y, x]):
+            best = np.int32(2147483647)
+            for dy in range(-SEARCH, SEARCH + 1):
+                yy = min(max(y + dy, 0), h - 1)
+                for dx in range(-SEARCH, SEARCH + 1):
+                    xx = min(max(x + dx, 0), w - 1)
+                    d0, d1, d2 = a0 - ref[0, yy, xx], a1 - ref[1, yy, xx], a2 - ref[2, yy, xx]
+                    err = d0 * d0 * w0 + d1 * d1 * w1 + d2 * d2 * w2
+                    if err < best:
+                        best, by, bx = err, yy, xx
+        for c in range(3):
+            v = ref[c, by, bx] - shift[c]
+            out[c, y, x] = 0 if v < 0 else (255 if v > 255 else v)
+
+
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _shift_compensate(ref, tst, shift, weights):
+    """``xShftCompPic::xGenShftCompPic`` on planar int32 pictures ``(3, H, W)``, planar out, rows in
+    parallel (every pixel is its own search). ``ref`` is read at clamped coordinates: PMBB's
+    ExtendMargin replicates the edges by MARGIN ≥ SEARCH pixels. Per pixel the 25 candidates are
+    visited in the tool's order (dy outer, dx inner) and a strictly smaller error replaces the best,
+    so the first minimum wins, as in ``xFindBestPixelWithinBlock``. Where the centre candidate's
+    error is 0 (positive weights: every component matches) the search is skipped: whichever
+    candidate wins then has error 0 too, holds the same values, gives the same output."""
+    out = np.empty(tst.shape, np.int32)
+    for y in nb.prange(tst.shape[1]):
+        _shift_row(ref, tst, shift, weights, np.int64(y), out)  # a signed row: y + dy may be negative
     return out
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _kbns_add(s, c, v):
     t = s + v
     if abs(s) >= abs(v):
@@ -127,19 +134,17 @@ def _kbns_add(s, c, v):
     return t, c
 
 
-@nb.njit(cache=True)
-def _block_ssim_sum(tst, ref, c1, c2):
-    """Σ over 8×8 blocks (stride 4) of ``CalcBlckAvg`` with the luminance term, KBNS per row, then
-    KBNS over the row sums (``xKBNS::Accumulate`` starts from the first row's sum)."""
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _block_values(tst, ref, c1, c2):
+    """``CalcBlckAvg`` with the luminance term of every 8×8 block (stride 4), block rows in parallel."""
     h, w = tst.shape
+    rows, cols = (h - BLOCK) // STRIDE + 1, (w - BLOCK) // STRIDE + 1
+    out = np.empty((rows, cols))
     inv = 1.0 / 64.0
-    total = 0.0
-    comp = 0.0
-    first = True
-    for y in range(0, h - BLOCK + 1, STRIDE):
-        rs = 0.0
-        rc = 0.0
-        for x in range(0, w - BLOCK + 1, STRIDE):
+    for by in nb.prange(rows):
+        y = by * STRIDE
+        for bx in range(cols):
+            x = bx * STRIDE
             sr = np.int64(0)
             st = np.int64(0)
             srr = np.int64(0)
@@ -161,11 +166,25 @@ def _block_ssim_sum(tst, ref, c1, c2):
             cov = srt * inv - avg_r * avg_t
             lum = (2 * avg_r * avg_t + c1) / (avg_r * avg_r + avg_t * avg_t + c1)
             cs = (2 * cov + c2) / (var_r + var_t + c2)
-            rs, rc = _kbns_add(rs, rc, lum * cs)
+            out[by, bx] = lum * cs
+    return out
+
+
+@nb.njit(cache=True, nogil=True)
+def _block_ssim_sum(tst, ref, c1, c2):
+    """Σ over the blocks (:func:`_block_values`) with KBNS per block row, then KBNS over the row sums
+    (``xKBNS::Accumulate`` starts from the first row's sum): in order, whatever the thread count."""
+    values = _block_values(tst, ref, c1, c2)
+    total = 0.0
+    comp = 0.0
+    for by in range(values.shape[0]):
+        rs = 0.0
+        rc = 0.0
+        for bx in range(values.shape[1]):
+            rs, rc = _kbns_add(rs, rc, values[by, bx])
         row = rs + rc
-        if first:
+        if by == 0:
             total = row
-            first = False
         else:
             total, comp = _kbns_add(total, comp, row)
     return total + comp

@@ -114,14 +114,6 @@ def _psnr_of_mean(mses) -> float:
     return min(CAP, 10.0 * math.log10(PEAK * PEAK / m)) if m > 0 else CAP
 
 
-def _sq_sums(d: np.ndarray) -> list[float]:
-    """Per-channel Σ d² in pixel order (d: (n, 3)). Integer differences are summed exactly (equal
-    to the tool's running double sum, whose partial sums are exact integers); others in sequence."""
-    if d.dtype.kind == "i":
-        return [float(int((d[:, c] * d[:, c]).sum())) for c in range(3)]
-    return [float(np.cumsum(d[:, c] * d[:, c])[-1]) if len(d) else 0.0 for c in range(3)]
-
-
 def _combine(values, qmiv: bool, kind: str) -> float:
     a, b, c = values
     if kind == "ssim":
@@ -209,11 +201,11 @@ def tool_metrics(ref, test, mask=None, *, qmiv: bool = False, ssim: bool = True,
     a = prep.rgb
     size = h * w
     yb, yb_diff = prep.yuv_of(b)
-    dyuv = (prep.yuv_diff - yb_diff).reshape(-1, 3)
-    drgb = (a.astype(np.int64) - b.astype(np.int64)).reshape(-1, 3)
+    yuv_sums = mpeg_pixels.square_sums_int if qmiv else mpeg_pixels.square_sums_float
+    sums = {"rgb": mpeg_pixels.square_sums_int(a, b, m), "yuv": yuv_sums(prep.yuv_diff, yb_diff, m)}
     r: dict = {}
-    for space, d in (("rgb", drgb), ("yuv", dyuv)):
-        mse = [s / size for s in _sq_sums(d)]
+    for space, (full, _) in sums.items():
+        mse = [float(s) / size for s in full]
         psnr = [_psnr(x) for x in mse]
         r[f"mse_{space}"], r[f"psnr_{space}"] = mse, psnr
         if not qmiv:
@@ -221,12 +213,11 @@ def tool_metrics(ref, test, mask=None, *, qmiv: bool = False, ssim: bool = True,
         else:
             r[f"{space}_psnr"] = _combine(psnr, True, space)
         r[f"mse_{space}_om"], r[f"psnr_{space}_om"], r[f"{space}_psnr_om"] = [0.0] * 3, [0.0] * 3, 0.0
-    sel = m.reshape(-1)
-    n_valid = int(sel.sum())
+    n_valid = int(np.count_nonzero(m))
     r["occupancy"] = 0.0
     if om and n_valid > 0:
-        for space, d in (("rgb", drgb[sel]), ("yuv", dyuv[sel])):
-            mse = [s / n_valid for s in _sq_sums(d)]
+        for space, (_, part) in sums.items():
+            mse = [float(s) / n_valid for s in part]
             psnr = [_psnr(x) for x in mse]
             r[f"mse_{space}_om"], r[f"psnr_{space}_om"] = mse, psnr
             r[f"{space}_psnr_om"] = _combine(psnr, True, space) if qmiv else _psnr_of_mean(mse)

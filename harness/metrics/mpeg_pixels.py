@@ -69,3 +69,36 @@ def yuv_qmiv(rgb):
             out[y, x, 1] = _clip255(((-7509 * r - 25259 * g + (b << 15) + 32768) >> 16) + 128)
             out[y, x, 2] = _clip255((((r << 15) - 29763 * g - 3005 * b + 32768) >> 16) + 128)
     return out
+
+
+@nb.njit(cache=True, nogil=True)
+def square_sums_int(a, b, mask):
+    """Per channel Σ (a − b)² of integer pictures ``(H, W, 3)``, over all pixels and over those where
+    ``mask``: two float64 ``(3,)``, each the exact int64 sum (the tool's running double sum of these
+    integers is exact too, whatever the order)."""
+    full = np.zeros(3, np.int64)
+    part = np.zeros(3, np.int64)
+    for y in range(a.shape[0]):
+        for x in range(a.shape[1]):
+            for c in range(3):
+                d = np.int64(a[y, x, c]) - np.int64(b[y, x, c])
+                full[c] += d * d
+                if mask[y, x]:
+                    part[c] += d * d
+    return full.astype(np.float64), part.astype(np.float64)
+
+
+@nb.njit(cache=True, nogil=True)
+def square_sums_float(a, b, mask):
+    """Per channel Σ (a − b)² of float64 pictures ``(H, W, 3)``, over all pixels and over those where
+    ``mask``, each a running double sum in row-major pixel order (the tool's)."""
+    full = np.zeros(3)
+    part = np.zeros(3)
+    for y in range(a.shape[0]):
+        for x in range(a.shape[1]):
+            for c in range(3):
+                d = a[y, x, c] - b[y, x, c]
+                full[c] += d * d
+                if mask[y, x]:
+                    part[c] += d * d
+    return full, part
