@@ -157,6 +157,8 @@ def score_views(source, processed, cams, renderer, *, qmiv: bool = False, lpips=
     Rows come back (and ``progress`` sees them) in view order, each value the one computed alone."""
     from concurrent.futures import ThreadPoolExecutor
 
+    from harness.metrics.mpeg import occupancy_mask, tool_metrics
+
     rows: list[dict] = []
 
     def measure(name, a, b, mask, render_s):
@@ -172,8 +174,6 @@ def score_views(source, processed, cams, renderer, *, qmiv: bool = False, lpips=
         rows.append(future.result())
         if progress:
             progress(rows[-1])
-
-    from harness.metrics.mpeg import occupancy_mask, tool_metrics
 
     with ThreadPoolExecutor(1, thread_name_prefix="score-metrics") as pool:
         pending = None
@@ -218,6 +218,8 @@ def run(args) -> int:
         renderer = get_renderer(args.renderer, args.device)
     except Exception as err:  # noqa: BLE001  no EGL/CUDA here: usage, not a crash
         raise InputError(f"--renderer {args.renderer}", f"cannot start the renderer: {err}") from None
+    if hasattr(renderer, "preload_triton"):  # the GL renderer: this process never calls torch.compile
+        renderer.preload_triton = False
     lpips = None
     if args.lpips:
         from harness.metrics.lpips_vgg import LpipsVGG
