@@ -92,36 +92,29 @@ def _runs(row):
 
 
 @nb.njit(cache=True, nogil=True)
-def _mean_run(p, y, x0, x1, w, mu):
-    """``mu[x − x0] = Σ_j Σ_i w[i, j]·P[y + j, x + i]`` for x in [x0, x1)."""
-    mu[:] = 0.0
+def _window_run(p, y, x0, x1, w, out, mu):
+    """For x in [x0, x1): ``out[x − x0] = Σ_j Σ_i w[i, j]·P[y + j, x + i]`` (``mu`` None: the window
+    mean), else ``Σ_j Σ_i (w[i, j]·(P − μ))·(P − μ)`` with ``μ = mu[x − x0]`` (the spread)."""
+    out[:] = 0.0
     for j in range(WINDOW):
         r = p[y + j]
         for i in range(WINDOW):
             wt = w[i, j]
-            for x in range(x0, x1):
-                mu[x - x0] += wt * r[x + i]
-
-
-@nb.njit(cache=True, nogil=True)
-def _spread_run(p, mu, y, x0, x1, w, s):
-    """``s[x − x0] = Σ_j Σ_i (w[i, j]·(P − μ))·(P − μ)`` over the window of x."""
-    s[:] = 0.0
-    for j in range(WINDOW):
-        r = p[y + j]
-        for i in range(WINDOW):
-            wt = w[i, j]
-            for x in range(x0, x1):
-                d = r[x + i] - mu[x - x0]
-                s[x - x0] += wt * d * d
+            if mu is None:  # decided when compiled: one specialisation per form
+                for x in range(x0, x1):
+                    out[x - x0] += wt * r[x + i]
+            else:
+                for x in range(x0, x1):
+                    d = r[x + i] - mu[x - x0]
+                    out[x - x0] += wt * d * d
 
 
 @nb.njit(cache=True, nogil=True)
 def fill_moments(p, w, h, width, mu, s):
     """Window mean and spread of every pixel of a padded plane into ``mu``, ``s`` (h, width)."""
     for y in range(h):
-        _mean_run(p, y, 0, width, w, mu[y])
-        _spread_run(p, mu[y], y, 0, width, w, s[y])
+        _window_run(p, y, 0, width, w, mu[y], None)
+        _window_run(p, y, 0, width, w, s[y], mu[y])
 
 
 @nb.njit(cache=True, nogil=True)
@@ -130,7 +123,7 @@ def _full_run(pa, mu_a, s_aa, pb, y, x0, x1, w, out, ok, mu_b_sums):
     ``mu_b_sums`` (the masked form's first-pass sum where the mask fills the window)."""
     n = x1 - x0
     mu_b = mu_b_sums[x0:x1]
-    _mean_run(pb, y, x0, x1, w, mu_b)
+    _window_run(pb, y, x0, x1, w, mu_b, None)
     s_bb = np.zeros(n)
     s_ab = np.zeros(n)
     for j in range(WINDOW):
@@ -151,22 +144,29 @@ def _full_run(pa, mu_a, s_aa, pb, y, x0, x1, w, out, ok, mu_b_sums):
 
 
 @nb.njit(cache=True, nogil=True)
-def _masked_means(pa, pb, pm, y, x0, x1, w, mu_a, mu_b, msum):
-    """The masked first pass: Σ (w·m)·Pa, Σ (w·m)·Pb and Σ w·m (computeMaskedSSIM's maskSum)."""
-    mu_a[:] = 0.0
-    mu_b[:] = 0.0
-    msum[:] = 0.0
+def _masked_pass(pa, pb, pm, y, x0, x1, w, mu_a, mu_b, s0, s1, s2, centred):
+    """A pass of computeMaskedSSIM over pixels x0..x1, tap weight ``w·m``: the first (``centred``
+    False) sums (w·m)·Pa, (w·m)·Pb and w·m into s0, s1, s2; the second sums ((w·m)·da)·da,
+    ((w·m)·db)·db and ((w·m)·da)·db, with ``d = P − μ``."""
+    s0[:] = 0.0
+    s1[:] = 0.0
+    s2[:] = 0.0
     for j in range(WINDOW):
-        ra = pa[y + j]
-        rb = pb[y + j]
-        rm = pm[y + j]
+        ra, rb, rm = pa[y + j], pb[y + j], pm[y + j]
         for i in range(WINDOW):
             wt = w[i, j]
             for x in range(x1 - x0):
                 wm = wt * rm[x0 + x + i]
-                mu_a[x] += wm * ra[x0 + x + i]
-                mu_b[x] += wm * rb[x0 + x + i]
-                msum[x] += wm
+                if centred:
+                    da = ra[x0 + x + i] - mu_a[x]
+                    db = rb[x0 + x + i] - mu_b[x]
+                    s0[x] += wm * da * da
+                    s1[x] += wm * db * db
+                    s2[x] += wm * da * db
+                else:
+                    s0[x] += wm * ra[x0 + x + i]
+                    s1[x] += wm * rb[x0 + x + i]
+                    s2[x] += wm
 
 
 @nb.njit(cache=True, nogil=True)
@@ -177,22 +177,8 @@ def _masked_ratio(pa, pb, pm, y, x0, x1, w, mu_a, mu_b, msum, out, ok):
     for x in range(n):  # dividing a skipped pixel too is harmless: it is never read
         mu_a[x] /= msum[x] if msum[x] >= MASK_THRESHOLD else 1.0
         mu_b[x] /= msum[x] if msum[x] >= MASK_THRESHOLD else 1.0
-    s_aa = np.zeros(n)
-    s_bb = np.zeros(n)
-    s_ab = np.zeros(n)
-    for j in range(WINDOW):
-        ra = pa[y + j]
-        rb = pb[y + j]
-        rm = pm[y + j]
-        for i in range(WINDOW):
-            wt = w[i, j]
-            for x in range(n):
-                wm = wt * rm[x0 + x + i]
-                da = ra[x0 + x + i] - mu_a[x]
-                db = rb[x0 + x + i] - mu_b[x]
-                s_aa[x] += wm * da * da
-                s_bb[x] += wm * db * db
-                s_ab[x] += wm * da * db
+    s_aa, s_bb, s_ab = np.empty(n), np.empty(n), np.empty(n)
+    _masked_pass(pa, pb, pm, y, x0, x1, w, mu_a, mu_b, s_aa, s_bb, s_ab, True)
     for x in range(n):
         ok[x0 + x] = False
         out[x0 + x] = 0.0
@@ -222,7 +208,7 @@ def _masked_row(pa, pb, pm, y, w, diff, count, mu_a_sums, mu_b_sums, full_weight
     for k in range(runs.shape[0]):
         x0, x1 = runs[k, 0], runs[k, 1]
         msum = np.empty(x1 - x0)
-        _mean_run(pm, y, x0, x1, w, msum)  # Σ w·m: the maskSum's taps, its order
+        _window_run(pm, y, x0, x1, w, msum, None)  # Σ w·m: the maskSum's taps, its order
         for x in range(x0, x1):
             if msum[x - x0] >= MASK_THRESHOLD:
                 out[x] = 1.0
@@ -232,7 +218,7 @@ def _masked_row(pa, pb, pm, y, w, diff, count, mu_a_sums, mu_b_sums, full_weight
         x0, x1 = runs[k, 0], runs[k, 1]
         n = x1 - x0
         mu_a, mu_b, msum = np.empty(n), np.empty(n), np.empty(n)
-        _masked_means(pa, pb, pm, y, x0, x1, w, mu_a, mu_b, msum)
+        _masked_pass(pa, pb, pm, y, x0, x1, w, mu_a, mu_b, mu_a, mu_b, msum, False)  # means not read: first pass
         _masked_ratio(pa, pb, pm, y, x0, x1, w, mu_a, mu_b, msum, out, ok)
     runs = _runs((count == full) & diff)
     for k in range(runs.shape[0]):
@@ -264,8 +250,8 @@ def ssim_maps(pa, mu_all, s_all, known, pb, pm, w, diff, count, masked, full, fu
         for k in range(runs.shape[0]):
             x0, x1 = runs[k, 0], runs[k, 1]
             if not known[y, x0:x1].all():
-                _mean_run(pa, y, x0, x1, w, mu_all[y, x0:x1])
-                _spread_run(pa, mu_all[y, x0:x1], y, x0, x1, w, s_all[y, x0:x1])
+                _window_run(pa, y, x0, x1, w, mu_all[y, x0:x1], None)
+                _window_run(pa, y, x0, x1, w, s_all[y, x0:x1], mu_all[y, x0:x1])
                 known[y, x0:x1] = True
             _full_run(pa, mu_all[y, x0:x1], s_all[y, x0:x1], pb, y, x0, x1, w, full_y, full_ok_y, mu_b_sums)
         if masked:
