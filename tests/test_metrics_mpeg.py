@@ -49,6 +49,49 @@ def test_synthetic_bit_exact(shape, qmiv):
         _check_exact(a, b, m, qmiv)
 
 
+def _object_on_black(h, w, seed):
+    """A render-like pair: an object on black, the second with a patch of it changed and a corner
+    of it removed; the mask is the object's occupancy plus a few lone pixels (windows the mask fills,
+    touches, or barely touches)."""
+    rng = np.random.default_rng(seed)
+    a = np.zeros((h, w, 3), np.uint8)
+    occ = np.zeros((h, w), bool)
+    occ[h // 5:4 * h // 5, w // 4:3 * w // 4] = True
+    a[occ] = rng.integers(0, 256, (int(occ.sum()), 3))
+    b = a.copy()
+    b[h // 3:h // 3 + 4, w // 3:w // 3 + 5] = rng.integers(0, 256, (4, 5, 3))
+    b[h // 5:h // 5 + 3, w // 4:w // 4 + 3] = 0
+    mask = occ.copy()
+    mask[rng.integers(0, h, 4), rng.integers(0, w, 4)] = True
+    return a, b, mask
+
+
+@pytest.mark.parametrize("qmiv", [False, True])
+@pytest.mark.parametrize("shape", [(40, 64), (67, 45), (12, 9)])
+def test_partly_equal_images_bit_exact(shape, qmiv):
+    """Equal windows are taken as exactly 1 and masked windows by their mask count: the values stay the tool's."""
+    a, b, mask = _object_on_black(*shape, seed=sum(shape))
+    for m in (None, mask, np.ones(shape, bool), np.zeros(shape, bool)):
+        _check_exact(a, b, m, qmiv)
+    _check_exact(a, a, mask, qmiv)
+
+
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")  # the reference computes inf - inf
+@pytest.mark.parametrize("value", [1e-200, 1e200, np.inf, np.nan])
+def test_ssim_planes_with_extreme_equal_values(value):
+    """Equal taps outside the normal range (tiny, huge, inf, NaN) are computed, not assumed to give 1."""
+    rng = np.random.default_rng(5)
+    a = rng.random((24, 30, 3)) * 255
+    a[3, 4] = value
+    b = a.copy()
+    b[20, 26] += 3.0  # far from the extreme value: its windows are equal
+    mask = rng.random((24, 30)) < 0.7
+    full, om = mpeg_ssim.ssim_yuv(a, b, mask)
+    for c in range(3):
+        assert np.array_equal(full[c], ref.ssim_plane(a[..., c], b[..., c]), equal_nan=True), c
+        assert np.array_equal(om[c], ref.ssim_plane_masked(a[..., c], b[..., c], mask), equal_nan=True), c
+
+
 def test_float_renders_quantised_like_the_tool():
     # round half away from zero on c*255 in float32, then clamp (not truncation, not banker's rounding)
     vals = np.array([0.5 / 255, 1.5 / 255, 2.5 / 255, -0.2, 1.7, 254.5 / 255, np.nan], np.float32)

@@ -65,6 +65,25 @@ def test_json_matches_the_tool_metrics_of_the_renders(files, capsys):
         assert obj["mean"][k] == acc / 3
 
 
+def test_rows_equal_the_independent_reference_in_view_order(files, capsys):
+    """Every printed value (metrics overlapped with rendering, computed only where the renders
+    differ) is the independent re-statement's of the same renders, view by view, in order."""
+    src, dst, a_scene, b_scene = files
+    status, out, err = _run(capsys, src, dst, "--renderer", "reference", "--json")
+    assert status == 0, err
+    views = json.loads(out)["views"]
+    r = ReferenceRenderer(device="cpu")
+    keys = {"rgb_psnr": "psnr_rgb_avg", "yuv_psnr": "psnr_yuv_avg", "yuv_ssim": "ssim_avg",
+            "rgb_psnr_om": "psnr_rgb_om_avg", "yuv_psnr_om": "psnr_yuv_om_avg", "yuv_ssim_om": "ssim_om_avg",
+            "rgb_ivssim": "rgb_ivssim", "yuv_ivssim": "yuv_ivssim", "occupancy": "occupancy"}
+    assert [row["view"] for row in views] == [c.name for c in _cams()]
+    for cam, row in zip(_cams(), views):
+        a, al = r.render_with_alpha(a_scene, cam)
+        b, bl = r.render_with_alpha(b_scene, cam)
+        want = ref.mpeg_metrics(ref.quantize_render_to_u8(a), ref.quantize_render_to_u8(b), occupancy_mask(al, bl))
+        assert {k: row[k] for k in keys} == {k: want[v] for k, v in keys.items()}
+
+
 def test_cameras_file_size_flags_and_csv(files, tmp_path, capsys):
     src, dst, _, _ = files
     write_3dgs_cameras(_cams(96, 72), tmp_path / "cams.json")

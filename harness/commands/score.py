@@ -150,23 +150,44 @@ def window_note(vp: Viewpoints) -> str | None:
 
 
 def score_views(source, processed, cams, renderer, *, qmiv: bool = False, lpips=None, progress=None) -> list[dict]:
-    """Per-view tool metrics (and LPIPS) of ``processed`` against ``source``, rendered on black."""
+    """Per-view tool metrics (and LPIPS) of ``processed`` against ``source``, rendered on black.
+
+    A view's metrics run in a second thread while the next view renders: the renderer holds the
+    interpreter lock only in its own calls and the metrics' kernels release it, so the two overlap.
+    Rows come back (and ``progress`` sees them) in view order, each value the one computed alone."""
+    from concurrent.futures import ThreadPoolExecutor
+
     from harness.metrics.mpeg import occupancy_mask, tool_metrics
 
-    rows = []
-    for i, cam in enumerate(cams):
+    rows: list[dict] = []
+
+    def measure(name, a, b, mask, render_s):
         t0 = time.perf_counter()
-        a, alpha_a = renderer.render_with_alpha(source, cam, (0.0, 0.0, 0.0))
-        b, alpha_b = renderer.render_with_alpha(processed, cam, (0.0, 0.0, 0.0))
-        t1 = time.perf_counter()
-        r = tool_metrics(a, b, occupancy_mask(alpha_a, alpha_b), qmiv=qmiv)
-        row = {"view": cam.name or f"view_{i:04d}", **{k: r[k] for k, _, _ in COLUMNS}}
+        r = tool_metrics(a, b, mask, qmiv=qmiv)
+        row = {"view": name, **{k: r[k] for k, _, _ in COLUMNS}}
         if lpips is not None:
             row["lpips"] = float(lpips(a, b))
-        row.update(render_s=t1 - t0, metrics_s=time.perf_counter() - t1)
-        rows.append(row)
+        row.update(render_s=render_s, metrics_s=time.perf_counter() - t0)
+        return row
+
+    def collect(future):
+        rows.append(future.result())
         if progress:
-            progress(row)
+            progress(rows[-1])
+
+    with ThreadPoolExecutor(1, thread_name_prefix="score-metrics") as pool:
+        pending = None
+        for i, cam in enumerate(cams):
+            t0 = time.perf_counter()
+            a, alpha_a = renderer.render_with_alpha(source, cam, (0.0, 0.0, 0.0))
+            b, alpha_b = renderer.render_with_alpha(processed, cam, (0.0, 0.0, 0.0))
+            job = pool.submit(measure, cam.name or f"view_{i:04d}", a, b, occupancy_mask(alpha_a, alpha_b),
+                              time.perf_counter() - t0)
+            if pending is not None:
+                collect(pending)
+            pending = job
+        if pending is not None:
+            collect(pending)
     return rows
 
 
@@ -197,6 +218,8 @@ def run(args) -> int:
         renderer = get_renderer(args.renderer, args.device)
     except Exception as err:  # noqa: BLE001  no EGL/CUDA here: usage, not a crash
         raise InputError(f"--renderer {args.renderer}", f"cannot start the renderer: {err}") from None
+    if hasattr(renderer, "preload_triton"):  # the GL renderer: this process never calls torch.compile
+        renderer.preload_triton = False
     lpips = None
     if args.lpips:
         from harness.metrics.lpips_vgg import LpipsVGG

@@ -65,7 +65,7 @@ def global_colour_shift(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     h, w, _ = a.shape
     out = np.empty(3, np.int64)
     for c in range(3):
-        s = int((b[..., c].astype(np.int64) - a[..., c].astype(np.int64)).sum())
+        s = int(b[..., c].sum(dtype=np.int64)) - int(a[..., c].sum(dtype=np.int64))  # Σ(B − A), exactly
         s = (s + (1 << 31)) % (1 << 32) - (1 << 31)  # int32 accumulator
         q = h * w
         r = (2 * abs(s) + q) // (2 * q)
@@ -73,43 +73,58 @@ def global_colour_shift(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
-@nb.njit(cache=True)
-def _shift_compensate(ref, tst, shift, weights, out):
-    """``xShftCompPic::xGenShftCompPic`` on planar pictures (3, H, W); ``ref`` is padded by MARGIN
-    (edge-replicated). The 25 candidates are visited in the tool's order (dy outer, dx inner), each
-    over whole rows (vectorisable); a strictly smaller error replaces the best, so the first minimum
-    wins, as in ``xFindBestPixelWithinBlock``."""
-    h, w = tst.shape[1], tst.shape[2]
-    side = 2 * SEARCH + 1
-    best = np.full((h, w), np.int32(2147483647), np.int32)
-    best_k = np.zeros((h, w), np.int32)
-    t0, t1, t2 = tst[0] + shift[0], tst[1] + shift[1], tst[2] + shift[2]
-    w0, w1, w2 = weights[0], weights[1], weights[2]
-    k = 0
-    for dy in range(-SEARCH, SEARCH + 1):
-        for dx in range(-SEARCH, SEARCH + 1):
-            for y in range(h):
-                r0 = ref[0, y + MARGIN + dy, MARGIN + dx:MARGIN + dx + w]
-                r1 = ref[1, y + MARGIN + dy, MARGIN + dx:MARGIN + dx + w]
-                r2 = ref[2, y + MARGIN + dy, MARGIN + dx:MARGIN + dx + w]
-                a0, a1, a2, b, bk = t0[y], t1[y], t2[y], best[y], best_k[y]
-                for x in range(w):
-                    d0, d1, d2 = a0[x] - r0[x], a1[x] - r1[x], a2[x] - r2[x]
-                    err = d0 * d0 * w0 + d1 * d1 * w1 + d2 * d2 * w2
-                    better = err < b[x]
-                    b[x] = err if better else b[x]
-                    bk[x] = k if better else bk[x]
-            k += 1
+@nb.njit(cache=True, nogil=True)
+def _planar(img):
+    """An integer ``(H, W, 3)`` picture as int32 planes ``(3, H, W)``."""
+    h, w, _ = img.shape
+    out = np.empty((3, h, w), np.int32)
     for y in range(h):
         for x in range(w):
-            yy = y + MARGIN + best_k[y, x] // side - SEARCH
-            xx = x + MARGIN + best_k[y, x] % side - SEARCH
             for c in range(3):
-                v = ref[c, yy, xx] - shift[c]
-                out[y, x, c] = 0 if v < 0 else (255 if v > 255 else v)
+                out[c, y, x] = img[y, x, c]
+    return out
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
+def _shift_row(ref, tst, shift, weights, y, out):
+    """Row y of :func:`_shift_compensate`."""
+    h, w = tst.shape[1], tst.shape[2]
+    w0, w1, w2 = weights[0], weights[1], weights[2]
+    exact = w0 > 0 and w1 > 0 and w2 > 0
+    for x in range(w):
+        a0, a1, a2 = tst[0, y, x] + shift[0], tst[1, y, x] + shift[1], tst[2, y, x] + shift[2]
+        by, bx = y, x
+        if not (exact and a0 == ref[0, y, x] and a1 == ref[1, y, x] and a2 == ref[2, y, x]):
+            best = np.int32(2147483647)
+            for dy in range(-SEARCH, SEARCH + 1):
+                yy = min(max(y + dy, 0), h - 1)
+                for dx in range(-SEARCH, SEARCH + 1):
+                    xx = min(max(x + dx, 0), w - 1)
+                    d0, d1, d2 = a0 - ref[0, yy, xx], a1 - ref[1, yy, xx], a2 - ref[2, yy, xx]
+                    err = d0 * d0 * w0 + d1 * d1 * w1 + d2 * d2 * w2
+                    if err < best:
+                        best, by, bx = err, yy, xx
+        for c in range(3):
+            v = ref[c, by, bx] - shift[c]
+            out[c, y, x] = 0 if v < 0 else (255 if v > 255 else v)
+
+
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _shift_compensate(ref, tst, shift, weights):
+    """``xShftCompPic::xGenShftCompPic`` on planar int32 pictures ``(3, H, W)``, planar out, rows in
+    parallel (every pixel is its own search). ``ref`` is read at clamped coordinates: PMBB's
+    ExtendMargin replicates the edges by MARGIN ≥ SEARCH pixels. Per pixel the 25 candidates are
+    visited in the tool's order (dy outer, dx inner) and a strictly smaller error replaces the best,
+    so the first minimum wins, as in ``xFindBestPixelWithinBlock``. Where the centre candidate's
+    error is 0 (positive weights: every component matches) the search is skipped: whichever
+    candidate wins then has error 0 too, holds the same values, gives the same output."""
+    out = np.empty(tst.shape, np.int32)
+    for y in nb.prange(tst.shape[1]):
+        _shift_row(ref, tst, shift, weights, np.int64(y), out)  # a signed row: y + dy may be negative
+    return out
+
+
+@nb.njit(cache=True, nogil=True)
 def _kbns_add(s, c, v):
     t = s + v
     if abs(s) >= abs(v):
@@ -119,19 +134,17 @@ def _kbns_add(s, c, v):
     return t, c
 
 
-@nb.njit(cache=True)
-def _block_ssim_sum(tst, ref, c1, c2):
-    """Σ over 8×8 blocks (stride 4) of ``CalcBlckAvg`` with the luminance term, KBNS per row, then
-    KBNS over the row sums (``xKBNS::Accumulate`` starts from the first row's sum)."""
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _block_values(tst, ref, c1, c2):
+    """``CalcBlckAvg`` with the luminance term of every 8×8 block (stride 4), block rows in parallel."""
     h, w = tst.shape
+    rows, cols = (h - BLOCK) // STRIDE + 1, (w - BLOCK) // STRIDE + 1
+    out = np.empty((rows, cols))
     inv = 1.0 / 64.0
-    total = 0.0
-    comp = 0.0
-    first = True
-    for y in range(0, h - BLOCK + 1, STRIDE):
-        rs = 0.0
-        rc = 0.0
-        for x in range(0, w - BLOCK + 1, STRIDE):
+    for by in nb.prange(rows):
+        y = by * STRIDE
+        for bx in range(cols):
+            x = bx * STRIDE
             sr = np.int64(0)
             st = np.int64(0)
             srr = np.int64(0)
@@ -153,47 +166,57 @@ def _block_ssim_sum(tst, ref, c1, c2):
             cov = srt * inv - avg_r * avg_t
             lum = (2 * avg_r * avg_t + c1) / (avg_r * avg_r + avg_t * avg_t + c1)
             cs = (2 * cov + c2) / (var_r + var_t + c2)
-            rs, rc = _kbns_add(rs, rc, lum * cs)
+            out[by, bx] = lum * cs
+    return out
+
+
+@nb.njit(cache=True, nogil=True)
+def _block_ssim_sum(tst, ref, c1, c2):
+    """Σ over the blocks (:func:`_block_values`) with KBNS per block row, then KBNS over the row sums
+    (``xKBNS::Accumulate`` starts from the first row's sum): in order, whatever the thread count."""
+    values = _block_values(tst, ref, c1, c2)
+    total = 0.0
+    comp = 0.0
+    for by in range(values.shape[0]):
+        rs = 0.0
+        rc = 0.0
+        for bx in range(values.shape[1]):
+            rs, rc = _kbns_add(rs, rc, values[by, bx])
         row = rs + rc
-        if first:
+        if by == 0:
             total = row
-            first = False
         else:
             total, comp = _kbns_add(total, comp, row)
     return total + comp
 
 
 def _component_ssim(tst: np.ndarray, ref: np.ndarray) -> float:
+    """Block-averaged SSIM of two int32 planes."""
     h, w = tst.shape
     n = block_count(h) * block_count(w)
-    total = _block_ssim_sum(np.ascontiguousarray(tst, np.int32), np.ascontiguousarray(ref, np.int32), C1, C2)
+    total = _block_ssim_sum(tst, ref, C1, C2)
     return total / n if n > 0 else float("nan")
 
 
 def _shifted(ref: np.ndarray, tst: np.ndarray, shift: np.ndarray, weights) -> np.ndarray:
-    planar = np.ascontiguousarray(np.moveaxis(ref, 2, 0), np.int32)
-    padded = np.pad(planar, ((0, 0), (MARGIN, MARGIN), (MARGIN, MARGIN)), mode="edge")
-    out = np.empty(tst.shape, np.int32)
-    _shift_compensate(padded, np.ascontiguousarray(np.moveaxis(tst, 2, 0), np.int32), shift.astype(np.int32),
-                      np.asarray(weights, np.int32), out)
-    return out
+    """``ref`` shift-compensated onto ``tst`` (both planar int32 ``(3, H, W)``), planar."""
+    return _shift_compensate(ref, tst, np.asarray(shift, np.int32), np.asarray(weights, np.int32))
 
 
 def iv_ssim_planes(a: np.ndarray, b: np.ndarray, weights) -> float:
     """``xIVSSIM::calcPicIVSSIM(Tst = a, Ref = b)`` of two (H, W, 3) integer pictures in 0..255,
     tool row order, with component weights ``weights`` for the search and the average."""
-    a = np.asarray(a, np.int32)
-    b = np.asarray(b, np.int32)
+    a, b = np.asarray(a), np.asarray(b)
     h, w, _ = a.shape
     if h < BLOCK or w < BLOCK:
         return float("nan")
     g = global_colour_shift(a, b)
-    ref_scp = _shifted(b, a, g, weights)
-    tst_scp = _shifted(a, b, -g, weights)
-    t2r = [_component_ssim(a[..., c], ref_scp[..., c]) for c in range(3)]
-    r2t = [_component_ssim(b[..., c], tst_scp[..., c]) for c in range(3)]
+    pa, pb = _planar(a), _planar(b)
+    ref_scp = _shifted(pb, pa, g, weights)
+    tst_scp = _shifted(pa, pb, -g, weights)
+    t2r = [_component_ssim(pa[c], ref_scp[c]) for c in range(3)]
+    r2t = [_component_ssim(pb[c], tst_scp[c]) for c in range(3)]
     inv = 1.0 / float(sum(weights))  # (SSIMs · weights).getSum(): ((s0·w0 + s1·w1) + s2·w2) + 0·0
     s_t2r = (t2r[0] * weights[0] + t2r[1] * weights[1] + t2r[2] * weights[2]) * inv
     s_r2t = (r2t[0] * weights[0] + r2t[1] * weights[1] + r2t[2] * weights[2]) * inv
     return min(s_t2r, s_r2t)
-

@@ -54,8 +54,7 @@ import math
 
 import numpy as np
 
-from harness.io.codecs import round_half_away
-from harness.metrics import ivssim, mpeg_ssim
+from harness.metrics import ivssim, mpeg_pixels, mpeg_ssim
 
 PEAK = 255.0
 CAP = 999.99
@@ -69,33 +68,24 @@ YUV_ROUNDING = {"float32": (True, True, True), "gcc-o3": (False, False, True)}
 
 
 def quantize(image) -> np.ndarray:
-    """8-bit RGB ``(H, W, 3)`` as the tool makes it from a float render; uint8 input is kept as is."""
+    """8-bit RGB ``(H, W, 3)`` as the tool makes it from a float render; uint8 input is kept as is.
+    ``std::round`` is half away from zero: floor(p + 0.5) would send 0.49999997 to 1
+    (:func:`.mpeg_pixels.quantize_f32`)."""
     a = np.asarray(image)
     if a.dtype == np.uint8:
         return np.ascontiguousarray(a[..., :3])
-    p = np.asarray(a[..., :3], np.float32) * np.float32(255.0)  # float32 product, as `c.x * scale`
-    with np.errstate(invalid="ignore"):
-        r = round_half_away(p)  # std::round; floor(p + 0.5) would send 0.49999997 to 1
-    return np.clip(np.nan_to_num(r, nan=0.0), 0, 255).astype(np.uint8)
+    return mpeg_pixels.quantize_f32(np.asarray(a[..., :3], np.float32))  # float32 product, as `c.x * scale`
 
 
 def yuv_default(rgb: np.ndarray, rounding=(True, True, True)) -> np.ndarray:
-    """Image::getYuv of uint8 RGB: float64 planes (H, W, 3), each rounded to float32 where asked."""
-    c = rgb.astype(np.float64)
-    r, g, b = c[..., 0], c[..., 1], c[..., 2]
-    y = _COEF[0, 0] * r + _COEF[0, 1] * g + _COEF[0, 2] * b  # exact in double (< 40 significant bits)
-    u = _COEF[1, 0] * r + _COEF[1, 1] * g + _COEF[1, 2] * b + 128.0
-    v = _COEF[2, 0] * r + _COEF[2, 1] * g + _COEF[2, 2] * b + 128.0
-    return np.stack([p.astype(np.float32).astype(np.float64) if rnd else p for p, rnd in zip((y, u, v), rounding)], -1)
+    """Image::getYuv of uint8 RGB: float64 planes (H, W, 3), each rounded to float32 where asked
+    (exact in double before that: < 40 significant bits)."""
+    return mpeg_pixels.yuv_default(rgb, _COEF, tuple(bool(r) for r in rounding))
 
 
 def yuv_qmiv(rgb: np.ndarray) -> np.ndarray:
     """Image::getYuvQmiv of uint8 RGB: integer BT.709 (int64 planes, H, W, 3)."""
-    r, g, b = (rgb[..., i].astype(np.int64) for i in range(3))
-    y = np.clip((13933 * r + 46871 * g + 4732 * b + 32768) >> 16, 0, 255)
-    u = np.clip(((-7509 * r - 25259 * g + (b << 15) + 32768) >> 16) + 128, 0, 255)
-    v = np.clip((((r << 15) - 29763 * g - 3005 * b + 32768) >> 16) + 128, 0, 255)
-    return np.stack([y, u, v], -1)
+    return mpeg_pixels.yuv_qmiv(rgb)
 
 
 def occupancy_mask(alpha_ref, alpha_test=None) -> np.ndarray:
@@ -122,14 +112,6 @@ def _psnr(mse: float) -> float:
 def _psnr_of_mean(mses) -> float:
     m = (mses[0] + mses[1] + mses[2]) / 3.0
     return min(CAP, 10.0 * math.log10(PEAK * PEAK / m)) if m > 0 else CAP
-
-
-def _sq_sums(d: np.ndarray) -> list[float]:
-    """Per-channel Σ d² in pixel order (d: (n, 3)). Integer differences are summed exactly (equal
-    to the tool's running double sum, whose partial sums are exact integers); others in sequence."""
-    if d.dtype.kind == "i":
-        return [float(int((d[:, c] * d[:, c]).sum())) for c in range(3)]
-    return [float(np.cumsum(d[:, c] * d[:, c])[-1]) if len(d) else 0.0 for c in range(3)]
 
 
 def _combine(values, qmiv: bool, kind: str) -> float:
@@ -219,11 +201,11 @@ def tool_metrics(ref, test, mask=None, *, qmiv: bool = False, ssim: bool = True,
     a = prep.rgb
     size = h * w
     yb, yb_diff = prep.yuv_of(b)
-    dyuv = (prep.yuv_diff - yb_diff).reshape(-1, 3)
-    drgb = (a.astype(np.int64) - b.astype(np.int64)).reshape(-1, 3)
+    yuv_sums = mpeg_pixels.square_sums_int if qmiv else mpeg_pixels.square_sums_float
+    sums = {"rgb": mpeg_pixels.square_sums_int(a, b, m), "yuv": yuv_sums(prep.yuv_diff, yb_diff, m)}
     r: dict = {}
-    for space, d in (("rgb", drgb), ("yuv", dyuv)):
-        mse = [s / size for s in _sq_sums(d)]
+    for space, (full, _) in sums.items():
+        mse = [float(s) / size for s in full]
         psnr = [_psnr(x) for x in mse]
         r[f"mse_{space}"], r[f"psnr_{space}"] = mse, psnr
         if not qmiv:
@@ -231,12 +213,11 @@ def tool_metrics(ref, test, mask=None, *, qmiv: bool = False, ssim: bool = True,
         else:
             r[f"{space}_psnr"] = _combine(psnr, True, space)
         r[f"mse_{space}_om"], r[f"psnr_{space}_om"], r[f"{space}_psnr_om"] = [0.0] * 3, [0.0] * 3, 0.0
-    sel = m.reshape(-1)
-    n_valid = int(sel.sum())
+    n_valid = int(np.count_nonzero(m))
     r["occupancy"] = 0.0
     if om and n_valid > 0:
-        for space, d in (("rgb", drgb[sel]), ("yuv", dyuv[sel])):
-            mse = [s / n_valid for s in _sq_sums(d)]
+        for space, (_, part) in sums.items():
+            mse = [float(s) / n_valid for s in part]
             psnr = [_psnr(x) for x in mse]
             r[f"mse_{space}_om"], r[f"psnr_{space}_om"] = mse, psnr
             r[f"{space}_psnr_om"] = _combine(psnr, True, space) if qmiv else _psnr_of_mean(mse)

@@ -34,10 +34,12 @@ The mask is padded the same way. The tool's buffers are OpenGL read-backs whose 
 *bottom* image row, so callers pass top-down arrays with ``rows_top_down=True`` and they are
 flipped first (the padding is not up/down symmetric; the flip changes SSIM by ~1e-4 on photos).
 
-Implementation: numba, row by row; for each output row the 121 taps are applied as whole-row
-vector operations, so every pixel still sees the tool's sequence of roundings (same taps, same
-order, no fused multiply-add, no reassociation) — bit-identical to a per-pixel loop, ~50× faster.
-A reference's own moments (μa, σa²) are computed once (:func:`plane_stats`) and reused for every
+Implementation (:mod:`.mpeg_ssim_kernels`): numba, runs of a row's pixels at a time, each tap applied
+over the whole run, so every pixel still sees the tool's sequence of roundings (same taps, same
+order, no fused multiply-add, no reassociation) — bit-identical to a per-pixel loop. Only pixels
+whose window differs between the planes are computed (an equal window's SSIM is exactly 1, proof
+there); a pruned scene's render differs from its source's in ~10 % of a luigi view. A reference's
+own moments (μa, σa²) are computed where first needed and kept (:class:`PlaneStats`) for every
 image compared with it: each accumulator is a separate sum, so this changes no bit.
 """
 
@@ -46,15 +48,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba as nb
 import numpy as np
 
-WINDOW = 11
+from harness.metrics import mpeg_ssim_kernels as kernels
+from harness.metrics.mpeg_ssim_kernels import C1, C2, MASK_THRESHOLD, WINDOW
+
 HALF = WINDOW // 2
 SIGMA = 1.5
-C1 = (0.01 * 255.0) * (0.01 * 255.0)
-C2 = (0.03 * 255.0) * (0.03 * 255.0)
-MASK_THRESHOLD = 0.5
+__all__ = ["C1", "C2", "HALF", "MASK_THRESHOLD", "SIGMA", "WINDOW", "PlaneStats", "gaussian_window", "pad_like_tool",
+           "plane_stats", "ssim_yuv"]
 
 
 def gaussian_window(size: int = WINDOW, sigma: float = SIGMA) -> np.ndarray:
@@ -99,146 +101,31 @@ def pad_like_tool(plane: np.ndarray, half: int = HALF) -> np.ndarray:
     return out
 
 
-@nb.njit(cache=True, fastmath=False)
-def _moments(pa, w, h, width):
-    """Per pixel of a padded plane: window mean μ and ``Σ (w·(P − μ))·(P − μ)`` (tool order), (h, width) each."""
-    mu = np.zeros((h, width))
-    s = np.zeros((h, width))
-    for y in range(h):
-        mu_y = mu[y]
-        s_y = s[y]
-        for j in range(WINDOW):
-            ra = pa[y + j]
-            for i in range(WINDOW):
-                wt = w[i, j]
-                for x in range(width):
-                    mu_y[x] += wt * ra[x + i]
-        for j in range(WINDOW):
-            ra = pa[y + j]
-            for i in range(WINDOW):
-                wt = w[i, j]
-                for x in range(width):
-                    da = ra[x + i] - mu_y[x]
-                    s_y[x] += wt * da * da
-    return mu, s
-
-
-@nb.njit(cache=True, fastmath=False)
-def _ssim_sum(pa, mu_a_all, s_aa_all, pb, w, h, width):
-    """(Σ SSIM over pixels in row-major tool order, count) of two padded planes, the first one's
-    moments given (:func:`_moments`: each accumulator sums its taps in the same order as if both
-    planes were filtered together, so the split changes no bit)."""
-    total = 0.0
-    count = 0
-    mu_b = np.empty(width)
-    s_bb = np.empty(width)
-    s_ab = np.empty(width)
-    for y in range(h):
-        mu_a = mu_a_all[y]
-        s_aa = s_aa_all[y]
-        mu_b[:] = 0.0
-        for j in range(WINDOW):
-            rb = pb[y + j]
-            for i in range(WINDOW):
-                wt = w[i, j]
-                for x in range(width):
-                    mu_b[x] += wt * rb[x + i]
-        s_bb[:] = 0.0
-        s_ab[:] = 0.0
-        for j in range(WINDOW):
-            ra = pa[y + j]
-            rb = pb[y + j]
-            for i in range(WINDOW):
-                wt = w[i, j]
-                for x in range(width):
-                    da = ra[x + i] - mu_a[x]
-                    db = rb[x + i] - mu_b[x]
-                    s_bb[x] += wt * db * db
-                    s_ab[x] += wt * da * db
-        for x in range(width):
-            num = (2 * mu_a[x] * mu_b[x] + C1) * (2 * s_ab[x] + C2)
-            den = (mu_a[x] * mu_a[x] + mu_b[x] * mu_b[x] + C1) * (s_aa[x] + s_bb[x] + C2)
-            if den > 0:
-                total += num / den
-                count += 1
-    return total, count
-
-
-@nb.njit(cache=True, fastmath=False)
-def _masked_ssim_sum(pa, pb, pm, w, h, width):
-    """(Σ OM-SSIM over the pixels whose window mask weight reaches 0.5, their count)."""
-    total = 0.0
-    count = 0
-    mu_a = np.empty(width)
-    mu_b = np.empty(width)
-    msum = np.empty(width)
-    s_aa = np.empty(width)
-    s_bb = np.empty(width)
-    s_ab = np.empty(width)
-    for y in range(h):
-        mu_a[:] = 0.0
-        mu_b[:] = 0.0
-        msum[:] = 0.0
-        for j in range(WINDOW):
-            ra = pa[y + j]
-            rb = pb[y + j]
-            rm = pm[y + j]
-            for i in range(WINDOW):
-                wt = w[i, j]
-                for x in range(width):
-                    wm = wt * rm[x + i]
-                    mu_a[x] += wm * ra[x + i]
-                    mu_b[x] += wm * rb[x + i]
-                    msum[x] += wm
-        for x in range(width):  # dividing a skipped pixel too is harmless: it is never read
-            mu_a[x] /= msum[x] if msum[x] >= MASK_THRESHOLD else 1.0
-            mu_b[x] /= msum[x] if msum[x] >= MASK_THRESHOLD else 1.0
-        s_aa[:] = 0.0
-        s_bb[:] = 0.0
-        s_ab[:] = 0.0
-        for j in range(WINDOW):
-            ra = pa[y + j]
-            rb = pb[y + j]
-            rm = pm[y + j]
-            for i in range(WINDOW):
-                wt = w[i, j]
-                for x in range(width):
-                    wm = wt * rm[x + i]
-                    da = ra[x + i] - mu_a[x]
-                    db = rb[x + i] - mu_b[x]
-                    s_aa[x] += wm * da * da
-                    s_bb[x] += wm * db * db
-                    s_ab[x] += wm * da * db
-        for x in range(width):
-            if msum[x] < MASK_THRESHOLD:
-                continue
-            saa = s_aa[x] / msum[x]
-            sbb = s_bb[x] / msum[x]
-            sab = s_ab[x] / msum[x]
-            num = (2 * mu_a[x] * mu_b[x] + C1) * (2 * sab + C2)
-            den = (mu_a[x] * mu_a[x] + mu_b[x] * mu_b[x] + C1) * (saa + sbb + C2)
-            if den > 0:
-                total += num / den
-                count += 1
-    return total, count
-
-
 @dataclass(frozen=True)
 class PlaneStats:
     """One plane's side of its SSIM with any other plane: padded as the tool pads it, and its window
-    moments (:func:`_moments`). Computed once per reference plane (:func:`plane_stats`)."""
+    moments μ and ``Σ (w·(P − μ))·(P − μ)``, filled where first needed (``known``) and kept for the
+    next plane compared with it (:func:`plane_stats`)."""
 
     padded: np.ndarray
     mu: np.ndarray
     var: np.ndarray
+    known: np.ndarray
+
+    def complete(self) -> PlaneStats:
+        """Fill the moments of every pixel (the whole-plane form, e.g. to check the torch twin)."""
+        if not self.known.all():
+            h, w = self.mu.shape
+            kernels.fill_moments(self.padded, _W, h, w, self.mu, self.var)
+            self.known[:] = True
+        return self
 
 
 def plane_stats(plane: np.ndarray) -> PlaneStats:
-    """:class:`PlaneStats` of a (H, W) plane in tool row order (float64 values)."""
+    """:class:`PlaneStats` of a (H, W) plane in tool row order (float64 values), no moment filled yet."""
     h, w = plane.shape
     padded = pad_like_tool(np.ascontiguousarray(plane, np.float64))
-    mu, var = _moments(padded, _W, h, w)
-    return PlaneStats(padded, mu, var)
+    return PlaneStats(padded, np.zeros((h, w)), np.zeros((h, w)), np.zeros((h, w), bool))
 
 
 def ssim_yuv(a, b: np.ndarray, mask: np.ndarray | None = None) -> tuple[list[float], list[float] | None]:
@@ -247,14 +134,23 @@ def ssim_yuv(a, b: np.ndarray, mask: np.ndarray | None = None) -> tuple[list[flo
     :class:`PlaneStats` (a reference measured against many images)."""
     stats = a if isinstance(a, (list, tuple)) else [plane_stats(a[..., c]) for c in range(3)]
     h, w = stats[0].mu.shape
-    pm = None if mask is None else pad_like_tool((np.asarray(mask) != 0).astype(np.float64))
-    full, om = [], ([] if mask is not None else None)
+    masked = mask is not None
+    if masked:
+        pm = pad_like_tool((np.asarray(mask) != 0).astype(np.float64))
+        count = kernels.window_count((pm != 0).view(np.uint8), h, w)
+        om_maps = np.empty((h, w)), np.empty((h, w), bool)
+    else:
+        pm, count, om_maps = np.zeros((1, 1)), np.zeros((1, 1), np.int32), (np.empty((1, 1)), np.empty((1, 1), bool))
+    full_maps = np.empty((h, w)), np.empty((h, w), bool)
+    full, om = [], ([] if masked else None)
     for c in range(3):
         sa = stats[c]
         pb = pad_like_tool(np.ascontiguousarray(b[..., c], np.float64))
-        total, count = _ssim_sum(sa.padded, sa.mu, sa.var, pb, _W, h, w)
-        full.append(total / count if count > 0 else 1.0)
-        if pm is not None:
-            total, count = _masked_ssim_sum(sa.padded, pb, pm, _W, h, w)
-            om.append(total / count if count > 0 else 1.0)
+        diff = kernels.window_count(kernels.differs(sa.padded, pb), h, w) > 0
+        kernels.ssim_maps(sa.padded, sa.mu, sa.var, sa.known, pb, pm, _W, diff, count, masked, *full_maps, *om_maps)
+        total, n = kernels.ordered_sum(*full_maps)
+        full.append(total / n if n > 0 else 1.0)
+        if masked:
+            total, n = kernels.ordered_sum(*om_maps)
+            om.append(total / n if n > 0 else 1.0)
     return full, om
