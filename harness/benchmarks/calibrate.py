@@ -139,27 +139,63 @@ def _calibrate(device: str, size: int, repeats: int) -> dict:
 
     clock = _CLOCK.get(device, time.perf_counter)
     cam = rigs.make_rig("auto", scene, n_train=0, n_test=1, longest_side=size).test[0]
-    small = cam.resized(size // 2)
     gl = GLRenderer(device=device)
     try:
-        t_pack = _best(lambda: gl.pack(scene, cam), repeats, clock)
-        view, view_small = gl.pack(scene, cam), gl.pack(scene, small)
-        t_small = _best(lambda: gl.draw(view_small), repeats, clock)
-        t_big = _best(lambda: gl.draw(view), repeats, clock)
+        units, seconds, seen = _render_units(gl, scene, cam, repeats, clock)
         img, alpha = gl.render_with_alpha(scene, cam)
     finally:
         gl.close()
-    px_small, px_big = small.width * small.height, cam.width * cam.height
-    render_px = max(t_big - t_small, 0.0) / (px_big - px_small)
-    pack_splat = t_pack / len(scene)
-    draw_splat = max(t_small - render_px * px_small, 0.0) / len(scene)
-    units = {"render_px": render_px, "render_splat": pack_splat + draw_splat, "pack_splat": pack_splat}
     metric_units, raw = _metrics(device, np.asarray(img, np.float32), np.asarray(alpha, np.float32), repeats, clock)
     units.update(metric_units)
     return {"device": device, "device_name": _machine() if device != "cpu" else "CPU, one thread",
             "clock": "CPU seconds" if device == "cpu" else "wall seconds", "scene": name, "splats": len(scene),
-            "size": [cam.width, cam.height], "units": units,
-            "seconds": {"pack": t_pack, "draw_half": t_small, "draw_full": t_big, **raw}}
+            "size": [cam.width, cam.height], "units": units, "seen": seen, "seconds": {**seconds, **raw}}
+
+
+def _render_units(gl, scene, cam, repeats: int, clock) -> tuple[dict, dict, dict]:
+    """(units, seconds, the view's coverage) of the GL renderer on ``scene`` (module docstring)."""
+    from dataclasses import asdict, replace
+
+    from harness.run.view_coverage import coverage
+    from renderers.gl import PackedView
+
+    n, big, zoom = len(scene), cam.resized(2 * max(cam.width, cam.height)), replace(cam, fx=16 * cam.fx, fy=16 * cam.fy)
+    seen, seen_big, seen_zoom = coverage(scene, cam), coverage(scene, big), coverage(scene, zoom)
+    t_pack = _best(lambda: gl.pack(scene, cam), repeats, clock)
+    t_zoom = _best(lambda: gl.pack(scene, zoom), repeats, clock)
+    view, view_big = gl.pack(scene, cam), gl.pack(scene, big)
+    empty = PackedView(view.records[:0], view.ids[:0], view.width, view.height)
+    t_empty = _best(lambda: gl.draw(empty), repeats, clock)
+    t_draw = _best(lambda: gl.draw(view), repeats, clock)
+    t_big = _best(lambda: gl.draw(view_big), repeats, clock)
+    px, px_big = cam.width * cam.height, big.width * big.height
+    # packing: c_front·front + c_vis·visible, of the view and of its 16× zoom (as many splats in front, few visible)
+    c_front, c_vis = _solve([[n * seen.front, n * seen.visible], [n * seen_zoom.front, n * seen_zoom.visible]],
+                            [t_pack, t_zoom])
+    # drawing: c_draw·visible + c_frag·fragments + c_img·W·H, at the size and at twice it
+    image_px = t_empty / px
+    c_draw, c_frag = _solve([[n * seen.visible, seen.overdraw * px],
+                             [n * seen_big.visible, seen_big.overdraw * px_big]],
+                            [t_draw - image_px * px, t_big - image_px * px_big])
+    render_px = max(t_big - t_draw, 0.0) / (px_big - px)
+    units = {"render_px": render_px, "render_splat": (t_pack + max(t_draw - render_px * px, 0.0)) / n,
+             "pack_splat": t_pack / n, "front_splat": c_front, "visible_splat": c_vis, "draw_splat": c_draw,
+             "fragment_px": c_frag, "image_px": image_px}
+    seconds = {"pack": t_pack, "pack_zoomed": t_zoom, "draw_empty": t_empty, "draw_full": t_draw, "draw_double": t_big}
+    return units, seconds, asdict(seen)
+
+
+def _solve(a, b) -> tuple[float, float]:
+    """The non-negative (x, y) with ``a @ (x, y) ≈ b`` (the least-squares solution, a negative part
+    set to 0 and the other refitted: a unit cost is never negative)."""
+    a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
+    x = np.linalg.lstsq(a, b, rcond=None)[0]
+    if (x >= 0).all():
+        return float(x[0]), float(x[1])
+    j = int(np.argmax(x))
+    out = [0.0, 0.0]
+    out[j] = max(float(a[:, j] @ b / (a[:, j] @ a[:, j])), 0.0)
+    return out[0], out[1]
 
 
 def _markdown(p: dict) -> str:
@@ -167,13 +203,17 @@ def _markdown(p: dict) -> str:
     s = p["seconds"]
     lines = [f"# harness bench calibrate --device {p['device']} ({p['device_name']})", "",
              f"{p['scene']} ({p['splats']:,} splats), {w}×{h}; {p.get('clock', 'wall seconds')}, best of the repeats "
-             "after a warm-up.", "",
-             "| unit | value (s) |", "|---|---|"]
+             "after a warm-up. The view sees "
+             f"{100 * p['seen']['front']:.0f} % of the splats in front of it, draws {100 * p['seen']['visible']:.0f} % "
+             f"of them, {p['seen']['overdraw']:.0f} footprint pixels per image pixel (harness/run/view_coverage.py).",
+             "", "| unit | value (s) |", "|---|---|"]
     lines += [f"| {k} | {v:.3g} |" for k, v in p["units"].items()]
     lines += ["", "| work | batch | s per image |", "|---|---|---|",
               f"| GL pack (projection, sort) | 1 | {s['pack']:.4f} |",
-              f"| GL draw {max(w, h) // 2} px | 1 | {s['draw_half']:.4f} |",
-              f"| GL draw {max(w, h)} px | 1 | {s['draw_full']:.4f} |"]
+              f"| GL pack, 16× zoomed (few splats visible) | 1 | {s['pack_zoomed']:.4f} |",
+              f"| GL draw of no splat {max(w, h)} px | 1 | {s['draw_empty']:.4f} |",
+              f"| GL draw {max(w, h)} px | 1 | {s['draw_full']:.4f} |",
+              f"| GL draw {2 * max(w, h)} px | 1 | {s['draw_double']:.4f} |"]
     lines += [f"| {k}: {', '.join(s[k]['metrics'])} | {s[k]['batch']} | {s[k]['seconds_per_image']:.4f} |"
               for k in ("lpips", "ssim", "psnr")]
     lines += [f"| LPIPS reference features | 1 | {s['lpips_reference_s']:.4f} |", "",

@@ -89,7 +89,10 @@ def run(args) -> int:
     infos = [scene_info(s, config, assume) for s in config.scenes]
     units = None
     if args.estimate:
+        from harness.run.view_coverage import look
+
         units = _units(args)
+        look(infos, config, Path.cwd())
     est = estimate(config, infos, units)
     workers = args.workers or config.workers
     doc = to_json(args, config, est, units, assume, workers)

@@ -179,14 +179,22 @@ def metric_passes(names) -> dict[str, int]:
     return out
 
 
-def _score_cost(mv, spec, n: int, train, units: UnitCosts, notes: set) -> tuple[float, int]:
-    """(core-seconds, training renders) of one score task on a frame of ``n`` splats."""
-    if "cameras" not in spec.needs:
+def _score_cost(mv, spec, n: int, train, units: UnitCosts, notes: set, seen=None,
+                protocol: str = "") -> tuple[float, int]:
+    """(core-seconds, renders) of one score task on a frame of ``n`` splats; ``seen``: the scene's
+    views (:class:`~harness.run.view_coverage.SceneCoverage`), ``protocol`` one whose masks the
+    task's training set makes."""
+    shape = units.aware.get(mv.method, (None, ""))[1]
+    if "cameras" not in spec.needs and shape != "rig":
         unit = units.score_splat.get(mv.method)
         if unit is None and units.score_splat:
             unit = max(units.score_splat.values())
             notes.add(f"{mv.method}: no scoring benchmark; costed like the costliest camera-free method")
         return (unit or 0.0) * n, 0
+    if shape == "rig":  # a virtual rig of its own: its views rendered once each
+        px = int(mv.params.resolution) ** 2
+        covs = seen.of_virtual_rig(mv.params) if seen is not None else [None] * int(mv.params.views)
+        return units.aware[mv.method][0] * sum(units.render_view(n, px, c) for c in covs), len(covs)
     iters = getattr(mv.params, "iterations", None)
     shape = "views" if iters is None else "iterations"
     renders = len(train) + (int(iters) if iters is not None else 0)
@@ -195,8 +203,11 @@ def _score_cost(mv, spec, n: int, train, units: UnitCosts, notes: set) -> tuple[
         k = next((k for k, s in units.aware.values() if s == shape), 1.0)
         notes.add(f"{mv.method}: no scoring benchmark; costed like a benchmarked {shape}-shaped camera-aware method")
     side = int(getattr(mv.params, "train_longest_side", 0) or 0)
-    px = sum(train_pixels(s, side) for s in train) / max(1, len(train))
-    return (k or 0.0) * renders * units.render(n, px), renders
+    px = [train_pixels(s, side) for s in train]
+    covs = seen.of_training(protocol, side) if seen is not None else []
+    covs = covs if len(covs) == len(px) else [None] * len(px)
+    mean = sum(units.render_view(n, p, c) for p, c in zip(px, covs)) / max(1, len(px))
+    return (k or 0.0) * renders * mean, renders
 
 
 @dataclass
@@ -284,32 +295,42 @@ def _cost_frame(st: dict, n: int, info: SceneInfo, tasks: dict, keeps: list[list
     u = cost.u
     sets = [(info.train, info.views, False)] * bool(info.views) + [(o.train, o.views, o.photos) for o in info.own]
     st["load"].add(1, u.read_splat * n)
-    first, out = 0, []
+    first, out, index = 0, [], dict.fromkeys(protos, 0)
     for j, (train, views, photos) in enumerate(sets):
         for mv, pruner, rs in tasks.values():
             aware = "cameras" in pruner.needs
             if (j and not aware) or (aware and not train):
                 continue  # a camera-free pruner's scores serve every training set
-            core_s, renders = _score_cost(mv, pruner, n, train, u, cost.notes)
+            core_s, renders = _score_cost(mv, pruner, n, train, u, cost.notes, info.seen, protos[first])
             st["score"].add(1, core_s, core_s)
-            st["score"].detail["training_renders"] += renders
+            st["score"].detail["training_renders"] += renders * aware
             st["score"].detail["camera_aware_tasks"] += aware
             st["prune"].add(len(rs), u.select_splat * n * len(rs), u.select_splat * n)
         for (w, h), kept, proto in zip(views, keeps[first:first + len(views)], protos[first:first + len(views)]):
-            px = w * h
-            st["render_ref"].add(1, u.render(n, px), u.render(n, px))
-            out.append((proto, u.render(n, px)))
+            px, seen = w * h, _seen(info, proto, index)
+            ref = u.render_view(n, px, seen)
+            st["render_ref"].add(1, ref, ref)
+            out.append((proto, ref))
             if not kept:
                 continue
             extra = cost.gt_px * px if photos else 0.0
-            image = [u.draw(n * k, px) + cost.per_px * px + extra + IMAGE_OVERHEAD_S for k in kept]
+            image = [u.draw_view(n, px, seen, k) + cost.per_px * px + extra for k in kept]
             ref_cost = cost.ref_px * px + (extra + 2 * cost.ref_px * px) * photos  # + photo features, gt
-            task = u.pack(n) + ref_cost + sum(image)  # one task per view: packed once, each set drawn
+            # one task per view: packed once, each set drawn; the rows time the draws and metric passes
+            task = u.pack_view(n, seen) + ref_cost + sum(image) + IMAGE_OVERHEAD_S * len(kept)
             st["render+metrics"].add(len(kept), task, task)
             st["render+metrics"].detail["view_tasks"] += 1
-            out.append((proto, task))
+            out.append((proto, sum(image)))
         first += len(views)
     return out
+
+
+def _seen(info: SceneInfo, protocol: str, index: dict):
+    """The coverage of the next view of ``protocol`` on the scene (None: not looked at); advances ``index``."""
+    i = index[protocol]
+    index[protocol] += 1
+    covs = info.seen.of_views(protocol) if info.seen is not None else []
+    return covs[i] if i < len(covs) else None
 
 
 def _scene_row(info: SceneInfo, st: dict, before: dict, n_sets: int) -> dict:

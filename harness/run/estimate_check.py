@@ -66,11 +66,13 @@ def rows(run_dir: Path, *, bench: Path, efficiency: float) -> tuple[list[dict], 
     from harness.run.estimate import estimate, scene_info
     from harness.run.scene_sizes import Assumptions
     from harness.run.unit_costs import from_bench
+    from harness.run.view_coverage import look
 
     record, per_protocol, score = measured(run_dir)
     config = parse_config(record["config"], record.get("config_path") or "run.json")
     workers = int(record.get("workers") or config.workers)
     infos = [scene_info(s, config, Assumptions()) for s in config.scenes]
+    look(infos, config)
     est = estimate(config, infos, from_bench(bench))
     stages = record.get("stage_seconds") or {}
 
