@@ -8,13 +8,18 @@ On the smallest real scene at hand (:func:`harness.run.calibrate._scene`), each 
 seconds of the device, on the CPU CPU seconds of this process with one thread (torch, OpenMP,
 llvmpipe), as a study's one-core workers run:
 
-* the view packed once (projection, SH, sort, packing: ``pack_splat`` per splat), then drawn at
-  half ``--size`` and at ``--size`` px (longest side): the per-pixel term is the difference over
-  the pixel difference, the per-splat draw term what is left at half size (filtering, upload,
-  draw, read-back); ``render_splat`` is the two per-splat terms together. Not 128 px, as ``plan
-  --calibrate`` on the CPU: llvmpipe took longer for a 128-px render of bonsai-7k-mini than for a
-  1024-px one (6.6 s vs 2.1 s here, 273k one-pixel triangles), which makes that difference
-  meaningless;
+* the view packed (projection, SH, sort, packing), and packed again 16× zoomed in (as many splats
+  in front of the camera, few visible): ``front_splat`` and ``visible_splat`` per splat in front
+  and per splat visible (:mod:`harness.run.view_coverage` counts both on the view); ``pack_splat``
+  is the packing over all splats;
+* the packed view drawn with no splat (``image_px``: clearing and reading back), at ``--size`` and
+  at twice it (as many splats, more footprint pixels): ``draw_splat`` per visible splat and
+  ``fragment_px`` per footprint pixel, the two equations solved (a unit is never negative). Not
+  at half the size: llvmpipe draws the one-pixel splats of a small image at a cost of their own
+  (6.6 s for a 128-px render of bonsai-7k-mini against 2.1 s at 1024 px here, 273k one-pixel
+  triangles). ``render_px`` (the draw's growth over the pixels it gained) and ``render_splat``
+  (``pack_splat`` + the rest of the draw per splat) are the plain model's, for a view of unknown
+  coverage where the coverage units are absent (a GPU calibration without them);
 * the metric suite a study on DEV makes (:class:`harness.metrics.suite.MetricSuite`: the torch
   forms, batched, on CUDA; the CPU forms image by image on the CPU) scoring one batch of pruned
   renders at ``--size``, per pass kind of :data:`harness.metrics.registry.PASS_KINDS`: LPIPS (and a

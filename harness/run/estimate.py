@@ -1,17 +1,19 @@
 """What a **cold** run of a config costs, before running it: work units per stage × unit costs.
 
-Counting follows the runner's stages (:mod:`harness.run.runner`) and reads no more than headers:
+Counting follows the runner's stages (:mod:`harness.run.runner`) and reads no more than headers
+(costing, below, also looks at the scenes present from the views a run makes):
 
 * **load** — one per (scene, frame): reading the file, ``read_splat · N`` (serial, in the driver;
   hashing the files, ~0.5 s per GB, is not counted).
 * **score** — one task per distinct (scene, frame, method, resolved params) (the cache key's
   inputs); a camera-aware pruner renders its training views: LightGS-like ones (no
   ``iterations`` parameter) each of the ``n_train`` views once, ConfSplat-like ones each view once
-  to set up plus one view per iteration: ``cost = k_m · renders · render(N, P_train)``, with
+  to set up plus one view per iteration: ``cost = k_m · renders · mean render(N, P_train)``, with
   ``P_train`` the training view resized to the method's ``train_longest_side``. Camera-free
-  pruners cost ``score_splat[m] · N``.
+  pruners cost ``score_splat[m] · N``, but those that render a virtual rig of their own:
+  ``k_m · Σ render`` over its views.
 * **prune** — one selection per distinct (score task, ratio): ``select_splat · N`` (serial, driver).
-* **render_ref** — one per (scene, frame, protocol, held-out view): ``render(N, W·H)``.
+* **render_ref** — one per (scene, frame, protocol, held-out view): ``pack + draw`` of the view (below).
 * **view protocols** (:mod:`harness.views.protocols`): each protocol's views as its ``sizes`` says
   (``n_test`` views of the run's size unless it says otherwise). One that brings its own training
   set (``real``: a scene's capture, its held-out cameras at the capture's size capped at the
@@ -20,24 +22,39 @@ Counting follows the runner's stages (:mod:`harness.run.runner`) and reads no mo
   scores — and views with photos are measured against them too: the metric passes again except
   the LPIPS trunk (its pass is shared), plus once per view for the unpruned render.
 * **render+metrics** — one task per held-out view: the view is projected, sorted and packed once
-  (``pack(N)``), and each pruned set drawn from that packing, its splats filtered from it
-  (``draw(N·keep, W·H)``: the GL renderer's :meth:`~renderers.gl.PackedView.kept`), plus the
+  (``pack``), and each pruned set drawn from that packing, its splats filtered from it (``draw``
+  at the set's keep fraction: the GL renderer's :meth:`~renderers.gl.PackedView.kept`), plus the
   metric passes of the config's metrics (:func:`metric_passes`: 3dgs = PSNR + SSIM + LPIPS; mpeg =
   4 PSNR-like passes on 8-bit images + 2 SSIM passes, YUV and occupancy-masked) plus
   :data:`IMAGE_OVERHEAD_S`; the task computes the view's LPIPS reference features once
   (``lpips_ref_px · W·H``; the runner splits views only when there are fewer than a few per
   worker). Pruned sets are counted as distinct (score task, ratio) pairs: an **upper bound**, since
   methods that keep identical splats share one entry (the default study measures 114 sets where
-  this counts 130). An earlier model charged every pruned image a whole render, projection
-  included: 2.2× the default study's measured CPU time.
+  this counts 130).
 
-``render(N, P) = pack(N) + draw(N, P)``, ``pack(N) = c_pack·N`` (projection, SH, sort, packing),
-``draw(n, P) = c_draw·n + c_P·P`` (filtering, upload, rasterising, read-back), and the other units
-are core-seconds per splat or pixel (:mod:`harness.run.unit_costs`). Each protocol's share of the
-view work (its reference renders and view tasks) is kept (:attr:`Estimate.protocols`). Beyond the
-units, a run spends :data:`DRIVER_CPU_S` in its driver (imports, hashing, the run record) and
-:data:`WORKER_CPU_S` per worker that starts (torch, the LPIPS weights, numba's cached kernels;
-:data:`IN_PROCESS_CPU_S` for one worker, which runs in the driver's process).
+**What a view sees** (:mod:`harness.run.view_coverage`): a scene present here is looked at from
+every view a run of the config makes — the fraction ``front`` of its splats in front of the camera,
+the fraction ``visible`` drawn, and ``overdraw``, their footprints per image pixel — and
+
+    pack = N·(c_front·front + c_vis·visible)
+    draw(keep) = keep·(c_draw·N·visible + c_frag·overdraw·W·H) + c_img·W·H
+
+(``harness bench calibrate`` measures the five units on one view; :mod:`harness.run.unit_costs`).
+A view from inside a room packs and draws the third of the splats it sees, a close-up of a few
+large splats shades hundreds of fragments per pixel; costing every view the whole scene and its
+pixels alone (``c_N·N + c_P·W·H``) comes to 1.3× the default study's measured wall time (its
+independent and real views 1.26× and 1.38×). An absent (assumed) scene's views are taken to see
+what the calibration's view saw. Render-based scoring is costed the same way: a camera-aware
+pruner's training renders each as its training view sees the scene at the method's size, a
+virtual rig's (``virtual-rig``, ``betadesc-vr``) as its synthesised views do, times the
+benchmark's multiple of one such render (``methods.json``).
+
+Each protocol's share (:attr:`Estimate.protocols`) is what the results' rows time of its views:
+the reference renders and every image's draw and metric passes (not the packing, the reference
+features or the per-image overhead, which no row holds). Beyond the units, a run spends
+:data:`DRIVER_CPU_S` in its driver (imports, hashing, the run record) and :data:`WORKER_CPU_S`
+per worker that starts (torch, the LPIPS weights, numba's cached kernels; :data:`IN_PROCESS_CPU_S`
+for one worker, which runs in the driver's process).
 
 **Wall time on W workers** (one core each, parallel efficiency e; e = 1 for one worker, which runs
 in-process): the pool stages run one after another — scoring, then the reference renders and view
@@ -119,7 +136,8 @@ class Estimate:
     scenes: list[dict]
     passes: dict[str, int]
     notes: list[str] = field(default_factory=list)
-    #: core-seconds of each held-out view protocol's reference renders and view tasks
+    #: core-seconds of each held-out view protocol's reference renders and its images' draws and metric
+    #: passes (what the results' rows time: module docstring)
     protocols: dict[str, float] = field(default_factory=dict)
 
     @property
@@ -193,7 +211,7 @@ def _score_cost(mv, spec, n: int, train, units: UnitCosts, notes: set, seen=None
         return (unit or 0.0) * n, 0
     if shape == "rig":  # a virtual rig of its own: its views rendered once each
         px = int(mv.params.resolution) ** 2
-        covs = seen.of_virtual_rig(mv.params) if seen is not None else [None] * int(mv.params.views)
+        covs = (seen.of_virtual_rig(mv.params) if seen is not None else None) or [None] * int(mv.params.views)
         return units.aware[mv.method][0] * sum(units.render_view(n, px, c) for c in covs), len(covs)
     iters = getattr(mv.params, "iterations", None)
     shape = "views" if iters is None else "iterations"

@@ -13,7 +13,8 @@ workers the run had, and set against what the run measured:
   and the score and render stages on their own;
 * **per view protocol**: the seconds the results' rows hold for each protocol — its images'
   ``render_s + metrics_s`` and its views' ``render_ref_s`` (once per scene, frame and view) —
-  against the estimate's share of that protocol (:attr:`~harness.run.estimate.Estimate.protocols`);
+  against the estimate's share of that protocol (:attr:`~harness.run.estimate.Estimate.protocols`:
+  the same parts — the packing of a view task and its reference features are in no row);
   these are timed inside the tasks, so on a machine with no more busy threads than cores they are
   CPU seconds; on an oversubscribed one they also hold the waiting;
 * **scoring**: the rows' ``score_s``, once per score task, against the score stage's core-seconds.
@@ -72,7 +73,7 @@ def rows(run_dir: Path, *, bench: Path, efficiency: float) -> tuple[list[dict], 
     config = parse_config(record["config"], record.get("config_path") or "run.json")
     workers = int(record.get("workers") or config.workers)
     infos = [scene_info(s, config, Assumptions()) for s in config.scenes]
-    look(infos, config)
+    look(infos, config)  # the views the run made, as plan --estimate looks at them
     est = estimate(config, infos, from_bench(bench))
     stages = record.get("stage_seconds") or {}
 

@@ -19,6 +19,8 @@ unit               meaning (core-seconds = CPU seconds of one core)       anchor
 ``score_splat[m]`` camera-free scoring of method m, per splat             ``methods.json``
                                                                           ``scoring.<m>.cpu_s / splats``
 ``aware[m]``       camera-aware scoring: multiple of one training render  ``methods.json`` (see below)
+                   (and a virtual rig's: multiple of one of its renders)
+``front_splat`` …  the view-coverage units (below)                        ``calibrate-cpu.json``
 ``select_splat``   prune selection (threshold + mask), per splat          ``prune.json`` ``stages_cpu_s.select``
 ``read_splat``     reading a scene file, per splat                        ``read.json`` ``steps.read_ply.seconds``
 =================  =====================================================  ==============================
@@ -40,6 +42,18 @@ run; when the file is there its units replace the others' (``sources`` says so).
 ``c_pack`` is :data:`PACK_SHARE` of ``c_N`` (measured: 0.4–0.6 µs per splat packed against
 0.55–0.65 µs per splat drawn, numpy projection, one thread).
 
+**View coverage.** The same calibration measures the units of what a view sees
+(:mod:`harness.run.view_coverage`), on its view of the scene: ``front_splat`` and ``visible_splat``
+(the view packed, and packed again 16× zoomed in: as many splats in front, few visible),
+``image_px`` (a packing of no splat drawn), ``draw_splat`` and ``fragment_px`` (the packed view
+drawn at the size and at twice it: as many splats, four times the pixels, more footprint pixels).
+Not at half the size: llvmpipe draws the one-pixel splats of a small image at a cost of their
+own (bonsai-7k-mini at 128 and 256 px gives about 3× the per-fragment cost that 256 and 512 px give, which
+the default study's draws, 128–384 px views of five scenes, do not bear out). With them
+(:attr:`UnitCosts.covered`) every view is costed by its coverage; the calibration's view (``seen``)
+stands for a view of unknown content. ``aware[m]`` and a virtual rig's multiple are then taken
+against renders of that view's coverage.
+
 **Metrics** ran with ``threads`` torch threads; core-seconds = wall × threads (an upper bound:
 the threads were busy). Costs scale with pixels: ``unit_px = seconds × threads / (W₀·H₀)``.
 
@@ -56,7 +70,7 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from harness.run.view_coverage import Coverage
+from harness.run.view_coverage import Coverage, is_rig_shaped
 
 #: share of the per-splat work in the GL render of the largest benchmark scene (module docstring)
 SPLAT_SHARE = 0.65
@@ -292,10 +306,3 @@ def add_methods(costs: UnitCosts, meth: dict, tag: str) -> None:
             costs.aware[name] = (cpu / (renders * costs.render_view(n0, px, None)), "rig")
             costs.sources[f"aware[{name}]"] = (f"{tag} scoring.{name}.cpu_s / ({renders} renders of its virtual rig, "
                                                f"{int(n0):,} splats at {params['resolution']} px)")
-
-
-def is_rig_shaped(params) -> bool:
-    """Whether a camera-free method's parameters (a mapping or a params object) say it renders a
-    virtual rig of its own (:mod:`methods.virtualrig`: ``rig``, ``views`` and ``resolution``)."""
-    get = params.get if isinstance(params, dict) else lambda k: getattr(params, k, None)
-    return all(get(k) is not None for k in ("rig", "views", "resolution"))

@@ -87,6 +87,9 @@ class SceneCoverage:
     total: int
     views: dict[str, list] = field(default_factory=dict)  # protocol -> its held-out cameras
     train: dict[str, list] = field(default_factory=dict)  # protocol -> the training cameras its masks come from
+    #: repr(params) -> the cameras of the virtual rig such a method places on the whole scene (a sample
+    #: may read as another shape: bonsai-7k's 20,000 splats look like an object, its 1.16 M like a room)
+    rigs: dict[str, list] = field(default_factory=dict)
     _memo: dict = field(default_factory=dict)
 
     def of_views(self, protocol: str) -> list[Coverage]:
@@ -97,16 +100,11 @@ class SceneCoverage:
         """The coverage of the training views behind ``protocol``'s masks, resized to ``longest_side``."""
         return self._cover(("train", protocol, longest_side), self.train.get(protocol, []), longest_side)
 
-    def of_virtual_rig(self, params) -> list[Coverage]:
+    def of_virtual_rig(self, params) -> list[Coverage] | None:
         """The coverage of the views a virtual rig with ``params`` synthesises for this scene (its
-        ``views`` cameras at its ``resolution``)."""
-        from methods.virtualrig import virtual_cameras
-
-        key = ("rig", repr(params))
-        if key not in self._memo:
-            cams = virtual_cameras(self.sample, params)[1]
-            self._memo[key] = [coverage(self.sample, c, self.total) for c in cams]
-        return self._memo[key]
+        ``views`` cameras at its ``resolution``; None: not made, as for a method the run does not score here)."""
+        cams = self.rigs.get(repr(params))
+        return None if cams is None else self._cover(("rig", repr(params)), cams, 0)
 
     def _cover(self, key, cams, side: int) -> list[Coverage]:
         if key not in self._memo:
@@ -129,12 +127,21 @@ def scene_views(config, base: Path | None = None, toolkit=None) -> dict[str, Sce
         for item in items:
             if item.spec.name in out:
                 continue  # a sequence: its first frame's views serve every frame
-            sets = item.train_sets()
+            sets, scene = item.train_sets(), toolkit.load_scene(item.path, item.spec.lod)
             out[item.spec.name] = SceneCoverage(
-                sample(toolkit.load_scene(item.path, item.spec.lod)), item.n_splats,
-                {p: list(h.test) for p, h in item.held.items()},
-                {p: list(sets.get(item.train_set(p), [])) for p in item.held})
+                sample(scene), item.n_splats, {p: list(h.test) for p, h in item.held.items()},
+                {p: list(sets.get(item.train_set(p), [])) for p in item.held}, _rigs(config, item.spec.name, scene))
     return out
+
+
+def _rigs(config, name: str, scene) -> dict[str, list]:
+    """The virtual rigs the methods of ``config`` measured on scene ``name`` place (rig-shaped params:
+    :func:`is_rig_shaped`), by ``repr(params)``."""
+    from methods.virtualrig import virtual_cameras
+
+    wanted = {repr(m.params): m.params for m in config.methods
+              if (m.scenes is None or name in m.scenes) and is_rig_shaped(m.params)}
+    return {k: list(virtual_cameras(scene, p)[1]) for k, p in wanted.items()}
 
 
 def look(infos, config, base: Path | None = None, toolkit=None) -> None:
@@ -146,3 +153,10 @@ def look(infos, config, base: Path | None = None, toolkit=None) -> None:
     for info in infos:
         if info.status == "read":
             info.seen = seen.get(info.name)
+
+
+def is_rig_shaped(params) -> bool:
+    """Whether a camera-free method's parameters (a mapping or a params object) say it renders a
+    virtual rig of its own (:mod:`methods.virtualrig`: ``rig``, ``views`` and ``resolution``)."""
+    get = params.get if isinstance(params, dict) else lambda k: getattr(params, k, None)
+    return all(get(k) is not None for k in ("rig", "views", "resolution"))
