@@ -54,7 +54,7 @@ def add_arguments(parser) -> None:
                         help="compare `plan --estimate` of a finished run's config with what the run measured "
                              "(CPU seconds, wall, per stage and per view protocol; within 20 %% or not)")
     parser.add_argument("--efficiency", type=float, default=None,
-                        help="parallel efficiency for --check's wall time (default 0.9, as plan's)")
+                        help="parallel efficiency for --check's wall time (default 0.95, as plan's)")
     parser.add_argument("--bench", default=None, help="--check: benchmark folder of the units (default results/bench)")
 
 

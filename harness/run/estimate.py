@@ -106,10 +106,14 @@ IN_PROCESS_CPU_S = 2.5
 #: the same imports happen in the first task. ci.yaml cold, one worker: its score and render stages
 #: took 2.6 s more wall than their tasks' seconds
 POOL_START_S = 3.0
-#: parallel efficiency of a local pool of one-thread workers, one per core: on this machine's 2 cores,
-#: 2 workers ran ``study/scaling.yaml``'s stages 1.78× as fast as one (``harness bench executors``),
-#: and the default study used 194 % of the cores (2,670 CPU-s in 22 min 54 s); 0.9 lies between
-DEFAULT_EFFICIENCY = 0.9
+#: parallel efficiency of a local pool of one-thread workers, one per core: the share of the pool's
+#: core-time its tasks use. Two cold runs of the default study on this machine's 2 cores used 97 % and
+#: 98 % of them (2,670 CPU-s in 22 min 54 s; 1,824 CPU-s in 930 s); 2 workers ran
+#: ``study/scaling.yaml``'s stages 1.78× as fast as one (``harness bench executors``: 0.89, a small
+#: study whose last long tasks run alone, and whose in-process run starts no pool — both counted apart
+#: here, by the longest task and :data:`POOL_START_S`/:data:`WORKER_CPU_S`). 0.95 lies between, nearer
+#: the studies that fill their pool
+DEFAULT_EFFICIENCY = 0.95
 #: stages the runner runs as one pipeline (a view's pruned sets start once its reference is drawn)
 PIPELINED = ("render_ref", "render+metrics")
 STAGES = ("load", "score", "prune", "render_ref", "render+metrics")

@@ -103,7 +103,11 @@ def _about(record: dict, config, run_dir: Path, bench: Path, workers: int, effic
     cache counts, the units' folder."""
     name = "".join(c if c.isalnum() or c in "-_" else "-" for c in str(record.get("name") or config.name))
     executor = record.get("executor") if isinstance(record.get("executor"), dict) else {}
+    wall, cpu = (record.get("stage_seconds") or {}).get("total"), record.get("cpu_seconds")
+    busy = cpu / (workers * wall) if isinstance(cpu, (int, float)) and isinstance(wall, (int, float)) and wall > 0 \
+        else None
     return {"name": name, "threads": executor.get("threads"), "run": str(run_dir), "record": record.get("when"),
+            "utilisation": busy,
             "workers": workers, "efficiency": efficiency, "cache_hits": _count(record, "hits"),
             "cache_misses": _count(record, "misses"), "bench": str(bench), "config": record.get("config_path")}
 
@@ -120,7 +124,7 @@ def markdown(table: list[dict], info: dict) -> str:
              f"(parallel efficiency {info['efficiency']:g}). Within: the estimate is within "
              f"{round(100 * TOLERANCE)} % of the measurement (ratio in [{1 / (1 + TOLERANCE):.3f}, "
              f"{1 + TOLERANCE:g}]).{many} Wall and task seconds hold waiting on a machine with more busy threads "
-             "than cores.", "",
+             f"than cores{_busy(info.get('utilisation'))}.", "",
              "| quantity | estimate (s) | measured (s) | estimate / measured | within 20 % |", "|---|---|---|---|---|"]
     for r in table:
         m = "–" if r["measured"] is None else f"{r['measured']:,.1f}"
@@ -129,6 +133,14 @@ def markdown(table: list[dict], info: dict) -> str:
     met = sum(r["within"] for r in table)
     lines += ["", f"{met} of {len(table)} within 20 %."]
     return "\n".join(lines)
+
+
+def _busy(share) -> str:
+    """What the run's share of its workers' cores says of its wall and task seconds."""
+    if share is None:
+        return ""
+    return (f": this run used {100 * share:.0f} % of its workers' cores (CPU seconds / (workers × wall))"
+            + (", so they hold waiting" if share < 0.8 else ""))
 
 
 def check_run(run_dir, *, bench=None, efficiency: float | None = None) -> tuple[dict, str]:
