@@ -87,26 +87,29 @@ class SceneCoverage:
     total: int
     views: dict[str, list] = field(default_factory=dict)  # protocol -> its held-out cameras
     train: dict[str, list] = field(default_factory=dict)  # protocol -> the training cameras its masks come from
-    #: repr(params) -> the cameras of the virtual rig such a method places on the whole scene (a sample
+    #: repr(placement) -> the cameras of the virtual rig such a method places on the whole scene (a sample
     #: may read as another shape: bonsai-7k's 20,000 splats look like an object, its 1.16 M like a room)
     rigs: dict[str, list] = field(default_factory=dict)
     _memo: dict = field(default_factory=dict)
 
     def of_views(self, protocol: str) -> list[Coverage]:
         """The coverage of each held-out view of ``protocol`` (none: the scene has no such views)."""
-        return self._cover(("views", protocol), self.views.get(protocol, []), 0)
+        return self._cover(self.views.get(protocol, []), 0)
 
     def of_training(self, protocol: str, longest_side: int = 0) -> list[Coverage]:
         """The coverage of the training views behind ``protocol``'s masks, resized to ``longest_side``."""
-        return self._cover(("train", protocol, longest_side), self.train.get(protocol, []), longest_side)
+        return self._cover(self.train.get(protocol, []), longest_side)
 
     def of_virtual_rig(self, params) -> list[Coverage] | None:
         """The coverage of the views a virtual rig with ``params`` synthesises for this scene (its
-        ``views`` cameras at its ``resolution``; None: not made, as for a method the run does not score here)."""
-        cams = self.rigs.get(repr(params))
-        return None if cams is None else self._cover(("rig", repr(params)), cams, 0)
+        ``views`` cameras at its ``resolution``; None: not made, as for a method not scored here)."""
+        cams = self.rigs.get(repr(_placement(params)))
+        return None if cams is None else self._cover(cams, 0)
 
-    def _cover(self, key, cams, side: int) -> list[Coverage]:
+    def _cover(self, cams: list, side: int) -> list[Coverage]:
+        """The coverage of ``cams`` resized to ``side`` (0: as they are), once per camera list (the
+        protocols that share a training set share its list)."""
+        key = (tuple(map(id, cams)), side)
         if key not in self._memo:
             self._memo[key] = [coverage(self.sample, c.resized(side) if side else c, self.total) for c in cams]
         return self._memo[key]
@@ -136,12 +139,22 @@ def scene_views(config, base: Path | None = None, toolkit=None) -> dict[str, Sce
 
 def _rigs(config, name: str, scene) -> dict[str, list]:
     """The virtual rigs the methods of ``config`` measured on scene ``name`` place (rig-shaped params:
-    :func:`is_rig_shaped`), by ``repr(params)``."""
+    :func:`is_rig_shaped`), by ``repr`` of their placement (:func:`_placement`)."""
     from methods.virtualrig import virtual_cameras
 
-    wanted = {repr(m.params): m.params for m in config.methods
-              if (m.scenes is None or name in m.scenes) and is_rig_shaped(m.params)}
+    wanted = {repr(p): p for p in (_placement(m.params) for m in config.methods
+                                   if (m.scenes is None or name in m.scenes) and is_rig_shaped(m.params))}
     return {k: list(virtual_cameras(scene, p)[1]) for k, p in wanted.items()}
+
+
+def _placement(params):
+    """The :class:`~methods.virtualrig.VirtualRigParams` part of a rig-shaped method's params (what
+    places its rig: ``virtual-rig`` and ``betadesc-vr`` with the same geometry share one rig)."""
+    from dataclasses import fields
+
+    from methods.virtualrig import VirtualRigParams
+
+    return VirtualRigParams(**{f.name: getattr(params, f.name) for f in fields(VirtualRigParams)})
 
 
 def look(infos, config, base: Path | None = None, toolkit=None) -> None:
