@@ -82,7 +82,7 @@ def test_a_virtual_rig_is_told_by_its_parameters():
 
 
 def test_calibration_unit_costs_are_never_negative():
-    from harness.benchmarks.calibrate import _solve
+    from harness.run.calibrate import _solve
 
     assert _solve([[1, 0], [0, 1]], [2, 3]) == pytest.approx((2, 3))
     x, y = _solve([[1, 1], [1, 2]], [2, 1])  # exact solution (3, -1): y is 0, x refitted

@@ -64,10 +64,9 @@ _CLOCK = {"cpu": time.process_time}
 
 def _best(fn, repeats: int, clock=time.perf_counter) -> float:
     """Least ``clock`` seconds of ``repeats`` calls after a warm-up call."""
-    from harness.run.calibrate import _cpu
+    from harness.run.calibrate import _best as best
 
-    fn()
-    return _cpu(fn, repeats, clock=clock)
+    return best(fn, repeats, clock)
 
 
 def _pass_names() -> dict[str, tuple[str, ...]]:
@@ -134,7 +133,7 @@ def run(args) -> int:
 def _calibrate(device: str, size: int, repeats: int) -> dict:
     from harness.benchmarks._study_device import _machine
     from harness.core.errors import InputError
-    from harness.run.calibrate import _scene
+    from harness.run.calibrate import _scene, render_units
     from harness.views import rigs
 
     name, scene = _scene()
@@ -146,7 +145,7 @@ def _calibrate(device: str, size: int, repeats: int) -> dict:
     cam = rigs.make_rig("auto", scene, n_train=0, n_test=1, longest_side=size).test[0]
     gl = GLRenderer(device=device)
     try:
-        units, seconds, seen = _render_units(gl, scene, cam, repeats, clock)
+        units, seconds, seen = render_units(gl, scene, cam, repeats, clock)
         img, alpha = gl.render_with_alpha(scene, cam)
     finally:
         gl.close()
@@ -155,52 +154,6 @@ def _calibrate(device: str, size: int, repeats: int) -> dict:
     return {"device": device, "device_name": _machine() if device != "cpu" else "CPU, one thread",
             "clock": "CPU seconds" if device == "cpu" else "wall seconds", "scene": name, "splats": len(scene),
             "size": [cam.width, cam.height], "units": units, "seen": seen, "seconds": {**seconds, **raw}}
-
-
-def _render_units(gl, scene, cam, repeats: int, clock) -> tuple[dict, dict, dict]:
-    """(units, seconds, the view's coverage) of the GL renderer on ``scene`` (module docstring)."""
-    from dataclasses import asdict, replace
-
-    from harness.run.view_coverage import coverage
-    from renderers.gl import PackedView
-
-    n, big, zoom = len(scene), cam.resized(2 * max(cam.width, cam.height)), replace(cam, fx=16 * cam.fx, fy=16 * cam.fy)
-    seen, seen_big, seen_zoom = coverage(scene, cam), coverage(scene, big), coverage(scene, zoom)
-    t_pack = _best(lambda: gl.pack(scene, cam), repeats, clock)
-    t_zoom = _best(lambda: gl.pack(scene, zoom), repeats, clock)
-    view, view_big = gl.pack(scene, cam), gl.pack(scene, big)
-    empty = PackedView(view.records[:0], view.ids[:0], view.width, view.height)
-    t_empty = _best(lambda: gl.draw(empty), repeats, clock)
-    t_draw = _best(lambda: gl.draw(view), repeats, clock)
-    t_big = _best(lambda: gl.draw(view_big), repeats, clock)
-    px, px_big = cam.width * cam.height, big.width * big.height
-    # packing: c_front·front + c_vis·visible, of the view and of its 16× zoom (as many splats in front, few visible)
-    c_front, c_vis = _solve([[n * seen.front, n * seen.visible], [n * seen_zoom.front, n * seen_zoom.visible]],
-                            [t_pack, t_zoom])
-    # drawing: c_draw·visible + c_frag·fragments + c_img·W·H, at the size and at twice it
-    image_px = t_empty / px
-    c_draw, c_frag = _solve([[n * seen.visible, seen.overdraw * px],
-                             [n * seen_big.visible, seen_big.overdraw * px_big]],
-                            [t_draw - image_px * px, t_big - image_px * px_big])
-    render_px = max(t_big - t_draw, 0.0) / (px_big - px)
-    units = {"render_px": render_px, "render_splat": (t_pack + max(t_draw - render_px * px, 0.0)) / n,
-             "pack_splat": t_pack / n, "front_splat": c_front, "visible_splat": c_vis, "draw_splat": c_draw,
-             "fragment_px": c_frag, "image_px": image_px}
-    seconds = {"pack": t_pack, "pack_zoomed": t_zoom, "draw_empty": t_empty, "draw_full": t_draw, "draw_double": t_big}
-    return units, seconds, asdict(seen)
-
-
-def _solve(a, b) -> tuple[float, float]:
-    """The non-negative (x, y) with ``a @ (x, y) ≈ b`` (the least-squares solution, a negative part
-    set to 0 and the other refitted: a unit cost is never negative)."""
-    a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
-    x = np.linalg.lstsq(a, b, rcond=None)[0]
-    if (x >= 0).all():
-        return float(x[0]), float(x[1])
-    j = int(np.argmax(x))
-    out = [0.0, 0.0]
-    out[j] = max(float(a[:, j] @ b / (a[:, j] @ a[:, j])), 0.0)
-    return out[0], out[1]
 
 
 def _markdown(p: dict) -> str:
