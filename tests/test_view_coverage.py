@@ -87,3 +87,23 @@ def test_calibration_unit_costs_are_never_negative():
     assert _solve([[1, 0], [0, 1]], [2, 3]) == pytest.approx((2, 3))
     x, y = _solve([[1, 1], [1, 2]], [2, 1])  # exact solution (3, -1): y is 0, x refitted
     assert y == 0.0 and x == pytest.approx(1.5)
+
+
+def test_a_sequence_is_looked_at_from_its_first_frame_only(tmp_path):
+    from harness.io.ply import write_ply
+    from harness.run.config import parse_config
+    from harness.run.scene_sizes import Assumptions, scene_info
+    from harness.run.toolkit import Toolkit
+    from tests.scene_factory import random_scene
+
+    for i in range(3):
+        write_ply(random_scene(50 + i, seed=i), tmp_path / f"f{i}.ply")
+    config = parse_config({"protocol": {"longest_side": 64, "n_test": 2, "n_train": 2}, "methods": ["opacity"],
+                           "ratios": [0.5], "scenes": [{"name": "seq", "frames": str(tmp_path / "f*.ply")}]},
+                          str(tmp_path / "c.yaml"))
+    infos = [scene_info(s, config, Assumptions()) for s in config.scenes]
+    read, plain = [], Toolkit()
+    toolkit = replace(plain, load_scene=lambda path, lod=None: read.append(path) or plain.load_scene(path, lod))
+    look(infos, config, tmp_path, toolkit)
+    assert infos[0].splats == [50, 51, 52] and len(infos[0].seen.of_views("rig")) == 2
+    assert {str(p) for p in read} == {str(tmp_path / "f0.ply")}  # the other frames are not read

@@ -126,10 +126,9 @@ def scene_views(config, base: Path | None = None, toolkit=None) -> dict[str, Sce
     toolkit = toolkit or Toolkit()
     out: dict[str, SceneCoverage] = {}
     with tempfile.TemporaryDirectory(prefix="harness-plan-") as tmp:
-        items, _ = load_items(config, StageCache(tmp), toolkit, Versions.of(toolkit), Path(base or "."))
+        items, _ = load_items(config, StageCache(tmp), toolkit, Versions.of(toolkit), Path(base or "."),
+                              first_frames=True)  # a sequence's first frame's views serve every frame
         for item in items:
-            if item.spec.name in out:
-                continue  # a sequence: its first frame's views serve every frame
             sets, scene = item.train_sets(), toolkit.load_scene(item.path, item.spec.lod)
             out[item.spec.name] = SceneCoverage(
                 sample(scene), item.n_splats, {p: list(h.test) for p, h in item.held.items()},
