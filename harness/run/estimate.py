@@ -206,17 +206,26 @@ def _score_cost(mv, spec, n: int, train, units: UnitCosts, notes: set, seen=None
     """(core-seconds, renders) of one score task on a frame of ``n`` splats; ``seen``: the scene's
     views (:class:`~harness.run.view_coverage.SceneCoverage`), ``protocol`` one whose masks the
     task's training set makes."""
-    shape = units.aware.get(mv.method, (None, ""))[1]
-    if "cameras" not in spec.needs and shape != "rig":
-        unit = units.score_splat.get(mv.method)
-        if unit is None and units.score_splat:
-            unit = max(units.score_splat.values())
-            notes.add(f"{mv.method}: no scoring benchmark; costed like the costliest camera-free method")
-        return (unit or 0.0) * n, 0
-    if shape == "rig":  # a virtual rig of its own: its views rendered once each
-        px = int(mv.params.resolution) ** 2
-        covs = (seen.of_virtual_rig(mv.params) if seen is not None else None) or [None] * int(mv.params.views)
-        return units.aware[mv.method][0] * sum(units.render_view(n, px, c) for c in covs), len(covs)
+    if "cameras" in spec.needs:
+        return _aware_cost(mv, n, train, units, notes, seen, protocol)
+    if units.aware.get(mv.method, (None, ""))[1] == "rig":
+        return _rig_cost(mv, n, units, seen)
+    unit = units.score_splat.get(mv.method)
+    if unit is None and units.score_splat:
+        unit = max(units.score_splat.values())
+        notes.add(f"{mv.method}: no scoring benchmark; costed like the costliest camera-free method")
+    return (unit or 0.0) * n, 0
+
+
+def _rig_cost(mv, n: int, units: UnitCosts, seen) -> tuple[float, int]:
+    """A camera-free method that renders a virtual rig of its own: its views, each rendered once."""
+    px = int(mv.params.resolution) ** 2
+    covs = (seen.of_virtual_rig(mv.params) if seen is not None else None) or [None] * int(mv.params.views)
+    return units.aware[mv.method][0] * sum(units.render_view(n, px, c) for c in covs), len(covs)
+
+
+def _aware_cost(mv, n: int, train, units: UnitCosts, notes: set, seen, protocol: str) -> tuple[float, int]:
+    """A camera-aware method: its training renders (module docstring), each as its view sees the scene."""
     iters = getattr(mv.params, "iterations", None)
     shape = "views" if iters is None else "iterations"
     renders = len(train) + (int(iters) if iters is not None else 0)
