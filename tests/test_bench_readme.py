@@ -24,6 +24,14 @@ FIGURES = [
     ("LPIPS per extra pruned image", "metrics.json", "ratio_cached_over_naive", "{:.2f}×"),
     ("our FPFH", "fpfh.json", "speedup_wall_median", "{:.2f}×"),
     ("our FPFH", "fpfh.json", "speedup_wall_best", "best {:.2f}×"),
+    ("vs the default study's cold run", "calibrate-check-default.json", "rows.0.estimate", "CPU {:,.1f} vs"),
+    ("vs the default study's cold run", "calibrate-check-default.json", "rows.0.measured", "vs {:,.1f} s"),
+    ("vs the default study's cold run", "calibrate-check-default.json", "rows.0.ratio", "({:.2f}×)"),
+    ("vs the default study's cold run", "calibrate-check-default.json", "rows.1.estimate", "wall {:,.1f} vs"),
+    ("vs the default study's cold run", "calibrate-check-default.json", "rows.1.ratio", "({:.2f}×)"),
+    ("vs the default study's cold run", "calibrate-check-default.json", "rows.2.ratio", "stages {:.2f}×"),
+    ("vs the default study's cold run", "calibrate-check-default.json", "rows.3.ratio", "and {:.2f}×"),
+    ("vs the default study's cold run", "calibrate-check-default.json", "rows.4.ratio", "scoring {:.2f}×"),
 ]
 
 
@@ -40,7 +48,7 @@ def row(phrase: str) -> str:
 def value(name: str, path: str):
     data = json.loads((BENCH / name).read_text())
     for key in path.split("."):
-        data = data[key]
+        data = data[int(key)] if isinstance(data, list) else data[key]
     return data
 
 

@@ -11,6 +11,7 @@ import pytest
 from harness.cli import main
 from harness.run.estimate import IMAGE_OVERHEAD_S, STARTUP_S, estimate
 from harness.run.estimate_device import CALIBRATION, GPU_UNITS, one_gpu
+from harness.run.unit_costs import COVERAGE_UNITS
 from tests.test_plan import _tiny, _units
 
 
@@ -77,5 +78,7 @@ def test_calibrate_on_the_cpu_writes_every_unit(tmp_path):
     assert main(["bench", "calibrate", "--device", "cpu", "--size", "192", "--repeats", "1",
                  "--out", str(tmp_path)]) == 0
     doc = json.loads((tmp_path / "calibrate-cpu.json").read_text())
-    assert set(doc["units"]) == set(GPU_UNITS) | {"pack_splat"} and all(v >= 0 for v in doc["units"].values())
+    assert set(doc["units"]) == set(GPU_UNITS) | {"pack_splat", *COVERAGE_UNITS}
+    assert all(v >= 0 for v in doc["units"].values()) and doc["units"]["draw_splat"] > 0
+    assert 0.9 < doc["seen"]["visible"] <= doc["seen"]["front"] == 1.0 and doc["seen"]["overdraw"] > 1
     assert doc["units"]["lpips_px"] > doc["units"]["psnr_px"] > 0 and doc["seconds"]["ssim"]["batch"] == 1

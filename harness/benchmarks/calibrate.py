@@ -8,13 +8,18 @@ On the smallest real scene at hand (:func:`harness.run.calibrate._scene`), each 
 seconds of the device, on the CPU CPU seconds of this process with one thread (torch, OpenMP,
 llvmpipe), as a study's one-core workers run:
 
-* the view packed once (projection, SH, sort, packing: ``pack_splat`` per splat), then drawn at
-  half ``--size`` and at ``--size`` px (longest side): the per-pixel term is the difference over
-  the pixel difference, the per-splat draw term what is left at half size (filtering, upload,
-  draw, read-back); ``render_splat`` is the two per-splat terms together. Not 128 px, as ``plan
-  --calibrate`` on the CPU: llvmpipe took longer for a 128-px render of bonsai-7k-mini than for a
-  1024-px one (6.6 s vs 2.1 s here, 273k one-pixel triangles), which makes that difference
-  meaningless;
+* the view packed (projection, SH, sort, packing), and packed again 16× zoomed in (as many splats
+  in front of the camera, few visible): ``front_splat`` and ``visible_splat`` per splat in front
+  and per splat visible (:mod:`harness.run.view_coverage` counts both on the view); ``pack_splat``
+  is the packing over all splats;
+* the packed view drawn with no splat (``image_px``: clearing and reading back), at ``--size`` and
+  at twice it (as many splats, more footprint pixels): ``draw_splat`` per visible splat and
+  ``fragment_px`` per footprint pixel, the two equations solved (a unit is never negative). Not
+  at half the size: llvmpipe draws the one-pixel splats of a small image at a cost of their own
+  (6.6 s for a 128-px render of bonsai-7k-mini against 2.1 s at 1024 px here, 273k one-pixel
+  triangles). ``render_px`` (the draw's growth over the pixels it gained) and ``render_splat``
+  (``pack_splat`` + the rest of the draw per splat) are the plain model's, for a view of unknown
+  coverage where the coverage units are absent (a GPU calibration without them);
 * the metric suite a study on DEV makes (:class:`harness.metrics.suite.MetricSuite`: the torch
   forms, batched, on CUDA; the CPU forms image by image on the CPU) scoring one batch of pruned
   renders at ``--size``, per pass kind of :data:`harness.metrics.registry.PASS_KINDS`: LPIPS (and a
@@ -49,7 +54,7 @@ def add_arguments(parser) -> None:
                         help="compare `plan --estimate` of a finished run's config with what the run measured "
                              "(CPU seconds, wall, per stage and per view protocol; within 20 %% or not)")
     parser.add_argument("--efficiency", type=float, default=None,
-                        help="parallel efficiency for --check's wall time (default 0.9, as plan's)")
+                        help="parallel efficiency for --check's wall time (default 0.95, as plan's)")
     parser.add_argument("--bench", default=None, help="--check: benchmark folder of the units (default results/bench)")
 
 
@@ -59,10 +64,9 @@ _CLOCK = {"cpu": time.process_time}
 
 def _best(fn, repeats: int, clock=time.perf_counter) -> float:
     """Least ``clock`` seconds of ``repeats`` calls after a warm-up call."""
-    from harness.run.calibrate import _cpu
+    from harness.run.calibrate import _best as best
 
-    fn()
-    return _cpu(fn, repeats, clock=clock)
+    return best(fn, repeats, clock)
 
 
 def _pass_names() -> dict[str, tuple[str, ...]]:
@@ -129,7 +133,7 @@ def run(args) -> int:
 def _calibrate(device: str, size: int, repeats: int) -> dict:
     from harness.benchmarks._study_device import _machine
     from harness.core.errors import InputError
-    from harness.run.calibrate import _scene
+    from harness.run.calibrate import _scene, render_units
     from harness.views import rigs
 
     name, scene = _scene()
@@ -139,27 +143,17 @@ def _calibrate(device: str, size: int, repeats: int) -> dict:
 
     clock = _CLOCK.get(device, time.perf_counter)
     cam = rigs.make_rig("auto", scene, n_train=0, n_test=1, longest_side=size).test[0]
-    small = cam.resized(size // 2)
     gl = GLRenderer(device=device)
     try:
-        t_pack = _best(lambda: gl.pack(scene, cam), repeats, clock)
-        view, view_small = gl.pack(scene, cam), gl.pack(scene, small)
-        t_small = _best(lambda: gl.draw(view_small), repeats, clock)
-        t_big = _best(lambda: gl.draw(view), repeats, clock)
+        units, seconds, seen = render_units(gl, scene, cam, repeats, clock)
         img, alpha = gl.render_with_alpha(scene, cam)
     finally:
         gl.close()
-    px_small, px_big = small.width * small.height, cam.width * cam.height
-    render_px = max(t_big - t_small, 0.0) / (px_big - px_small)
-    pack_splat = t_pack / len(scene)
-    draw_splat = max(t_small - render_px * px_small, 0.0) / len(scene)
-    units = {"render_px": render_px, "render_splat": pack_splat + draw_splat, "pack_splat": pack_splat}
     metric_units, raw = _metrics(device, np.asarray(img, np.float32), np.asarray(alpha, np.float32), repeats, clock)
     units.update(metric_units)
     return {"device": device, "device_name": _machine() if device != "cpu" else "CPU, one thread",
             "clock": "CPU seconds" if device == "cpu" else "wall seconds", "scene": name, "splats": len(scene),
-            "size": [cam.width, cam.height], "units": units,
-            "seconds": {"pack": t_pack, "draw_half": t_small, "draw_full": t_big, **raw}}
+            "size": [cam.width, cam.height], "units": units, "seen": seen, "seconds": {**seconds, **raw}}
 
 
 def _markdown(p: dict) -> str:
@@ -167,13 +161,17 @@ def _markdown(p: dict) -> str:
     s = p["seconds"]
     lines = [f"# harness bench calibrate --device {p['device']} ({p['device_name']})", "",
              f"{p['scene']} ({p['splats']:,} splats), {w}×{h}; {p.get('clock', 'wall seconds')}, best of the repeats "
-             "after a warm-up.", "",
-             "| unit | value (s) |", "|---|---|"]
+             "after a warm-up. The view sees "
+             f"{100 * p['seen']['front']:.0f} % of the splats in front of it, draws {100 * p['seen']['visible']:.0f} % "
+             f"of them, {p['seen']['overdraw']:.0f} footprint pixels per image pixel (harness/run/view_coverage.py).",
+             "", "| unit | value (s) |", "|---|---|"]
     lines += [f"| {k} | {v:.3g} |" for k, v in p["units"].items()]
     lines += ["", "| work | batch | s per image |", "|---|---|---|",
               f"| GL pack (projection, sort) | 1 | {s['pack']:.4f} |",
-              f"| GL draw {max(w, h) // 2} px | 1 | {s['draw_half']:.4f} |",
-              f"| GL draw {max(w, h)} px | 1 | {s['draw_full']:.4f} |"]
+              f"| GL pack, 16× zoomed (few splats visible) | 1 | {s['pack_zoomed']:.4f} |",
+              f"| GL draw of no splat {max(w, h)} px | 1 | {s['draw_empty']:.4f} |",
+              f"| GL draw {max(w, h)} px | 1 | {s['draw_full']:.4f} |",
+              f"| GL draw {2 * max(w, h)} px | 1 | {s['draw_double']:.4f} |"]
     lines += [f"| {k}: {', '.join(s[k]['metrics'])} | {s[k]['batch']} | {s[k]['seconds_per_image']:.4f} |"
               for k in ("lpips", "ssim", "psnr")]
     lines += [f"| LPIPS reference features | 1 | {s['lpips_reference_s']:.4f} |", "",

@@ -39,9 +39,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--estimate", action="store_true", help="cost the counts: CPU-hours, wall time, nodes")
     parser.add_argument("--workers", type=int, default=None, help="workers to project for (default: the config's)")
     parser.add_argument("--efficiency", type=float, default=None,
-                        help=help_text("parallel efficiency of the pool (default 0.9 = 90 %: on a 2-core machine 2 "
-                                       "workers ran 1.78x as fast as one, and the default study used 194 % of the "
-                                       "cores)"))
+                        help=help_text("parallel efficiency of the pool (default 0.95 = 95 %: two cold runs of the "
+                                       "default study on a 2-core machine used 97 % and 98 % of its cores; a small "
+                                       "study's 2 workers ran 1.78x as fast as one)"))
     parser.add_argument("--cores-per-node", type=int, default=16, help="cores of one node (default 16)")
     parser.add_argument("--hours", type=float, default=8.0, help="length of an overnight run (default 8 h)")
     parser.add_argument("--bench", default=None, help="benchmark results folder (default: results/bench)")
@@ -89,7 +89,10 @@ def run(args) -> int:
     infos = [scene_info(s, config, assume) for s in config.scenes]
     units = None
     if args.estimate:
+        from harness.run.view_coverage import look
+
         units = _units(args)
+        look(infos, config, Path.cwd())
     est = estimate(config, infos, units)
     workers = args.workers or config.workers
     doc = to_json(args, config, est, units, assume, workers)
@@ -128,6 +131,10 @@ def _units(args):
 
 def to_json(args, config, est, units, assume, workers: int) -> dict:
     """Everything :func:`markdown` prints, as one JSON-able dict."""
+    from dataclasses import asdict
+
+    from harness.run.unit_costs import COVERAGE_UNITS
+
     e = args.efficiency
     assumed = [r["scene"] for r in est.scenes if r["status"] == "assumed"]
     doc = {"config": str(args.config), "name": config.name, "metrics": list(config.protocol.metrics),
@@ -152,9 +159,12 @@ def to_json(args, config, est, units, assume, workers: int) -> dict:
                           "nodes_to_fit": fits,
                           "wall_hours": est.wall_s(by_cpu * args.cores_per_node, e) / 3600},
                memory_gib_per_worker=(units.rss_px * _px(big["size"]) / 1024) if big else None,
-               units={k: getattr(units, k) for k in ("render_splat", "render_px", "lpips_px", "lpips_ref_px",
-                                                      "ssim_px", "psnr_px", "select_splat", "read_splat")},
+               units={k: getattr(units, k) for k in ("render_splat", "render_px", *(COVERAGE_UNITS * units.covered),
+                                                      "lpips_px", "lpips_ref_px", "ssim_px", "psnr_px", "select_splat",
+                                                      "read_splat")},
+               seen=asdict(units.seen) if units.covered else None,
                score_units={**units.score_splat, **{k: v[0] for k, v in units.aware.items()}},
+               score_shapes={k: v[1] for k, v in units.aware.items()},
                sources=units.sources, unit_notes=units.notes)
     return doc
 
@@ -204,9 +214,15 @@ def markdown(doc: dict) -> str:
         for k, v in doc["units"].items():
             lines.append(f"| {k} | {v:.3g} | {doc['sources'].get(k, '')} |")
         for k, v in doc["score_units"].items():
-            src = doc["sources"].get(f"score[{k}]") or doc["sources"].get(f"aware[{k}]", "")
-            what = "× training render" if f"aware[{k}]" in doc["sources"] else "per splat"
+            shape = doc["score_shapes"].get(k)
+            src = doc["sources"].get(f"aware[{k}]" if shape else f"score[{k}]", "")
+            what = {None: "per splat", "rig": "× render of its rig"}.get(shape, "× training render")
             lines.append(f"| score {k} ({what}) | {v:.3g} | {src} |")
+        if doc.get("seen"):
+            s = doc["seen"]
+            lines += ["", f"A view of an assumed scene is taken to see what the calibration's view saw: "
+                          f"{100 * s['front']:.0f} % of the splats in front of it, {100 * s['visible']:.0f} % drawn, "
+                          f"{s['overdraw']:.0f} footprint pixels per image pixel (harness/run/view_coverage.py)."]
     notes = doc["notes"] + doc.get("unit_notes", [])
     if notes:
         lines += ["", "Notes:", *(f"- {n}" for n in notes)]

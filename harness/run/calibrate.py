@@ -3,8 +3,8 @@
 On the largest small real scene at hand (bonsai-7k-mini if fetched, else the shared playbot or
 grape-small), CPU seconds of this process (all its threads: core-seconds) of
 
-* one GL render at two sizes (128 and 1024 px longest side, best of two each): the per-pixel term
-  is the difference over the pixel difference, the per-splat term what is left at 128 px;
+* the render units of one GL view at 256 px, as ``harness bench calibrate`` measures them
+  (:func:`render_units`: per splat in front, visible, drawn, per fragment and per pixel);
 * one SSIM and one PSNR pass at 384 px, and — when the LPIPS-VGG weights are present — one LPIPS
   reference-feature pass and one cached pass at 384 px;
 * one ``betadesc`` score of the scene (per splat; the other camera-free methods keep their
@@ -25,6 +25,13 @@ import time
 import numpy as np
 
 from harness.run.unit_costs import UnitCosts
+from harness.run.view_coverage import Coverage
+
+
+def _best(fn, repeats: int, clock=time.perf_counter) -> float:
+    """Least ``clock`` seconds of ``repeats`` calls of ``fn`` after a warm-up call."""
+    fn()
+    return _cpu(fn, repeats, clock=clock)
 
 
 def _cpu(fn, repeats: int = 2, clock=time.process_time) -> float:
@@ -80,20 +87,15 @@ def _calibrate(costs: UnitCosts, log) -> UnitCosts:
     from harness.views import rigs
 
     cam = rigs.make_rig("auto", scene, n_train=0, n_test=1, longest_side=384).test[0]
-    small, big = cam.resized(128), cam.resized(1024)
     try:
         from renderers import get_renderer
 
         gl = get_renderer("gl")
-        gl.render(scene, small)  # context, shaders
-        t_small = _cpu(lambda: gl.render(scene, small))
-        t_big = _cpu(lambda: gl.render(scene, big))
-        px_small, px_big = small.width * small.height, big.width * big.height
-        costs.render_px = max(t_big - t_small, 0.0) / (px_big - px_small)
-        costs.render_splat = max(t_small - costs.render_px * px_small, 0.0) / len(scene)
-        costs.pack_splat = min(_cpu(lambda: gl.pack(scene, small)) / len(scene), costs.render_splat)
-        costs.sources["render_px"] = costs.sources["render_splat"] = f"{tag}: GL render at 128 and 1024 px"
-        costs.sources["pack_splat"] = f"{tag}: a view packed (projection, sort)"
+        units, _, seen = render_units(gl, scene, cam.resized(256), 1, time.process_time)
+        for k, v in units.items():
+            setattr(costs, k, v)
+            costs.sources[k] = f"{tag}: GL view packed, zoomed, drawn empty, at 256 and 512 px"
+        costs.seen = Coverage(**seen)
         img = np.asarray(gl.render(scene, cam), np.float32)
     except Exception as err:  # no GL here: the benchmark's render units stay
         costs.notes.append(f"--calibrate: GL render failed ({type(err).__name__}: {err}); benchmark values kept")
@@ -140,3 +142,55 @@ def _lpips(costs: UnitCosts, img, other, tag: str) -> None:
     costs.lpips_ref_px = _cpu(lambda: suite.reference("v", a), 1) / px
     costs.lpips_px = _cpu(lambda: suite.score("v", b)) / px
     costs.sources["lpips_px"] = costs.sources["lpips_ref_px"] = f"{tag}: LPIPS at {a.shape[1]}×{a.shape[0]}"
+
+
+def render_units(gl, scene, cam, repeats: int, clock) -> tuple[dict, dict, dict]:
+    """(units, seconds, the view's coverage as a dict) of the GL renderer ``gl`` on ``scene`` seen by
+    ``cam``, each timing the best of ``repeats`` after a warm-up by ``clock``: the view packed, and
+    packed 16× zoomed in (as many splats in front, few visible) → ``front_splat``, ``visible_splat``;
+    a packing of no splat drawn → ``image_px``; the view drawn at its size and at twice it →
+    ``draw_splat``, ``fragment_px`` (:mod:`harness.run.view_coverage` counts the splats and
+    fragments); ``render_px`` and ``render_splat``/``pack_splat``, the plain model's, from the same
+    timings (:mod:`harness.benchmarks.calibrate`)."""
+    from dataclasses import asdict, replace
+
+    from harness.run.view_coverage import coverage
+    from renderers.gl import PackedView
+
+    n, big, zoom = len(scene), cam.resized(2 * max(cam.width, cam.height)), replace(cam, fx=16 * cam.fx, fy=16 * cam.fy)
+    seen, seen_big, seen_zoom = coverage(scene, cam), coverage(scene, big), coverage(scene, zoom)
+    t_pack = _best(lambda: gl.pack(scene, cam), repeats, clock)
+    t_zoom = _best(lambda: gl.pack(scene, zoom), repeats, clock)
+    view, view_big = gl.pack(scene, cam), gl.pack(scene, big)
+    empty = PackedView(view.records[:0], view.ids[:0], view.width, view.height)
+    t_empty = _best(lambda: gl.draw(empty), repeats, clock)
+    t_draw = _best(lambda: gl.draw(view), repeats, clock)
+    t_big = _best(lambda: gl.draw(view_big), repeats, clock)
+    px, px_big = cam.width * cam.height, big.width * big.height
+    # packing: c_front·front + c_vis·visible, of the view and of its 16× zoom (as many splats in front, few visible)
+    c_front, c_vis = _solve([[n * seen.front, n * seen.visible], [n * seen_zoom.front, n * seen_zoom.visible]],
+                            [t_pack, t_zoom])
+    # drawing: c_draw·visible + c_frag·fragments + c_img·W·H, at the size and at twice it
+    image_px = t_empty / px
+    c_draw, c_frag = _solve([[n * seen.visible, seen.overdraw * px],
+                             [n * seen_big.visible, seen_big.overdraw * px_big]],
+                            [t_draw - image_px * px, t_big - image_px * px_big])
+    render_px = max(t_big - t_draw, 0.0) / (px_big - px)
+    units = {"render_px": render_px, "render_splat": (t_pack + max(t_draw - render_px * px, 0.0)) / n,
+             "pack_splat": t_pack / n, "front_splat": c_front, "visible_splat": c_vis, "draw_splat": c_draw,
+             "fragment_px": c_frag, "image_px": image_px}
+    seconds = {"pack": t_pack, "pack_zoomed": t_zoom, "draw_empty": t_empty, "draw_full": t_draw, "draw_double": t_big}
+    return units, seconds, asdict(seen)
+
+
+def _solve(a, b) -> tuple[float, float]:
+    """The non-negative (x, y) with ``a @ (x, y) ≈ b`` (the least-squares solution, a negative part
+    set to 0 and the other refitted: a unit cost is never negative)."""
+    a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
+    x = np.linalg.lstsq(a, b, rcond=None)[0]
+    if (x >= 0).all():
+        return float(x[0]), float(x[1])
+    j = int(np.argmax(x))
+    out = [0.0, 0.0]
+    out[j] = max(float(a[:, j] @ b / (a[:, j] @ a[:, j])), 0.0)
+    return out[0], out[1]

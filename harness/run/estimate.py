@@ -1,17 +1,19 @@
 """What a **cold** run of a config costs, before running it: work units per stage × unit costs.
 
-Counting follows the runner's stages (:mod:`harness.run.runner`) and reads no more than headers:
+Counting follows the runner's stages (:mod:`harness.run.runner`) and reads no more than headers
+(costing, below, also looks at the scenes present from the views a run makes):
 
 * **load** — one per (scene, frame): reading the file, ``read_splat · N`` (serial, in the driver;
   hashing the files, ~0.5 s per GB, is not counted).
 * **score** — one task per distinct (scene, frame, method, resolved params) (the cache key's
   inputs); a camera-aware pruner renders its training views: LightGS-like ones (no
   ``iterations`` parameter) each of the ``n_train`` views once, ConfSplat-like ones each view once
-  to set up plus one view per iteration: ``cost = k_m · renders · render(N, P_train)``, with
+  to set up plus one view per iteration: ``cost = k_m · renders · mean render(N, P_train)``, with
   ``P_train`` the training view resized to the method's ``train_longest_side``. Camera-free
-  pruners cost ``score_splat[m] · N``.
+  pruners cost ``score_splat[m] · N``, but those that render a virtual rig of their own:
+  ``k_m · Σ render`` over its views.
 * **prune** — one selection per distinct (score task, ratio): ``select_splat · N`` (serial, driver).
-* **render_ref** — one per (scene, frame, protocol, held-out view): ``render(N, W·H)``.
+* **render_ref** — one per (scene, frame, protocol, held-out view): ``pack + draw`` of the view (below).
 * **view protocols** (:mod:`harness.views.protocols`): each protocol's views as its ``sizes`` says
   (``n_test`` views of the run's size unless it says otherwise). One that brings its own training
   set (``real``: a scene's capture, its held-out cameras at the capture's size capped at the
@@ -20,24 +22,39 @@ Counting follows the runner's stages (:mod:`harness.run.runner`) and reads no mo
   scores — and views with photos are measured against them too: the metric passes again except
   the LPIPS trunk (its pass is shared), plus once per view for the unpruned render.
 * **render+metrics** — one task per held-out view: the view is projected, sorted and packed once
-  (``pack(N)``), and each pruned set drawn from that packing, its splats filtered from it
-  (``draw(N·keep, W·H)``: the GL renderer's :meth:`~renderers.gl.PackedView.kept`), plus the
+  (``pack``), and each pruned set drawn from that packing, its splats filtered from it (``draw``
+  at the set's keep fraction: the GL renderer's :meth:`~renderers.gl.PackedView.kept`), plus the
   metric passes of the config's metrics (:func:`metric_passes`: 3dgs = PSNR + SSIM + LPIPS; mpeg =
   4 PSNR-like passes on 8-bit images + 2 SSIM passes, YUV and occupancy-masked) plus
   :data:`IMAGE_OVERHEAD_S`; the task computes the view's LPIPS reference features once
   (``lpips_ref_px · W·H``; the runner splits views only when there are fewer than a few per
   worker). Pruned sets are counted as distinct (score task, ratio) pairs: an **upper bound**, since
   methods that keep identical splats share one entry (the default study measures 114 sets where
-  this counts 130). An earlier model charged every pruned image a whole render, projection
-  included: 2.2× the default study's measured CPU time.
+  this counts 130).
 
-``render(N, P) = pack(N) + draw(N, P)``, ``pack(N) = c_pack·N`` (projection, SH, sort, packing),
-``draw(n, P) = c_draw·n + c_P·P`` (filtering, upload, rasterising, read-back), and the other units
-are core-seconds per splat or pixel (:mod:`harness.run.unit_costs`). Each protocol's share of the
-view work (its reference renders and view tasks) is kept (:attr:`Estimate.protocols`). Beyond the
-units, a run spends :data:`DRIVER_CPU_S` in its driver (imports, hashing, the run record) and
-:data:`WORKER_CPU_S` per worker that starts (torch, the LPIPS weights, numba's cached kernels;
-:data:`IN_PROCESS_CPU_S` for one worker, which runs in the driver's process).
+**What a view sees** (:mod:`harness.run.view_coverage`): a scene present here is looked at from
+every view a run of the config makes — the fraction ``front`` of its splats in front of the camera,
+the fraction ``visible`` drawn, and ``overdraw``, their footprints per image pixel — and
+
+    pack = N·(c_front·front + c_vis·visible)
+    draw(keep) = keep·(c_draw·N·visible + c_frag·overdraw·W·H) + c_img·W·H
+
+(``harness bench calibrate`` measures the five units on one view; :mod:`harness.run.unit_costs`).
+A view from inside a room packs and draws the third of the splats it sees, a close-up of a few
+large splats shades hundreds of fragments per pixel; costing every view the whole scene and its
+pixels alone (``c_N·N + c_P·W·H``) comes to 1.3× the default study's measured wall time (its
+independent and real views 1.26× and 1.38×). An absent (assumed) scene's views are taken to see
+what the calibration's view saw. Render-based scoring is costed the same way: a camera-aware
+pruner's training renders each as its training view sees the scene at the method's size, a
+virtual rig's (``virtual-rig``, ``betadesc-vr``) as its synthesised views do, times the
+benchmark's multiple of one such render (``methods.json``).
+
+Each protocol's share (:attr:`Estimate.protocols`) is what the results' rows time of its views:
+the reference renders and every image's draw and metric passes (not the packing, the reference
+features or the per-image overhead, which no row holds). Beyond the units, a run spends
+:data:`DRIVER_CPU_S` in its driver (imports, hashing, the run record) and :data:`WORKER_CPU_S`
+per worker that starts (torch, the LPIPS weights, numba's cached kernels; :data:`IN_PROCESS_CPU_S`
+for one worker, which runs in the driver's process).
 
 **Wall time on W workers** (one core each, parallel efficiency e; e = 1 for one worker, which runs
 in-process): the pool stages run one after another — scoring, then the reference renders and view
@@ -89,10 +106,14 @@ IN_PROCESS_CPU_S = 2.5
 #: the same imports happen in the first task. ci.yaml cold, one worker: its score and render stages
 #: took 2.6 s more wall than their tasks' seconds
 POOL_START_S = 3.0
-#: parallel efficiency of a local pool of one-thread workers, one per core: on this machine's 2 cores,
-#: 2 workers ran ``study/scaling.yaml``'s stages 1.78× as fast as one (``harness bench executors``),
-#: and the default study used 194 % of the cores (2,670 CPU-s in 22 min 54 s); 0.9 lies between
-DEFAULT_EFFICIENCY = 0.9
+#: parallel efficiency of a local pool of one-thread workers, one per core: the share of the pool's
+#: core-time its tasks use. Two cold runs of the default study on this machine's 2 cores used 97 % and
+#: 98 % of them (2,670 CPU-s in 22 min 54 s; 1,824 CPU-s in 930 s); 2 workers ran
+#: ``study/scaling.yaml``'s stages 1.78× as fast as one (``harness bench executors``: 0.89, a small
+#: study whose last long tasks run alone, and whose in-process run starts no pool — both counted apart
+#: here, by the longest task and :data:`POOL_START_S`/:data:`WORKER_CPU_S`). 0.95 lies between, nearer
+#: the studies that fill their pool
+DEFAULT_EFFICIENCY = 0.95
 #: stages the runner runs as one pipeline (a view's pruned sets start once its reference is drawn)
 PIPELINED = ("render_ref", "render+metrics")
 STAGES = ("load", "score", "prune", "render_ref", "render+metrics")
@@ -119,7 +140,8 @@ class Estimate:
     scenes: list[dict]
     passes: dict[str, int]
     notes: list[str] = field(default_factory=list)
-    #: core-seconds of each held-out view protocol's reference renders and view tasks
+    #: core-seconds of each held-out view protocol's reference renders and its images' draws and metric
+    #: passes (what the results' rows time: module docstring)
     protocols: dict[str, float] = field(default_factory=dict)
 
     @property
@@ -179,14 +201,31 @@ def metric_passes(names) -> dict[str, int]:
     return out
 
 
-def _score_cost(mv, spec, n: int, train, units: UnitCosts, notes: set) -> tuple[float, int]:
-    """(core-seconds, training renders) of one score task on a frame of ``n`` splats."""
-    if "cameras" not in spec.needs:
-        unit = units.score_splat.get(mv.method)
-        if unit is None and units.score_splat:
-            unit = max(units.score_splat.values())
-            notes.add(f"{mv.method}: no scoring benchmark; costed like the costliest camera-free method")
-        return (unit or 0.0) * n, 0
+def _score_cost(mv, spec, n: int, train, units: UnitCosts, notes: set, seen=None,
+                protocol: str = "") -> tuple[float, int]:
+    """(core-seconds, renders) of one score task on a frame of ``n`` splats; ``seen``: the scene's
+    views (:class:`~harness.run.view_coverage.SceneCoverage`), ``protocol`` one whose masks the
+    task's training set makes."""
+    if "cameras" in spec.needs:
+        return _aware_cost(mv, n, train, units, notes, seen, protocol)
+    if units.aware.get(mv.method, (None, ""))[1] == "rig":
+        return _rig_cost(mv, n, units, seen)
+    unit = units.score_splat.get(mv.method)
+    if unit is None and units.score_splat:
+        unit = max(units.score_splat.values())
+        notes.add(f"{mv.method}: no scoring benchmark; costed like the costliest camera-free method")
+    return (unit or 0.0) * n, 0
+
+
+def _rig_cost(mv, n: int, units: UnitCosts, seen) -> tuple[float, int]:
+    """A camera-free method that renders a virtual rig of its own: its views, each rendered once."""
+    px = int(mv.params.resolution) ** 2
+    covs = (seen.of_virtual_rig(mv.params) if seen is not None else None) or [None] * int(mv.params.views)
+    return units.aware[mv.method][0] * sum(units.render_view(n, px, c) for c in covs), len(covs)
+
+
+def _aware_cost(mv, n: int, train, units: UnitCosts, notes: set, seen, protocol: str) -> tuple[float, int]:
+    """A camera-aware method: its training renders (module docstring), each as its view sees the scene."""
     iters = getattr(mv.params, "iterations", None)
     shape = "views" if iters is None else "iterations"
     renders = len(train) + (int(iters) if iters is not None else 0)
@@ -195,8 +234,11 @@ def _score_cost(mv, spec, n: int, train, units: UnitCosts, notes: set) -> tuple[
         k = next((k for k, s in units.aware.values() if s == shape), 1.0)
         notes.add(f"{mv.method}: no scoring benchmark; costed like a benchmarked {shape}-shaped camera-aware method")
     side = int(getattr(mv.params, "train_longest_side", 0) or 0)
-    px = sum(train_pixels(s, side) for s in train) / max(1, len(train))
-    return (k or 0.0) * renders * units.render(n, px), renders
+    px = [train_pixels(s, side) for s in train]
+    covs = seen.of_training(protocol, side) if seen is not None else []
+    covs = covs if len(covs) == len(px) else [None] * len(px)
+    mean = sum(units.render_view(n, p, c) for p, c in zip(px, covs)) / max(1, len(px))
+    return (k or 0.0) * renders * mean, renders
 
 
 @dataclass
@@ -284,32 +326,42 @@ def _cost_frame(st: dict, n: int, info: SceneInfo, tasks: dict, keeps: list[list
     u = cost.u
     sets = [(info.train, info.views, False)] * bool(info.views) + [(o.train, o.views, o.photos) for o in info.own]
     st["load"].add(1, u.read_splat * n)
-    first, out = 0, []
+    first, out, index = 0, [], dict.fromkeys(protos, 0)
     for j, (train, views, photos) in enumerate(sets):
         for mv, pruner, rs in tasks.values():
             aware = "cameras" in pruner.needs
             if (j and not aware) or (aware and not train):
                 continue  # a camera-free pruner's scores serve every training set
-            core_s, renders = _score_cost(mv, pruner, n, train, u, cost.notes)
+            core_s, renders = _score_cost(mv, pruner, n, train, u, cost.notes, info.seen, protos[first])
             st["score"].add(1, core_s, core_s)
-            st["score"].detail["training_renders"] += renders
+            st["score"].detail["training_renders"] += renders * aware
             st["score"].detail["camera_aware_tasks"] += aware
             st["prune"].add(len(rs), u.select_splat * n * len(rs), u.select_splat * n)
         for (w, h), kept, proto in zip(views, keeps[first:first + len(views)], protos[first:first + len(views)]):
-            px = w * h
-            st["render_ref"].add(1, u.render(n, px), u.render(n, px))
-            out.append((proto, u.render(n, px)))
+            px, seen = w * h, _seen(info, proto, index)
+            ref = u.render_view(n, px, seen)
+            st["render_ref"].add(1, ref, ref)
+            out.append((proto, ref))
             if not kept:
                 continue
             extra = cost.gt_px * px if photos else 0.0
-            image = [u.draw(n * k, px) + cost.per_px * px + extra + IMAGE_OVERHEAD_S for k in kept]
+            image = [u.draw_view(n, px, seen, k) + cost.per_px * px + extra for k in kept]
             ref_cost = cost.ref_px * px + (extra + 2 * cost.ref_px * px) * photos  # + photo features, gt
-            task = u.pack(n) + ref_cost + sum(image)  # one task per view: packed once, each set drawn
+            # one task per view: packed once, each set drawn; the rows time the draws and metric passes
+            task = u.pack_view(n, seen) + ref_cost + sum(image) + IMAGE_OVERHEAD_S * len(kept)
             st["render+metrics"].add(len(kept), task, task)
             st["render+metrics"].detail["view_tasks"] += 1
-            out.append((proto, task))
+            out.append((proto, sum(image)))
         first += len(views)
     return out
+
+
+def _seen(info: SceneInfo, protocol: str, index: dict):
+    """The coverage of the next view of ``protocol`` on the scene (None: not looked at); advances ``index``."""
+    i = index[protocol]
+    index[protocol] += 1
+    covs = info.seen.of_views(protocol) if info.seen is not None else []
+    return covs[i] if i < len(covs) else None
 
 
 def _scene_row(info: SceneInfo, st: dict, before: dict, n_sets: int) -> dict:

@@ -13,7 +13,8 @@ workers the run had, and set against what the run measured:
   and the score and render stages on their own;
 * **per view protocol**: the seconds the results' rows hold for each protocol — its images'
   ``render_s + metrics_s`` and its views' ``render_ref_s`` (once per scene, frame and view) —
-  against the estimate's share of that protocol (:attr:`~harness.run.estimate.Estimate.protocols`);
+  against the estimate's share of that protocol (:attr:`~harness.run.estimate.Estimate.protocols`:
+  the same parts — the packing of a view task and its reference features are in no row);
   these are timed inside the tasks, so on a machine with no more busy threads than cores they are
   CPU seconds; on an oversubscribed one they also hold the waiting;
 * **scoring**: the rows' ``score_s``, once per score task, against the score stage's core-seconds.
@@ -66,11 +67,13 @@ def rows(run_dir: Path, *, bench: Path, efficiency: float) -> tuple[list[dict], 
     from harness.run.estimate import estimate, scene_info
     from harness.run.scene_sizes import Assumptions
     from harness.run.unit_costs import from_bench
+    from harness.run.view_coverage import look
 
     record, per_protocol, score = measured(run_dir)
     config = parse_config(record["config"], record.get("config_path") or "run.json")
     workers = int(record.get("workers") or config.workers)
     infos = [scene_info(s, config, Assumptions()) for s in config.scenes]
+    look(infos, config)  # the views the run made, as plan --estimate looks at them
     est = estimate(config, infos, from_bench(bench))
     stages = record.get("stage_seconds") or {}
 
@@ -100,7 +103,11 @@ def _about(record: dict, config, run_dir: Path, bench: Path, workers: int, effic
     cache counts, the units' folder."""
     name = "".join(c if c.isalnum() or c in "-_" else "-" for c in str(record.get("name") or config.name))
     executor = record.get("executor") if isinstance(record.get("executor"), dict) else {}
+    wall, cpu = (record.get("stage_seconds") or {}).get("total"), record.get("cpu_seconds")
+    busy = cpu / (workers * wall) if isinstance(cpu, (int, float)) and isinstance(wall, (int, float)) and wall > 0 \
+        else None
     return {"name": name, "threads": executor.get("threads"), "run": str(run_dir), "record": record.get("when"),
+            "utilisation": busy,
             "workers": workers, "efficiency": efficiency, "cache_hits": _count(record, "hits"),
             "cache_misses": _count(record, "misses"), "bench": str(bench), "config": record.get("config_path")}
 
@@ -117,7 +124,7 @@ def markdown(table: list[dict], info: dict) -> str:
              f"(parallel efficiency {info['efficiency']:g}). Within: the estimate is within "
              f"{round(100 * TOLERANCE)} % of the measurement (ratio in [{1 / (1 + TOLERANCE):.3f}, "
              f"{1 + TOLERANCE:g}]).{many} Wall and task seconds hold waiting on a machine with more busy threads "
-             "than cores.", "",
+             f"than cores{_busy(info.get('utilisation'))}.", "",
              "| quantity | estimate (s) | measured (s) | estimate / measured | within 20 % |", "|---|---|---|---|---|"]
     for r in table:
         m = "–" if r["measured"] is None else f"{r['measured']:,.1f}"
@@ -126,6 +133,14 @@ def markdown(table: list[dict], info: dict) -> str:
     met = sum(r["within"] for r in table)
     lines += ["", f"{met} of {len(table)} within 20 %."]
     return "\n".join(lines)
+
+
+def _busy(share) -> str:
+    """What the run's share of its workers' cores says of its wall and task seconds."""
+    if share is None:
+        return ""
+    return (f": this run used {100 * share:.0f} % of its workers' cores (CPU seconds / (workers × wall))"
+            + (", so they hold waiting" if share < 0.8 else ""))
 
 
 def check_run(run_dir, *, bench=None, efficiency: float | None = None) -> tuple[dict, str]:

@@ -30,7 +30,8 @@ from dataclasses import replace
 from pathlib import Path
 
 from harness.run.estimate import STARTUP_S, estimate
-from harness.run.unit_costs import UnitCosts
+from harness.run.unit_costs import COVERAGE_UNITS, UnitCosts
+from harness.run.view_coverage import Coverage
 
 CALIBRATION = "calibrate-cuda.json"
 GPU_UNITS = ("render_splat", "render_px", "lpips_px", "lpips_ref_px", "ssim_px", "psnr_px")
@@ -53,9 +54,14 @@ def one_gpu(config, infos, folder: Path, cpu: UnitCosts, cores: int, efficiency:
         return {"measured": False,
                 "note": f"GPU time not measured: no {CALIBRATION} in {folder} (`harness bench calibrate --device "
                         "cuda --out results/bench` on a GPU machine writes it)"}
+    # the coverage units and view when the device's calibration measured them, else the plain model (draw_splat 0)
+    covered = {k: float(cal["units"].get(k, 0.0)) for k in COVERAGE_UNITS}
+    seen = Coverage(**cal["seen"]) if covered["draw_splat"] and isinstance(cal.get("seen"), dict) else cpu.seen
     gpu = replace(cpu, **{k: float(cal["units"][k]) for k in GPU_UNITS}, sources={}, notes=[],
-                  pack_splat=float(cal["units"].get("pack_splat", 0.0)))
-    free = replace(cpu, render_splat=0.0, render_px=0.0, pack_splat=0.0, aware={})  # camera-free scoring, CPU units
+                  pack_splat=float(cal["units"].get("pack_splat", 0.0)), **covered, seen=seen,
+                  aware={k: v for k, v in cpu.aware.items() if v[1] != "rig"})  # a virtual rig: CPU units, as below
+    free = replace(cpu, render_splat=0.0, render_px=0.0, pack_splat=0.0, aware={},  # camera-free scoring, CPU units
+                   **dict.fromkeys(COVERAGE_UNITS, 0.0))
     on_gpu, on_cpu = estimate(config, infos, gpu).stages, estimate(config, infos, free).stages
     aware_s = on_gpu["score"].core_s - on_cpu["score"].core_s
     stages = {"load": on_cpu["load"].core_s, "prune": on_cpu["prune"].core_s,

@@ -113,7 +113,8 @@ class _LazyScene:
 
 
 def load_items(config: RunConfig, cache: StageCache, toolkit: Toolkit, versions: Versions,
-               base: Path, on_skip=None, on_note=None) -> tuple[list[SceneItem], list[Skip]]:
+               base: Path, on_skip=None, on_note=None,
+               first_frames: bool = False) -> tuple[list[SceneItem], list[Skip]]:
     """Resolve every scene's files, splat counts and cameras; absent optional scenes become skips,
     absent required ones (gone since :func:`check_sources` passed) errors.
 
@@ -122,7 +123,7 @@ def load_items(config: RunConfig, cache: StageCache, toolkit: Toolkit, versions:
     scene (:func:`harness.run.protocol_views.check_protocols`), so a bad capture stops the run
     before any work (an :class:`InputError`). A scene no protocol of the run measures is skipped with
     why. ``on_note(spec, text)`` hears what a protocol brings (a capture's views) or why it does not
-    measure a scene.
+    measure a scene. ``first_frames``: only each scene's first frame (its views serve every frame).
     """
     from harness.core.errors import InputError
     from harness.run.protocol_views import check_protocols
@@ -133,7 +134,8 @@ def load_items(config: RunConfig, cache: StageCache, toolkit: Toolkit, versions:
         frames, missing = resolve_paths(spec, toolkit, base)
         missing = missing or cameras_missing(spec, base)
         try:
-            got = [] if missing else _scene_items(spec, frames, config, cache, toolkit, versions, base, on_note)
+            got = [] if missing else _scene_items(spec, frames[:1] if first_frames else frames, config, cache,
+                                                  toolkit, versions, base, on_note)
         except _Unmeasured as why:
             missing = str(why)
         except InputError as err:  # a bad file spoils this scene only; the run goes on and exits 1

@@ -61,6 +61,9 @@ class SceneInfo:
     protocols: list[str] = field(default_factory=list)
     #: the protocols that bring a training set of their own (``real``: the capture's cameras)
     own: list[OwnViews] = field(default_factory=list)
+    #: the views as a run makes them, to project (:class:`harness.run.view_coverage.SceneCoverage`;
+    #: None: not looked at, or the scene is assumed — its views are taken to see what the calibration's did)
+    seen: object = None
 
     def view_protocols(self, default: str) -> list[str]:
         """The protocol of every held-out view: ``views`` (``default`` where ``protocols`` says none),

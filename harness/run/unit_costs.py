@@ -19,6 +19,8 @@ unit               meaning (core-seconds = CPU seconds of one core)       anchor
 ``score_splat[m]`` camera-free scoring of method m, per splat             ``methods.json``
                                                                           ``scoring.<m>.cpu_s / splats``
 ``aware[m]``       camera-aware scoring: multiple of one training render  ``methods.json`` (see below)
+                   (and a virtual rig's: multiple of one of its renders)
+``front_splat`` …  the view-coverage units (below)                        ``calibrate-cpu.json``
 ``select_splat``   prune selection (threshold + mask), per splat          ``prune.json`` ``stages_cpu_s.select``
 ``read_splat``     reading a scene file, per splat                        ``read.json`` ``steps.read_ply.seconds``
 =================  =====================================================  ==============================
@@ -40,6 +42,18 @@ run; when the file is there its units replace the others' (``sources`` says so).
 ``c_pack`` is :data:`PACK_SHARE` of ``c_N`` (measured: 0.4–0.6 µs per splat packed against
 0.55–0.65 µs per splat drawn, numpy projection, one thread).
 
+**View coverage.** The same calibration measures the units of what a view sees
+(:mod:`harness.run.view_coverage`), on its view of the scene: ``front_splat`` and ``visible_splat``
+(the view packed, and packed again 16× zoomed in: as many splats in front, few visible),
+``image_px`` (a packing of no splat drawn), ``draw_splat`` and ``fragment_px`` (the packed view
+drawn at the size and at twice it: as many splats, four times the pixels, more footprint pixels).
+Not at half the size: llvmpipe draws the one-pixel splats of a small image at a cost of their
+own (bonsai-7k-mini at 128 and 256 px gives about 3× the per-fragment cost that 256 and 512 px give, which
+the default study's draws, 128–384 px views of five scenes, do not bear out). With them
+(:attr:`UnitCosts.covered`) every view is costed by its coverage; the calibration's view (``seen``)
+stands for a view of unknown content. ``aware[m]`` and a virtual rig's multiple are then taken
+against renders of that view's coverage.
+
 **Metrics** ran with ``threads`` torch threads; core-seconds = wall × threads (an upper bound:
 the threads were busy). Costs scale with pixels: ``unit_px = seconds × threads / (W₀·H₀)``.
 
@@ -56,6 +70,8 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from harness.run.view_coverage import Coverage, is_rig_shaped
+
 #: share of the per-splat work in the GL render of the largest benchmark scene (module docstring)
 SPLAT_SHARE = 0.65
 #: share of the per-splat work done once per view (projection, sort, packing) when no
@@ -64,6 +80,8 @@ PACK_SHARE = 0.45
 #: ``harness bench calibrate --device cpu``'s units (module docstring)
 CPU_CALIBRATION = "calibrate-cpu.json"
 CALIBRATED = ("render_splat", "pack_splat", "render_px", "lpips_px", "lpips_ref_px", "ssim_px", "psnr_px")
+#: the view-coverage units, when the calibration measured them
+COVERAGE_UNITS = ("front_splat", "visible_splat", "draw_splat", "fragment_px", "image_px")
 #: the training-view benchmark's rig (harness bench methods: 48 views at 1024×768)
 BENCH_TRAIN = (48, (1024, 768))
 
@@ -106,6 +124,16 @@ class UnitCosts:
     notes: list[str] = field(default_factory=list)
     #: the part of ``render_splat`` spent once per view, projecting, sorting and packing (``c_pack``)
     pack_splat: float = 0.0
+    #: the view-coverage model (``calibrate-cpu.json``; 0: not calibrated, the model above is used):
+    #: per splat in front of the camera, per visible splat packed, per visible splat drawn, per
+    #: fragment (footprint pixel) and per image pixel (:mod:`harness.run.view_coverage`)
+    front_splat: float = 0.0
+    visible_splat: float = 0.0
+    draw_splat: float = 0.0
+    fragment_px: float = 0.0
+    image_px: float = 0.0
+    #: the coverage of the calibration's view: what a view of unknown content is taken to see
+    seen: Coverage = Coverage(1.0, 1.0, 0.0)
 
     def render(self, splats: float, pixels: float) -> float:
         """Core-seconds of one GL render of ``splats`` splats at ``pixels`` pixels: pack + draw."""
@@ -118,6 +146,34 @@ class UnitCosts:
     def draw(self, splats: float, pixels: float) -> float:
         """Core-seconds of drawing ``splats`` splats of a packed view at ``pixels`` pixels."""
         return (self.render_splat - self.pack_splat) * splats + self.render_px * pixels
+
+    @property
+    def covered(self) -> bool:
+        """Whether the view-coverage units were measured (else :meth:`pack_view` and :meth:`draw_view`
+        fall back to :meth:`pack` and :meth:`draw`)."""
+        return self.draw_splat > 0.0
+
+    def pack_view(self, splats: float, seen: Coverage | None) -> float:
+        """Core-seconds of packing a view of ``splats`` splats that sees ``seen`` (None: the
+        calibration view's coverage): ``c_front·N·front + c_vis·N·visible``."""
+        s = seen or self.seen
+        if not self.covered:
+            return self.pack(splats)
+        return splats * (self.front_splat * s.front + self.visible_splat * s.visible)
+
+    def draw_view(self, splats: float, pixels: float, seen: Coverage | None, keep: float = 1.0) -> float:
+        """Core-seconds of drawing the kept fraction ``keep`` of a packed view of ``splats`` splats at
+        ``pixels`` pixels: ``keep·(c_draw·N·visible + c_frag·overdraw·W·H) + c_img·W·H`` (the pruned
+        splats taken to be as visible and as large as the others)."""
+        s = seen or self.seen
+        if not self.covered:
+            return self.draw(splats * keep, pixels)
+        return keep * (self.draw_splat * splats * s.visible + self.fragment_px * s.overdraw * pixels) \
+            + self.image_px * pixels
+
+    def render_view(self, splats: float, pixels: float, seen: Coverage | None) -> float:
+        """Core-seconds of one whole render (pack + draw) of a view that sees ``seen``."""
+        return self.pack_view(splats, seen) + self.draw_view(splats, pixels, seen)
 
 
 def _read(folder: Path, name: str, notes: list[str]):
@@ -218,6 +274,9 @@ def _calibrated(costs: UnitCosts, folder: Path) -> None:
     except (OSError, ValueError, KeyError, TypeError) as err:
         costs.notes.append(f"{path} is unreadable ({type(err).__name__}): the benchmarks' units are used")
         return
+    if all(isinstance(cal["units"].get(k), (int, float)) for k in COVERAGE_UNITS) and isinstance(cal.get("seen"), dict):
+        units.update({k: float(cal["units"][k]) for k in COVERAGE_UNITS})
+        costs.seen = Coverage(**{k: float(cal["seen"][k]) for k in ("front", "visible", "overdraw")})
     for k, v in units.items():
         setattr(costs, k, v)
         costs.sources[k] = f"{CPU_CALIBRATION} units.{k} ({cal.get('scene', '?')}, {'×'.join(map(str, cal['size']))})"
@@ -235,10 +294,15 @@ def add_methods(costs: UnitCosts, meth: dict, tag: str) -> None:
             side = int(params.get("train_longest_side", params.get("longest_side", 0)))
             iters = params.get("iterations")
             renders = views0 + (int(iters) if iters is not None else 0)
-            k = cpu / (renders * costs.render(n0, train_pixels(size0, side)))
+            k = cpu / (renders * costs.render_view(n0, train_pixels(size0, side), None))
             costs.aware[name] = (k, "iterations" if iters is not None else "views")
             costs.sources[f"aware[{name}]"] = (f"{tag} scoring.{name}.cpu_s / ({renders} training renders of "
                                                f"{int(n0):,} splats at {side or max(size0)} px)")
-        else:
-            costs.score_splat[name] = cpu / n0
-            costs.sources[f"score[{name}]"] = f"{tag} scoring.{name}.cpu_s / {int(n0):,} splats"
+            continue
+        costs.score_splat[name] = cpu / n0
+        costs.sources[f"score[{name}]"] = f"{tag} scoring.{name}.cpu_s / {int(n0):,} splats"
+        if costs.covered and is_rig_shaped(params):  # renders a rig of its own: costed per render, as above
+            renders, px = int(params["views"]), int(params["resolution"]) ** 2
+            costs.aware[name] = (cpu / (renders * costs.render_view(n0, px, None)), "rig")
+            costs.sources[f"aware[{name}]"] = (f"{tag} scoring.{name}.cpu_s / ({renders} renders of its virtual rig, "
+                                               f"{int(n0):,} splats at {params['resolution']} px)")
