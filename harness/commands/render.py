@@ -90,15 +90,18 @@ def _safe(name: str) -> str:
     return stem[:80] or "view"
 
 
-def _save_image(image: np.ndarray, path: Path, fmt: str) -> None:
+def _save_image(image: np.ndarray, path: Path, fmt: str) -> np.ndarray | None:
+    """Write the view; returns its 8-bit pixels when it is a PNG (the contact sheet's thumbnail reuses them)."""
     if fmt == "npy":
         atomic_write_npy(path, np.asarray(image, np.float32))
-    else:
-        from PIL import Image
+        return None
+    from PIL import Image
 
-        from harness.views.contact_sheet import to_uint8
+    from harness.views.contact_sheet import PNG_LEVEL, to_uint8
 
-        atomic_write_with(path, lambda t: Image.fromarray(to_uint8(image)).save(t, format="PNG"))
+    pixels = to_uint8(image)
+    atomic_write_with(path, lambda t: Image.fromarray(pixels).save(t, format="PNG", compress_level=PNG_LEVEL))
+    return pixels
 
 
 def run(args) -> int:
@@ -143,10 +146,10 @@ def run(args) -> int:
     try:
         for i, cam in enumerate(cams):  # one image in memory at a time: rendered, written, thumbnailed
             img = renderer.render(scene, cam, background=background)
-            _save_image(img, out / f"{i:03d}_{_safe(cam.name)}.{args.format}", args.format)
+            pixels = _save_image(img, out / f"{i:03d}_{_safe(cam.name)}.{args.format}", args.format)
             labels.append(cam.name or f"view {i}")
-            sheet.add(img, labels[-1])
-            del img
+            sheet.add(img, labels[-1], pixels=pixels)
+            del img, pixels
         covs = sheet.write(out / "contact_sheet.png")
         write_3dgs_cameras(cams, out / "cameras.json")
         record = [{"view": lab, "width": c.width, "height": c.height, "coverage": round(v, 4)}
