@@ -71,6 +71,7 @@ GL clipper drops the others) and is composited with the background straight into
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 from typing import Self
@@ -97,6 +98,28 @@ def _load_triton_first() -> None:
         return
     except Exception as err:  # noqa: BLE001 - a broken triton install is torch's business, not ours
         log.debug("triton import failed before creating the GL context: %s", err)
+
+
+def wait_without_gil() -> None:
+    """Wait for the current context's drawing with ``glFinish`` called through ctypes, which releases
+    the GIL while the driver works (llvmpipe rasterises in this call): other Python threads run
+    meanwhile (``harness render`` encodes the previous view's PNG), whereas moderngl's read-back
+    holds the GIL until the image is ready. Where no GL library loads, nothing (the read-back then
+    waits, as before); the pixels are the same either way."""
+    _gl_finish()()
+
+
+@functools.lru_cache(maxsize=1)
+def _gl_finish():
+    """``glFinish`` of GLVND's dispatcher (else of the vendor's libGL) as a ctypes function."""
+    import ctypes
+
+    for name in ("libOpenGL.so.0", "libGL.so.1"):
+        try:
+            return ctypes.CDLL(name).glFinish
+        except (OSError, AttributeError):
+            continue
+    return lambda: None
 
 
 FOOTPRINTS = ("box", "tile")
@@ -347,6 +370,7 @@ class GLRenderer:
         for x0, y0, w, h in tiles(width, height, tile):
             self._begin(width, height, x0, y0, w, h)
             self._draw_tile(fbo, vao, len(records), w, h)
+            wait_without_gil()
             img, a = self._composed(fbo, w, h, bg, with_alpha)
             image[y0 : y0 + h, x0 : x0 + w] = img
             if with_alpha:
