@@ -129,8 +129,9 @@ def compare_images(a, b, *, lpips_model: LpipsVGG | None = None, yuv: bool = Fal
     uint8 images are scored by the MPEG metrics as they are (no float round trip). ``device``: where
     SSIM and LPIPS run when no ``lpips_model`` is given (default: :func:`default_lpips`'s device).
     Without a model, LPIPS's network is built (torch's import: 1-2 s on one core) on this thread
-    while the other metrics are computed on a worker thread (numpy and scipy release the GIL), so a
-    one-pair ``compare`` pays for the slower of the two, not their sum; the values are the same."""
+    while the other metrics are computed on a worker thread (numpy releases the GIL), so a one-pair
+    ``compare`` pays for the slower of the two, not their sum; LPIPS itself runs after both, on all
+    cores. The values are the same either way."""
     raw_a, raw_b = a, b
     a, b = as_image(a, "first image"), as_image(b, "second image")
     check_same_size(a, b)
@@ -150,8 +151,8 @@ def compare_images(a, b, *, lpips_model: LpipsVGG | None = None, yuv: bool = Fal
         out = others(lpips_model.device)
         out[LPIPS] = lpips_model(a, b)
     else:
-        out, value = _alongside(lambda: others(device), lambda: _new_lpips(device)(a, b))
-        out[LPIPS] = value
+        out, model = _alongside(lambda: others(device), lambda: _new_lpips(device))
+        out[LPIPS] = model(a, b)  # after the worker: torch's threads then have every core to themselves
     return checked(out, f"these {a.shape[1]}x{a.shape[0]} images")
 
 
