@@ -71,7 +71,6 @@ GL clipper drops the others) and is composited with the background straight into
 
 from __future__ import annotations
 
-import functools
 import logging
 import math
 from typing import Self
@@ -79,6 +78,7 @@ from typing import Self
 import numpy as np
 
 from renderers.gl_shaders import FRAGMENT_SHADER, VERTEX_SHADER
+from renderers.gl_wait import wait_without_gil
 from renderers.packing import PackedView, pack_instances
 
 log = logging.getLogger(__name__)
@@ -98,28 +98,6 @@ def _load_triton_first() -> None:
         return
     except Exception as err:  # noqa: BLE001 - a broken triton install is torch's business, not ours
         log.debug("triton import failed before creating the GL context: %s", err)
-
-
-def wait_without_gil() -> None:
-    """Wait for the current context's drawing with ``glFinish`` called through ctypes, which releases
-    the GIL while the driver works (llvmpipe rasterises in this call): other Python threads run
-    meanwhile (``harness render`` encodes the previous view's PNG), whereas moderngl's read-back
-    holds the GIL until the image is ready. Where no GL library loads, nothing (the read-back then
-    waits, as before); the pixels are the same either way."""
-    _gl_finish()()
-
-
-@functools.lru_cache(maxsize=1)
-def _gl_finish():
-    """``glFinish`` of GLVND's dispatcher (else of the vendor's libGL) as a ctypes function."""
-    import ctypes
-
-    for name in ("libOpenGL.so.0", "libGL.so.1"):
-        try:
-            return ctypes.CDLL(name).glFinish
-        except (OSError, AttributeError):
-            continue
-    return lambda: None
 
 
 FOOTPRINTS = ("box", "tile")
