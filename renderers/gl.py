@@ -78,6 +78,7 @@ from typing import Self
 import numpy as np
 
 from renderers.gl_shaders import FRAGMENT_SHADER, VERTEX_SHADER
+from renderers.gl_wait import wait_without_gil
 from renderers.packing import PackedView, pack_instances
 
 log = logging.getLogger(__name__)
@@ -347,6 +348,7 @@ class GLRenderer:
         for x0, y0, w, h in tiles(width, height, tile):
             self._begin(width, height, x0, y0, w, h)
             self._draw_tile(fbo, vao, len(records), w, h)
+            wait_without_gil()
             img, a = self._composed(fbo, w, h, bg, with_alpha)
             image[y0 : y0 + h, x0 : x0 + w] = img
             if with_alpha:

@@ -38,6 +38,36 @@ def test_compare_images_identical(model):
     assert out["psnr"] == math.inf and out["ssim"] == 1.0 and out["lpips"] == 0.0 and out["psnr_yuv"] == math.inf
 
 
+def test_compare_images_building_its_model_alongside_gives_the_same_values(model):
+    """Without a model the network is built while PSNR/SSIM run on a worker thread: same keys, same bits."""
+    refs, pruned = _views()
+    a, b = refs["v0"], pruned["v0"][1]
+    given = compare_images(a, b, lpips_model=model, yuv=True)
+    for device in (None, "cpu"):
+        built = compare_images(a, b, yuv=True, device=device)
+        assert list(built) == list(given) and built == given
+    assert compare_images(a, b, names=("psnr", "ssim")) == {k: given[k] for k in ("psnr", "ssim")}
+
+
+def test_alongside_runs_both_and_raises_either_error():
+    import threading
+
+    from harness.metrics.suite import _alongside
+
+    names = _alongside(lambda: threading.current_thread().name, lambda: threading.current_thread().name)
+    assert names[0] != names[1] and names[1] == threading.main_thread().name
+
+    def fail(message):
+        raise ValueError(message)
+
+    finished = []
+    with pytest.raises(ValueError, match="background"):
+        _alongside(lambda: fail("background"), lambda: finished.append("front"))
+    assert finished == ["front"]
+    with pytest.raises(ValueError, match="front"):
+        _alongside(lambda: finished.append("back"), lambda: fail("front"))
+
+
 def test_suite_matches_pairwise_scores_and_evicts_to_disk(model, tmp_path):
     refs, pruned = _views()
     suite = MetricSuite(model, feature_dir=tmp_path, max_in_memory=1)

@@ -175,14 +175,7 @@ def compare(a, b, metrics=DEFAULT_METRICS, *, device: str | None = None, yuv: bo
         check_same_size(np.asarray(a), m, name_a, name_m)
         occupied = m if m.dtype == bool and m.ndim == 2 else np.any(as_image(m, name_m) != 0, axis=2)
     check_device(device, "device")
-    model = None
-    if "lpips" in names:
-        import torch
-
-        from harness.metrics.lpips_vgg import LpipsVGG
-
-        model = LpipsVGG(device=None if device is None else torch.device(device))
-    values = compare_images(a, b, lpips_model=model, yuv=yuv, names=names, mask=occupied)
+    values = compare_images(a, b, yuv=yuv, names=names, mask=occupied, device=device)
     if qmiv:  # same keys in both modes; the mode is said once
         values = {k[:-5] if k.endswith("_qmiv") else k: v for k, v in values.items()}
         values["mode"] = "qmiv"

@@ -1,7 +1,8 @@
 """`harness render SCENE [--cameras FILE | --rig NAME] --out DIR`: render views of a scene.
 
 Writes into DIR (created if needed; every file written atomically, one view at a time — a render
-holds one image in memory, not all of them):
+holds at most two images in memory, not all of them: a view is written on a worker thread while the
+next one is drawn, unless it is larger than :data:`OVERLAP_MAX_BYTES`):
 
 * ``NNN_<view name>.png`` (image clamped to [0, 1], 8-bit, no gamma: the linear render as-is) or
   ``.npy`` (float32 H×W×3, linear, unclamped: exactly what the renderer returned);
@@ -39,6 +40,7 @@ the files.
 from __future__ import annotations
 
 import re
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -85,20 +87,28 @@ def add_arguments(parser) -> None:
     parser.add_argument("--background", default="0,0,0", metavar="R,G,B", help="background colour in [0, 1]")
 
 
+#: a view of more bytes than this is written before the next one is drawn (one full image in memory,
+#: not two); smaller ones are written on a worker thread while the next is drawn
+OVERLAP_MAX_BYTES = 256 * 2**20
+
+
 def _safe(name: str) -> str:
     stem = re.sub(r"[^A-Za-z0-9._-]+", "_", Path(name).with_suffix("").as_posix()).strip("._")
     return stem[:80] or "view"
 
 
-def _save_image(image: np.ndarray, path: Path, fmt: str) -> None:
+def _save_image(image: np.ndarray, path: Path, fmt: str) -> np.ndarray | None:
+    """Write the view; returns its 8-bit pixels when it is a PNG (the contact sheet's thumbnail reuses them)."""
     if fmt == "npy":
         atomic_write_npy(path, np.asarray(image, np.float32))
-    else:
-        from PIL import Image
+        return None
+    from PIL import Image
 
-        from harness.views.contact_sheet import to_uint8
+    from harness.views.contact_sheet import PNG_LEVEL, to_uint8
 
-        atomic_write_with(path, lambda t: Image.fromarray(to_uint8(image)).save(t, format="PNG"))
+    pixels = to_uint8(image)
+    atomic_write_with(path, lambda t: Image.fromarray(pixels).save(t, format="PNG", compress_level=PNG_LEVEL))
+    return pixels
 
 
 def run(args) -> int:
@@ -139,14 +149,29 @@ def run(args) -> int:
     make_output_folder(out)  # created, writable (not /proc, not read-only), stale temp files swept
     refuse_inputs(*(out / n for n in ("cameras.json", "coverage.json", "contact_sheet.png")),  # before any write
                   *(out / f"{i:03d}_{_safe(c.name)}.{args.format}" for i, c in enumerate(cams)))
-    sheet, labels = ContactSheet(len(cams), background=background), []
+    sheet, labels = ContactSheet(len(cams), background=background), [c.name or f"view {i}" for i, c in enumerate(cams)]
+
+    def keep(i: int, held: list) -> None:
+        """Write and thumbnail view ``i``, the one image in ``held`` (taken out: freed on return)."""
+        img = held.pop()
+        pixels = _save_image(img, out / f"{i:03d}_{_safe(cams[i].name)}.{args.format}", args.format)
+        sheet.add(img, labels[i], pixels=pixels)
+
     try:
-        for i, cam in enumerate(cams):  # one image in memory at a time: rendered, written, thumbnailed
-            img = renderer.render(scene, cam, background=background)
-            _save_image(img, out / f"{i:03d}_{_safe(cam.name)}.{args.format}", args.format)
-            labels.append(cam.name or f"view {i}")
-            sheet.add(img, labels[-1])
-            del img
+        with ThreadPoolExecutor(1, thread_name_prefix="render-writer") as writer:
+            pending = None  # the previous view's writing, done while this one is drawn (GL waits without the GIL)
+            for i, cam in enumerate(cams):
+                held = [renderer.render(scene, cam, background=background)]
+                if pending is not None:
+                    pending.result()  # in view order; its error ends the render
+                    pending = None
+                if held[0].nbytes > OVERLAP_MAX_BYTES:  # written before the next view is drawn
+                    keep(i, held)
+                else:
+                    pending = writer.submit(keep, i, held)
+                del held
+            if pending is not None:
+                pending.result()
         covs = sheet.write(out / "contact_sheet.png")
         write_3dgs_cameras(cams, out / "cameras.json")
         record = [{"view": lab, "width": c.width, "height": c.height, "coverage": round(v, 4)}

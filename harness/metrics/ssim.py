@@ -17,8 +17,9 @@ differ by the border's contribution: +5e-3 to +6e-3 on the 512x512 astronaut deg
 noise (the zero padding both images share makes border windows partly identical, so they score
 higher), more on smaller images.
 
-The separable Gaussian runs over all planes at once (scipy on CPU, ``conv2d`` on GPU);
-float64 by default so the E[x^2] - mu^2 cancellation stays far below 1e-5. On the CPU the images
+The separable Gaussian runs over all planes at once (numpy on CPU, bit for bit scipy's
+``correlate1d``; ``conv2d`` on GPU); float64 by default so the E[x^2] - mu^2 cancellation stays far
+below 1e-5. On the CPU the images
 are numpy arrays and torch is not imported (``harness compare --metrics ssim``); on another device
 they are torch tensors. The arithmetic is the same elementwise float64 in both, so the CPU values
 are the bits the torch form gave there.
@@ -51,18 +52,18 @@ def _lib(x):
     return torch
 
 
-def blur_scipy(x, taps: np.ndarray):
+def blur_numpy(x, taps: np.ndarray):
     """Separable zero-padded 'same' correlation of CPU ``x`` (..., H, W) with ``taps`` on both axes
-    (a numpy array, or a CPU tensor: the result is of the same kind)."""
-    from scipy import ndimage
+    (a numpy array, or a CPU tensor: the result is of the same kind): ``scipy.ndimage.correlate1d``
+    along W then H, bit for bit (:func:`harness.core.correlate.correlate_symmetric`, in numpy)."""
+    from harness.core.correlate import correlate_symmetric
 
-    a = ndimage.correlate1d(np.asarray(x), taps, axis=-1, mode="constant", cval=0.0)
-    out = ndimage.correlate1d(a, taps, axis=-2, mode="constant", cval=0.0)
+    out = correlate_symmetric(correlate_symmetric(np.asarray(x), taps, axis=-1), taps, axis=-2)
     return out if isinstance(x, np.ndarray) else _lib(x).from_numpy(out)
 
 
 def blur_torch(x, taps: np.ndarray):
-    """Same as :func:`blur_scipy` with two 1-D ``conv2d`` passes (any device)."""
+    """Same as :func:`blur_numpy` with two 1-D ``conv2d`` passes (any device)."""
     import torch
 
     h, w = x.shape[-2:]
@@ -75,8 +76,8 @@ def blur_torch(x, taps: np.ndarray):
 
 
 def _blur(x, taps: np.ndarray):
-    # scipy is about 3x faster than torch's float64 conv2d on CPU; conv2d serves GPUs
-    return blur_scipy(x, taps) if isinstance(x, np.ndarray) or x.device.type == "cpu" else blur_torch(x, taps)
+    # numpy is several times faster than torch's float64 conv2d on CPU; conv2d serves GPUs
+    return blur_numpy(x, taps) if isinstance(x, np.ndarray) or x.device.type == "cpu" else blur_torch(x, taps)
 
 
 def moments(x, blur=None):
@@ -88,7 +89,7 @@ def moments(x, blur=None):
 def ssim_map(x, y, data_range: float = 1.0, blur=None, x_moments=None):
     """Per-pixel SSIM of batched images ``(B, C, H, W)`` (zero-padded 'same' map, same shape).
 
-    ``blur`` overrides the Gaussian implementation (:func:`blur_scipy` / :func:`blur_torch`);
+    ``blur`` overrides the Gaussian implementation (:func:`blur_numpy` / :func:`blur_torch`);
     ``x_moments`` are :func:`moments` of ``x`` when already computed (the blur filters every plane on
     its own, so they are the values a joint filtering gives).
     """
@@ -106,7 +107,7 @@ def ssim_map(x, y, data_range: float = 1.0, blur=None, x_moments=None):
 class SsimReference:
     """The first image's side of :func:`ssim_batch` (its array and :func:`moments`), computed once
     for a reference scored against many images: ``ssim_batch(ref, b)`` with ``ref`` one of these.
-    ``blur``: the Gaussian used for it and for every image scored against it (default: scipy on
+    ``blur``: the Gaussian used for it and for every image scored against it (default: numpy on
     the CPU, ``conv2d`` elsewhere; :func:`blur_torch` is the torch form on any device, and makes the
     arrays torch tensors on the CPU too)."""
 

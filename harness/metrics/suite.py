@@ -122,24 +122,64 @@ def _on_cuda(device) -> bool:
 
 
 def compare_images(a, b, *, lpips_model: LpipsVGG | None = None, yuv: bool = False,
-                   names=("psnr", "ssim", "lpips"), mask=None) -> dict:
+                   names=("psnr", "ssim", "lpips"), mask=None, device=None) -> dict:
     """``{"psnr", "ssim", "lpips"}`` (plus ``psnr_y/u/v/yuv`` with ``yuv=True``) of two images, or
     the metrics ``names`` (MPEG ones with ``occupancy`` when masked; ``mask``: see :mod:`.mpeg`).
 
-    uint8 images are scored by the MPEG metrics as they are (no float round trip)."""
+    uint8 images are scored by the MPEG metrics as they are (no float round trip). ``device``: where
+    SSIM and LPIPS run when no ``lpips_model`` is given (default: :func:`default_lpips`'s device).
+    Without a model, LPIPS's network is built (torch's import: 1-2 s on one core) on this thread
+    while the other metrics are computed on a worker thread (numpy releases the GIL), so a one-pair
+    ``compare`` pays for the slower of the two, not their sum; LPIPS itself runs after both, on all
+    cores. The values are the same either way."""
     raw_a, raw_b = a, b
     a, b = as_image(a, "first image"), as_image(b, "second image")
     check_same_size(a, b)
     u8 = lambda raw, f: raw if isinstance(raw, np.ndarray) and raw.dtype == np.uint8 and raw.ndim == 3 \
         and raw.shape[2] >= 3 else f  # noqa: E731
-    model = (lpips_model or default_lpips()) if LPIPS in names else None
-    out = pair_values(a, b, names, device=model.device if model else None, mask=mask,
-                      raw=(u8(raw_a, a), u8(raw_b, b)))
-    if yuv:
-        out.update(yuv_psnr(a, b))
-    if model is not None:
-        out[LPIPS] = model(a, b)
+    wants_lpips = LPIPS in names
+
+    def others(dev) -> dict:
+        out = pair_values(a, b, names, device=dev, mask=mask, raw=(u8(raw_a, a), u8(raw_b, b)))
+        if yuv:
+            out.update(yuv_psnr(a, b))
+        return out
+
+    if not wants_lpips:
+        out = others(device)
+    elif lpips_model is not None:
+        out = others(lpips_model.device)
+        out[LPIPS] = lpips_model(a, b)
+    else:
+        out, model = _alongside(lambda: others(device), lambda: _new_lpips(device))
+        out[LPIPS] = model(a, b)  # after the worker: torch's threads then have every core to themselves
     return checked(out, f"these {a.shape[1]}x{a.shape[0]} images")
+
+
+def _new_lpips(device) -> LpipsVGG:
+    """The shared model on the default device, else a new one on ``device``."""
+    if device is None:
+        return default_lpips()
+    from harness.metrics.lpips_vgg import LpipsVGG
+
+    return LpipsVGG(device=device)
+
+
+def _alongside(background, foreground):
+    """``(background(), foreground())`` with ``background`` run on a worker thread while
+    ``foreground`` runs on this one. An error of the foreground is raised as soon as the background
+    has stopped (it is cancelled if it has not started); one of the background is raised after the
+    foreground has finished."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(1, thread_name_prefix="compare") as pool:
+        pending = pool.submit(background)
+        try:
+            front = foreground()
+        except BaseException:
+            pending.cancel()
+            raise
+        return pending.result(), front
 
 
 class MetricSuite:

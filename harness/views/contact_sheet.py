@@ -26,21 +26,38 @@ GAP = 4
 
 def coverage(image: np.ndarray, background=(0.0, 0.0, 0.0), *, alpha: np.ndarray | None = None,
              threshold: float = 1.0 / 255.0) -> float:
-    """Fraction of pixels showing content (module docstring): in [0, 1]."""
+    """Fraction of pixels showing content (module docstring): in [0, 1]. A channel's NaN leaves its
+    pixel uncounted (the pixel's largest difference is NaN)."""
     if alpha is not None:
         return float(np.mean(np.asarray(alpha) > threshold))
     img = np.asarray(image, np.float32)
-    diff = np.abs(img - np.asarray(background, np.float32).reshape(1, 1, 3)).max(axis=2)
-    return float(np.mean(diff > threshold))
+    bg = np.asarray(background, np.float32).reshape(3)
+    # the largest of the three channels' differences, channel against channel (an order of magnitude
+    # faster than a max over the last axis, same values); the fraction is an exact count over the size
+    diff = np.abs(img[..., 0] - bg[0])
+    for c in (1, 2):
+        np.maximum(diff, np.abs(img[..., c] - bg[c]), out=diff)
+    return np.count_nonzero(diff > threshold) / diff.size
+
+
+#: PNG compression of renders and sheets: zlib level 1 (lossless like every level; files ~25 % larger
+#: than PIL's default 6, written in ~60 % of its time)
+PNG_LEVEL = 1
 
 
 def to_uint8(image: np.ndarray) -> np.ndarray:
-    """Clamp to [0, 1] and quantise (round half up) to uint8, no gamma: the PNG encoding."""
-    return (np.clip(np.nan_to_num(np.asarray(image, np.float32)), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+    """Clamp to [0, 1] and quantise (round half up) to uint8, no gamma: the PNG encoding. NaN → 0,
+    +inf → 255, −inf → 0 (``fmax``/``fmin`` take the number where one side is NaN)."""
+    x = np.fmax(np.asarray(image, np.float32), np.float32(0.0))
+    np.fmin(x, np.float32(1.0), out=x)
+    x *= np.float32(255.0)
+    x += np.float32(0.5)
+    return x.astype(np.uint8)
 
 
-def _thumbnail(image: np.ndarray, longest: int) -> Image.Image:
-    im = Image.fromarray(to_uint8(image))
+def _thumbnail(pixels: np.ndarray, longest: int) -> Image.Image:
+    """``pixels`` (uint8, :func:`to_uint8`) shrunk to ``longest`` px on the long side (Lanczos)."""
+    im = Image.fromarray(pixels)
     s = longest / max(im.size)
     if s < 1:
         im = im.resize((max(1, round(im.width * s)), max(1, round(im.height * s))), Image.Resampling.LANCZOS)
@@ -68,10 +85,11 @@ class ContactSheet:
         self.labels: list[str] = []
         self.covs: list[float] = []
 
-    def add(self, image: np.ndarray, label: str) -> float:
-        """Keep the view's thumbnail and label; returns its coverage."""
+    def add(self, image: np.ndarray, label: str, *, pixels: np.ndarray | None = None) -> float:
+        """Keep the view's thumbnail and label; returns its coverage. ``pixels``: the image's
+        :func:`to_uint8` when the caller has it already (its PNG)."""
         cov = coverage(image, self.background)
-        self.thumbs.append(_thumbnail(image, self.thumb_longest))
+        self.thumbs.append(_thumbnail(to_uint8(image) if pixels is None else pixels, self.thumb_longest))
         self.labels.append(label)
         self.covs.append(cov)
         return cov
@@ -96,7 +114,7 @@ class ContactSheet:
         path = Path(path)
         tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
         try:
-            sheet.save(tmp, format="PNG")
+            sheet.save(tmp, format="PNG", compress_level=PNG_LEVEL)
             os.replace(tmp, path)
         except BaseException:
             tmp.unlink(missing_ok=True)
