@@ -11,6 +11,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from harness.core.errors import InputError, StorageFull
 from harness.run.executors.base import Bars, Executor, Stage
 from harness.run.tasks import init_worker, run_view
 
@@ -139,8 +140,6 @@ class RayExecutor(Executor):
         try:
             import ray
         except ImportError:
-            from harness.core.errors import InputError
-
             raise InputError(
                 "--executor ray", "needs the ray package (pip install -e '.[ray]'; setup.sh installs it)"
             ) from None
@@ -167,8 +166,6 @@ class RayExecutor(Executor):
             try:
                 ray.init(**kw)
             except Exception as err:  # noqa: BLE001 - ConnectionError, RuntimeError, TimeoutError ...
-                from harness.core.errors import InputError
-
                 raise InputError("--executor ray", f"Ray could not {'start' if self.address is None else 'join'} "
                                                    f"the cluster: {type(err).__name__}: "
                                                    f"{' '.join(str(err).split())[:200]}") from None
@@ -187,8 +184,6 @@ class RayExecutor(Executor):
         return self._ray
 
     def _check_resources(self) -> None:
-        from harness.core.errors import InputError
-
         res = self._ray.cluster_resources()
         if res.get("CPU", 0) < self.threads:
             raise InputError(
@@ -206,7 +201,6 @@ class RayExecutor(Executor):
         not shared (a node-local /tmp) or an unreachable URL fails now, not as missing entries later."""
         import uuid
 
-        from harness.core.errors import InputError
         from harness.run.cache.entries import Sealer, cache_secret
         from harness.run.cache.stores import open_store
 
@@ -310,8 +304,6 @@ class RayExecutor(Executor):
     def _result(self, ray, ref, job: _Job) -> dict:
         from ray.exceptions import RayTaskError, TaskCancelledError
 
-        from harness.core.errors import StorageFull
-
         what = f"{job.stage.name} {getattr(job.task, 'label', '') or ''}".strip()
         try:
             return ray.get(ref)
@@ -324,8 +316,6 @@ class RayExecutor(Executor):
         except TaskCancelledError:
             return job.task.failed(f"{what}: cancelled")
         except ray.exceptions.LocalRayletDiedError:  # no task can run any more: stop the run, say why
-            from harness.core.errors import InputError
-
             raise InputError("--executor ray", "the Ray cluster stopped during the run: the raylet of this node "
                                                "died (killed, out of memory, or its runtime-env agent died); what "
                                                "was computed is in the stage cache, a rerun resumes there") from None
