@@ -40,13 +40,13 @@ the files.
 from __future__ import annotations
 
 import re
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
 from harness.core import jsonout
 from harness.core.errors import InputError
+from harness.core.overlap import overlapped
 from harness.io.files import atomic_write_npy, atomic_write_text, atomic_write_with
 from harness.views.rigs import ASPECT, LONGEST_SIDE, MAX_VIEWS, N_TEST, N_TRAIN, RIG_CHOICES
 from renderers import RENDERERS
@@ -151,27 +151,19 @@ def run(args) -> int:
                   *(out / f"{i:03d}_{_safe(c.name)}.{args.format}" for i, c in enumerate(cams)))
     sheet, labels = ContactSheet(len(cams), background=background), [c.name or f"view {i}" for i, c in enumerate(cams)]
 
-    def keep(i: int, held: list) -> None:
-        """Write and thumbnail view ``i``, the one image in ``held`` (taken out: freed on return)."""
-        img = held.pop()
+    def draw(i: int) -> tuple[int, np.ndarray]:
+        return i, renderer.render(scene, cams[i], background=background)
+
+    def keep(drawn: tuple[int, np.ndarray]) -> None:
+        """Write and thumbnail view ``i``."""
+        i, img = drawn
         pixels = _save_image(img, out / f"{i:03d}_{_safe(cams[i].name)}.{args.format}", args.format)
         sheet.add(img, labels[i], pixels=pixels)
 
-    try:
-        with ThreadPoolExecutor(1, thread_name_prefix="render-writer") as writer:
-            pending = None  # the previous view's writing, done while this one is drawn (GL waits without the GIL)
-            for i, cam in enumerate(cams):
-                held = [renderer.render(scene, cam, background=background)]
-                if pending is not None:
-                    pending.result()  # in view order; its error ends the render
-                    pending = None
-                if held[0].nbytes > OVERLAP_MAX_BYTES:  # written before the next view is drawn
-                    keep(i, held)
-                else:
-                    pending = writer.submit(keep, i, held)
-                del held
-            if pending is not None:
-                pending.result()
+    try:  # the previous view written while this one is drawn (GL waits without the GIL), large ones before
+        for _ in overlapped(range(len(cams)), draw, keep, inline=lambda d: d[1].nbytes > OVERLAP_MAX_BYTES,
+                            name="render-writer"):
+            pass
         covs = sheet.write(out / "contact_sheet.png")
         write_3dgs_cameras(cams, out / "cameras.json")
         record = [{"view": lab, "width": c.width, "height": c.height, "coverage": round(v, 4)}

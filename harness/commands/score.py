@@ -155,13 +155,17 @@ def score_views(source, processed, cams, renderer, *, qmiv: bool = False, lpips=
     A view's metrics run in a second thread while the next view renders: the renderer holds the
     interpreter lock only in its own calls and the metrics' kernels release it, so the two overlap.
     Rows come back (and ``progress`` sees them) in view order, each value the one computed alone."""
-    from concurrent.futures import ThreadPoolExecutor
-
+    from harness.core.overlap import overlapped
     from harness.metrics.mpeg import occupancy_mask, tool_metrics
 
-    rows: list[dict] = []
+    def draw(i: int) -> tuple:
+        t0 = time.perf_counter()
+        a, alpha_a = renderer.render_with_alpha(source, cams[i], (0.0, 0.0, 0.0))
+        b, alpha_b = renderer.render_with_alpha(processed, cams[i], (0.0, 0.0, 0.0))
+        return cams[i].name or f"view_{i:04d}", a, b, occupancy_mask(alpha_a, alpha_b), time.perf_counter() - t0
 
-    def measure(name, a, b, mask, render_s):
+    def measure(drawn: tuple) -> dict:
+        name, a, b, mask, render_s = drawn
         t0 = time.perf_counter()
         r = tool_metrics(a, b, mask, qmiv=qmiv)
         row = {"view": name, **{k: r[k] for k, _, _ in COLUMNS}}
@@ -170,24 +174,11 @@ def score_views(source, processed, cams, renderer, *, qmiv: bool = False, lpips=
         row.update(render_s=render_s, metrics_s=time.perf_counter() - t0)
         return row
 
-    def collect(future):
-        rows.append(future.result())
+    rows = []
+    for row in overlapped(range(len(cams)), draw, measure, name="score-metrics"):
+        rows.append(row)
         if progress:
-            progress(rows[-1])
-
-    with ThreadPoolExecutor(1, thread_name_prefix="score-metrics") as pool:
-        pending = None
-        for i, cam in enumerate(cams):
-            t0 = time.perf_counter()
-            a, alpha_a = renderer.render_with_alpha(source, cam, (0.0, 0.0, 0.0))
-            b, alpha_b = renderer.render_with_alpha(processed, cam, (0.0, 0.0, 0.0))
-            job = pool.submit(measure, cam.name or f"view_{i:04d}", a, b, occupancy_mask(alpha_a, alpha_b),
-                              time.perf_counter() - t0)
-            if pending is not None:
-                collect(pending)
-            pending = job
-        if pending is not None:
-            collect(pending)
+            progress(row)
     return rows
 
 
